@@ -1,0 +1,487 @@
+//! The preloaded cable drive: two halves between a motor pulley and an output drum.
+
+use serde::{Deserialize, Serialize};
+
+use super::half::{CableHalf, HalfTrial};
+use super::newton::{solve_increasing, RootError};
+
+/// How the cable crosses between pulley and drum.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Routing {
+    /// Crossed spans (internal tangents): `Lf = sqrt(L^2 - (ro + ri)^2)`. The usual layout.
+    #[default]
+    FigureEight,
+    /// Open spans (external tangents): `Lf = sqrt(L^2 - (ro - ri)^2)`.
+    Open,
+}
+
+/// Geometry and material of the cable drive. Field names carry their units; the defaults
+/// are the published bench (physics.md section 6).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DriveParams {
+    /// Cable routing between pulley and drum.
+    #[serde(default)]
+    pub routing: Routing,
+    /// Motor pulley radius `ri`, m (0.020 on the bench).
+    pub pulley_radius_m: f64,
+    /// Output drum radius `ro`, m (0.1025 on the bench).
+    pub drum_radius_m: f64,
+    /// Distance between pulley and drum axes `L`, m (0.1450595 on the bench).
+    pub center_distance_m: f64,
+    /// Tensile stiffness `E*A` of the cable, N (1.4e4 on the bench).
+    pub cable_modulus_n: f64,
+    /// Coulomb friction coefficient between cable and pulley surfaces (0.2 on the bench).
+    pub friction_coefficient: f64,
+    /// Cable preload set by the turnbuckle, N (100 on the bench).
+    pub preload_n: f64,
+    /// Wrap on the drum per half, from contact point to anchor, rad (pi on the bench).
+    pub drum_wrap_rad: f64,
+    /// Total wrap around the pulley, rad (6*pi, three turns, on the bench); each half owns
+    /// half of it.
+    pub pulley_wrap_rad: f64,
+}
+
+impl Default for DriveParams {
+    fn default() -> Self {
+        DriveParams {
+            routing: Routing::FigureEight,
+            pulley_radius_m: 0.020,
+            drum_radius_m: 0.1025,
+            center_distance_m: 0.1450595,
+            cable_modulus_n: 1.4e4,
+            friction_coefficient: 0.2,
+            preload_n: 100.0,
+            drum_wrap_rad: std::f64::consts::PI,
+            pulley_wrap_rad: 6.0 * std::f64::consts::PI,
+        }
+    }
+}
+
+/// A parameter set the model cannot use, with what is allowed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DriveParamError {
+    /// A value outside its physical range.
+    #[error("drive.{key} = {value} is out of range: {allowed}")]
+    OutOfRange {
+        /// Scenario key below `[drive]`.
+        key: &'static str,
+        /// The offending value.
+        value: f64,
+        /// What is allowed.
+        allowed: &'static str,
+    },
+    /// Pulleys overlap for the chosen routing: no free span exists.
+    #[error(
+        "drive.center_distance_m = {center_distance_m} is too small for {routing:?} routing: it must exceed {min_m:.6} m (the spans would have no length)"
+    )]
+    NoFreeSpan {
+        /// The given centre distance, m.
+        center_distance_m: f64,
+        /// Routing in use.
+        routing: Routing,
+        /// Smallest admissible centre distance, m.
+        min_m: f64,
+    },
+}
+
+impl DriveParams {
+    /// Transmission ratio `ic = ro / ri` (5.125 on the bench).
+    pub fn ratio(&self) -> f64 {
+        self.drum_radius_m / self.pulley_radius_m
+    }
+
+    /// Free-span length `Lf` of each half for the routing, m (0.0777 on the bench).
+    pub fn free_span_m(&self) -> f64 {
+        let l = self.center_distance_m;
+        let r = match self.routing {
+            Routing::FigureEight => self.drum_radius_m + self.pulley_radius_m,
+            Routing::Open => self.drum_radius_m - self.pulley_radius_m,
+        };
+        (l * l - r * r).max(0.0).sqrt()
+    }
+
+    /// Check physical ranges and the geometry.
+    pub fn validate(&self) -> Result<(), DriveParamError> {
+        fn positive(key: &'static str, value: f64) -> Result<(), DriveParamError> {
+            if value.is_finite() && value > 0.0 {
+                Ok(())
+            } else {
+                Err(DriveParamError::OutOfRange {
+                    key,
+                    value,
+                    allowed: "a finite number > 0",
+                })
+            }
+        }
+        positive("pulley_radius_m", self.pulley_radius_m)?;
+        positive("drum_radius_m", self.drum_radius_m)?;
+        positive("center_distance_m", self.center_distance_m)?;
+        positive("cable_modulus_n", self.cable_modulus_n)?;
+        positive("preload_n", self.preload_n)?;
+        positive("drum_wrap_rad", self.drum_wrap_rad)?;
+        positive("pulley_wrap_rad", self.pulley_wrap_rad)?;
+        let mu = self.friction_coefficient;
+        if !(mu.is_finite() && mu > 0.0 && mu <= 1.0) {
+            return Err(DriveParamError::OutOfRange {
+                key: "friction_coefficient",
+                value: mu,
+                allowed: "a number in (0, 1]",
+            });
+        }
+        let min_m = match self.routing {
+            Routing::FigureEight => self.drum_radius_m + self.pulley_radius_m,
+            Routing::Open => (self.drum_radius_m - self.pulley_radius_m).abs(),
+        };
+        if self.center_distance_m <= min_m {
+            return Err(DriveParamError::NoFreeSpan {
+                center_distance_m: self.center_distance_m,
+                routing: self.routing,
+                min_m,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Which history model the drive uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum HysteresisModel {
+    /// Capstan friction with memory of past loads (tension bumps, wiping-out).
+    #[default]
+    Memory,
+    /// Every state computed from the virgin preloaded cable (Lu and Fan style baseline).
+    Memoryless,
+}
+
+/// Which cable half.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Half {
+    /// Upper half (free span C-D); tightened by positive transmitted torque.
+    Upper,
+    /// Lower half (free span G-H).
+    Lower,
+}
+
+impl std::fmt::Display for Half {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Half::Upper => "upper",
+            Half::Lower => "lower",
+        })
+    }
+}
+
+/// A state the cable cannot reach: the drive's capacity is exceeded.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum DriveFault {
+    /// A span would need negative tension: the cable cannot push.
+    #[error("{half} span goes slack (tension would fall to 0 N) at transmitted torque {torque_nm:.4} N m; raise preload_n above about {needed_preload_n:.1} N or reduce the load")]
+    Slack {
+        /// The half that goes slack.
+        half: Half,
+        /// Transmitted torque at which it happens, N m (NaN-free; 0 in displacement mode).
+        torque_nm: f64,
+        /// Rough preload needed to carry this torque, `|M|/(2 ro)`, N.
+        needed_preload_n: f64,
+    },
+    /// A pulley slip zone reached the neutral point: the cable slides around the pulley.
+    #[error("gross slip of the {half} half on the pulley: slip zone {slip_angle_rad:.3} rad reaches the neutral point at {available_rad:.3} rad (tension {tension_n:.2} N); increase the pulley wrap, preload or friction, or reduce the load")]
+    GrossSlip {
+        /// The half that slips.
+        half: Half,
+        /// Slip-zone length the load demands, rad.
+        slip_angle_rad: f64,
+        /// Wrap available to that half on the pulley, rad.
+        available_rad: f64,
+        /// Span tension demanded, N.
+        tension_n: f64,
+    },
+}
+
+/// One quasi-static or dynamic state of the drive.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct DriveState {
+    /// Upper span tension `Tu`, N.
+    pub tension_upper_n: f64,
+    /// Lower span tension `Tl`, N.
+    pub tension_lower_n: f64,
+    /// Relative surface displacement `D = ri*theta_in - ro*theta_out`, m.
+    pub surface_displacement_m: f64,
+    /// Transmission error `e = theta_out - theta_in/ic = -D/ro`, rad.
+    pub transmission_error_rad: f64,
+    /// Elongation of the upper half, m (equals `D` at equilibrium).
+    pub elongation_upper_m: f64,
+    /// Elongation of the lower half, m (equals `-D` at equilibrium).
+    pub elongation_lower_m: f64,
+    /// Slip-zone lengths, rad: `[upper drum, upper pulley, lower drum, lower pulley]`.
+    pub slip_angles_rad: [f64; 4],
+    /// Whether the drum slip zone of `[upper, lower]` reaches the anchor (profile cut there).
+    pub anchor_reached: [bool; 2],
+}
+
+impl DriveState {
+    /// Torque the cable transmits to the drum, `ro*(Tu - Tl)`, N m.
+    pub fn torque_nm(&self, drum_radius_m: f64) -> f64 {
+        drum_radius_m * (self.tension_upper_n - self.tension_lower_n)
+    }
+}
+
+/// The cable drive with its wrap memory.
+#[derive(Clone, Debug)]
+pub struct CableDrive {
+    params: DriveParams,
+    model: HysteresisModel,
+    upper: CableHalf,
+    lower: CableHalf,
+    state: DriveState,
+}
+
+/// Relative tolerance on span tensions of every solve (far below any measurable effect).
+const TENSION_RTOL: f64 = 1e-13;
+
+impl CableDrive {
+    /// A preloaded drive in its virgin state. `params` should have passed
+    /// [`DriveParams::validate`].
+    pub fn new(params: DriveParams, model: HysteresisModel) -> Self {
+        let remembers = model == HysteresisModel::Memory;
+        let half = || {
+            CableHalf::new(
+                params.free_span_m(),
+                params.drum_radius_m,
+                params.drum_wrap_rad,
+                params.pulley_radius_m,
+                0.5 * params.pulley_wrap_rad,
+                params.friction_coefficient,
+                params.preload_n,
+                params.cable_modulus_n,
+                remembers,
+            )
+        };
+        let state = DriveState {
+            tension_upper_n: params.preload_n,
+            tension_lower_n: params.preload_n,
+            ..DriveState::default()
+        };
+        CableDrive {
+            upper: half(),
+            lower: half(),
+            params,
+            model,
+            state,
+        }
+    }
+
+    /// Parameters in use.
+    pub fn params(&self) -> &DriveParams {
+        &self.params
+    }
+
+    /// History model in use.
+    pub fn model(&self) -> HysteresisModel {
+        self.model
+    }
+
+    /// Last committed state.
+    pub fn state(&self) -> &DriveState {
+        &self.state
+    }
+
+    /// Upper half (wrap profiles for plots).
+    pub fn upper(&self) -> &CableHalf {
+        &self.upper
+    }
+
+    /// Lower half.
+    pub fn lower(&self) -> &CableHalf {
+        &self.lower
+    }
+
+    /// Back to the virgin preloaded state.
+    pub fn reset(&mut self) {
+        self.upper.reset();
+        self.lower.reset();
+        self.state = DriveState {
+            tension_upper_n: self.params.preload_n,
+            tension_lower_n: self.params.preload_n,
+            ..DriveState::default()
+        };
+    }
+
+    fn state_from(&self, tu: f64, tl: f64, up: &HalfTrial, lo: &HalfTrial) -> DriveState {
+        // Both halves give D at equilibrium; their mean cancels the residual of the solve.
+        let d = 0.5 * (up.elongation_m - lo.elongation_m);
+        DriveState {
+            tension_upper_n: tu,
+            tension_lower_n: tl,
+            surface_displacement_m: d,
+            transmission_error_rad: -d / self.params.drum_radius_m,
+            elongation_upper_m: up.elongation_m,
+            elongation_lower_m: lo.elongation_m,
+            slip_angles_rad: [
+                up.drum.slip_angle_rad,
+                up.pulley.slip_angle_rad,
+                lo.drum.slip_angle_rad,
+                lo.pulley.slip_angle_rad,
+            ],
+            anchor_reached: [up.drum.reaches_end, lo.drum.reaches_end],
+        }
+    }
+
+    fn check_pulley(&self, half: Half, tension_n: f64, t: &HalfTrial) -> Result<(), DriveFault> {
+        if t.pulley.reaches_end {
+            // Where the slip zone would end on an infinitely long pulley wrap.
+            let demanded =
+                (tension_n / self.params.preload_n).ln().abs() / self.params.friction_coefficient;
+            return Err(DriveFault::GrossSlip {
+                half,
+                slip_angle_rad: demanded.max(t.pulley.slip_angle_rad),
+                available_rad: 0.5 * self.params.pulley_wrap_rad,
+                tension_n,
+            });
+        }
+        Ok(())
+    }
+
+    /// Quasi-static state when the cable transmits torque `torque_nm` (N m, `M = -Ml`,
+    /// positive tightens the upper span), without committing it to memory.
+    ///
+    /// Solves `Tu - Tl = M/ro` and `elong_u(Tu) + elong_l(Tl) = 0` by safeguarded Newton.
+    pub fn trial_torque(&self, torque_nm: f64) -> Result<DriveState, DriveFault> {
+        let dt = torque_nm / self.params.drum_radius_m;
+        let pre = self.params.preload_n;
+        // Tl = Tu - dt > 0 and Tu > 0.
+        let lower_bound = dt.max(0.0);
+        let guess = (self.state.tension_upper_n
+            + 0.5 * (dt - (self.state.tension_upper_n - self.state.tension_lower_n)))
+            .max(lower_bound + 1e-3 * pre);
+        let residual = |tu: f64| {
+            let up = self.upper.trial(tu);
+            let lo = self.lower.trial(tu - dt);
+            (
+                up.elongation_m + lo.elongation_m,
+                up.d_elongation_m_per_n + lo.d_elongation_m_per_n,
+            )
+        };
+        let tu = match solve_increasing(residual, lower_bound, guess, pre, TENSION_RTOL) {
+            Ok(tu) => tu,
+            Err(RootError::BelowDomain) => {
+                return Err(DriveFault::Slack {
+                    half: if dt >= 0.0 { Half::Lower } else { Half::Upper },
+                    torque_nm,
+                    needed_preload_n: dt.abs() / 2.0,
+                })
+            }
+        };
+        let tl = tu - dt;
+        let up = self.upper.trial(tu);
+        let lo = self.lower.trial(tl);
+        self.check_pulley(Half::Upper, tu, &up)?;
+        self.check_pulley(Half::Lower, tl, &lo)?;
+        Ok(self.state_from(tu, tl, &up, &lo))
+    }
+
+    /// Quasi-static step: apply transmitted torque `torque_nm` and commit the new tension
+    /// profiles. On a fault nothing is committed.
+    pub fn apply_torque(&mut self, torque_nm: f64) -> Result<DriveState, DriveFault> {
+        let state = self.trial_torque(torque_nm)?;
+        self.commit_state(state);
+        Ok(state)
+    }
+
+    /// Span tensions for a prescribed relative surface displacement `D` (m), as in the
+    /// dynamic model: `elong_u(Tu) = D`, `elong_l(Tl) = -D`. Nothing is committed.
+    pub fn trial_displacement(&self, displacement_m: f64) -> Result<DriveState, DriveFault> {
+        let pre = self.params.preload_n;
+        let solve = |half: &CableHalf, target: f64, guess: f64, which: Half| {
+            solve_increasing(
+                |t| {
+                    let tr = half.trial(t);
+                    (tr.elongation_m - target, tr.d_elongation_m_per_n)
+                },
+                0.0,
+                guess,
+                pre,
+                TENSION_RTOL,
+            )
+            .map_err(|_| DriveFault::Slack {
+                half: which,
+                torque_nm: 0.0,
+                needed_preload_n: pre,
+            })
+        };
+        let tu = solve(
+            &self.upper,
+            displacement_m,
+            self.state.tension_upper_n,
+            Half::Upper,
+        )?;
+        let tl = solve(
+            &self.lower,
+            -displacement_m,
+            self.state.tension_lower_n,
+            Half::Lower,
+        )?;
+        let up = self.upper.trial(tu);
+        let lo = self.lower.trial(tl);
+        self.check_pulley(Half::Upper, tu, &up)?;
+        self.check_pulley(Half::Lower, tl, &lo)?;
+        let mut state = self.state_from(tu, tl, &up, &lo);
+        state.surface_displacement_m = displacement_m;
+        state.transmission_error_rad = -displacement_m / self.params.drum_radius_m;
+        Ok(state)
+    }
+
+    /// Span tensions only, for the inner loop of a dynamic simulation: `(Tu, Tl)` in N for
+    /// displacement `D` (m), starting Newton from `guess`. No fault classification beyond
+    /// slack; call [`CableDrive::trial_displacement`] at sample instants for the full state.
+    #[inline]
+    pub fn tensions_for_displacement(
+        &self,
+        displacement_m: f64,
+        guess: (f64, f64),
+    ) -> Result<(f64, f64), DriveFault> {
+        let pre = self.params.preload_n;
+        let tu = solve_increasing(
+            |t| {
+                let tr = self.upper.trial(t);
+                (tr.elongation_m - displacement_m, tr.d_elongation_m_per_n)
+            },
+            0.0,
+            guess.0,
+            pre,
+            1e-10,
+        )
+        .map_err(|_| DriveFault::Slack {
+            half: Half::Upper,
+            torque_nm: 0.0,
+            needed_preload_n: pre,
+        })?;
+        let tl = solve_increasing(
+            |t| {
+                let tr = self.lower.trial(t);
+                (tr.elongation_m + displacement_m, tr.d_elongation_m_per_n)
+            },
+            0.0,
+            guess.1,
+            pre,
+            1e-10,
+        )
+        .map_err(|_| DriveFault::Slack {
+            half: Half::Lower,
+            torque_nm: 0.0,
+            needed_preload_n: pre,
+        })?;
+        Ok((tu, tl))
+    }
+
+    /// Commit a state (from a trial) to the wrap memory.
+    pub fn commit_state(&mut self, state: DriveState) {
+        self.upper.commit(state.tension_upper_n);
+        self.lower.commit(state.tension_lower_n);
+        self.state = state;
+    }
+}

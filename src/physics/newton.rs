@@ -1,0 +1,85 @@
+//! Safeguarded Newton iteration for the monotone tension equations.
+
+/// Why no root was returned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RootError {
+    /// The function is already positive at the lower end of its domain: no root exists
+    /// there (for a cable half, the span would need a negative tension: slack).
+    BelowDomain,
+}
+
+/// Root of `f`, strictly increasing on `(lower, inf)`, where `f` returns `(value,
+/// derivative)`. Newton steps from `guess`, falling back to bisection inside the bracket;
+/// `scale` sets the size of expansion steps and the absolute floor of the tolerance
+/// `rtol * max(|x|, scale)`.
+#[inline]
+pub fn solve_increasing(
+    f: impl Fn(f64) -> (f64, f64),
+    lower: f64,
+    guess: f64,
+    scale: f64,
+    rtol: f64,
+) -> Result<f64, RootError> {
+    let floor = lower + 1e-9 * scale;
+    let mut lo = lower;
+    let mut lo_checked = false;
+    let mut hi = f64::INFINITY;
+    let mut x = if guess.is_finite() && guess > floor {
+        guess
+    } else {
+        lower + 0.5 * scale
+    };
+    for _ in 0..200 {
+        let (fx, dfx) = f(x);
+        if fx == 0.0 {
+            return Ok(x);
+        }
+        if fx > 0.0 {
+            hi = x;
+        } else {
+            lo = x;
+            lo_checked = true;
+        }
+        let mut next = x - fx / dfx;
+        if !(next.is_finite() && next > lo && next < hi) {
+            if !lo_checked && next <= lo {
+                // The step leaves the domain: the root is either just above the lower end
+                // or does not exist.
+                if f(floor).0 > 0.0 {
+                    return Err(RootError::BelowDomain);
+                }
+                lo = floor;
+                lo_checked = true;
+            }
+            next = if hi.is_finite() {
+                0.5 * (lo + hi)
+            } else {
+                (2.0 * x).max(x + scale)
+            };
+        }
+        if (next - x).abs() <= rtol * x.abs().max(scale) || hi - lo <= rtol * scale {
+            return Ok(next);
+        }
+        x = next;
+    }
+    Ok(x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn finds_root_of_cubic_from_far_guesses() {
+        for guess in [0.0, 1e-6, 0.5, 3.0, 100.0, 1e9] {
+            let r = solve_increasing(|x| (x * x * x - 8.0, 3.0 * x * x), 0.0, guess, 1.0, 1e-14);
+            assert!((r.unwrap() - 2.0).abs() < 1e-12, "guess {guess}");
+        }
+    }
+
+    #[test]
+    fn reports_no_root_in_domain() {
+        let r = solve_increasing(|x| (x + 1.0, 1.0), 0.0, 5.0, 1.0, 1e-12);
+        assert_eq!(r, Err(RootError::BelowDomain));
+    }
+}

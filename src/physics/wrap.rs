@@ -1,0 +1,395 @@
+//! A wrap region of cable on a pulley or drum, with exact capstan memory.
+//!
+//! The tension profile `T(s)` along the wrap (`s` = wrap angle from the contact point
+//! inward, rad) is held in log space, `g(s) = ln T(s)`. Coulomb friction bounds the slope,
+//! `|dg/ds| <= mu`, and a new boundary tension `Tb` updates the profile by
+//! `g_new(s) = clamp(g_old(s), ln Tb - mu*s, ln Tb + mu*s)` (physics.md section 3).
+//! Every profile reachable from the flat preloaded state is piecewise linear in `s` with
+//! slopes `-mu`, `0`, `+mu`, so it is stored exactly as a short list of breakpoints, one per
+//! un-wiped reversal, and every integral is analytic per segment.
+
+/// One breakpoint of the log-tension profile.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Vertex {
+    /// Wrap angle from the contact point, rad.
+    s: f64,
+    /// Log-tension `ln T(s)`, with `T` in newtons.
+    g: f64,
+    /// `integral_s^wrap (T - Tpre) ds`, N rad: lets a trial profile reuse the stuck part.
+    tail: f64,
+}
+
+/// Outcome of putting a boundary tension on a wrap region, without committing it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WrapTrial {
+    /// Elongation of the region relative to the preloaded state, m.
+    pub elongation_m: f64,
+    /// Derivative of the elongation with respect to the boundary tension, m/N.
+    pub d_elongation_m_per_n: f64,
+    /// Length of the slip zone (wrap angle where the new branch meets the old profile), rad.
+    /// Zero when the boundary tension equals the current contact-point tension.
+    pub slip_angle_rad: f64,
+    /// True when the slip zone reaches the inner end of the region (anchor on the drum,
+    /// neutral point on the pulley).
+    pub reaches_end: bool,
+}
+
+/// A wrap region with capstan memory.
+///
+/// Typical values: drum wrap `pi` rad at radius 0.1025 m; pulley half-wrap `3*pi` rad at
+/// radius 0.020 m; friction coefficient 0.2; preload 100 N; cable modulus `E*A` 1.4e4 N.
+#[derive(Clone, Debug)]
+pub struct WrapRegion {
+    radius_m: f64,
+    wrap_rad: f64,
+    mu: f64,
+    preload_n: f64,
+    modulus_n: f64,
+    /// Breakpoints ordered from the inner end (`s = wrap`) to the contact point (`s = 0`),
+    /// so that a new slip zone pops the wiped breakpoints off the end of the vector.
+    verts: Vec<Vertex>,
+}
+
+/// `integral_0^h exp(ga + (gb - ga) * x / h) dx`: exact for a log-linear segment.
+#[inline]
+fn segment_integral(h: f64, ga: f64, gb: f64) -> f64 {
+    let delta = gb - ga;
+    if delta.abs() < 1e-9 {
+        // Series of expm1(d)/d keeps full precision on nearly flat segments.
+        h * ga.exp() * (1.0 + 0.5 * delta + delta * delta / 6.0)
+    } else {
+        h * (gb.exp() - ga.exp()) / delta
+    }
+}
+
+impl WrapRegion {
+    /// A virgin region at uniform preload.
+    ///
+    /// Parameters must be positive and finite (checked by scenario validation upstream).
+    pub fn new(radius_m: f64, wrap_rad: f64, mu: f64, preload_n: f64, modulus_n: f64) -> Self {
+        let mut region = WrapRegion {
+            radius_m,
+            wrap_rad,
+            mu,
+            preload_n,
+            modulus_n,
+            verts: Vec::with_capacity(16),
+        };
+        region.reset();
+        region
+    }
+
+    /// Forget all history: back to the uniform preloaded profile.
+    pub fn reset(&mut self) {
+        let g = self.preload_n.ln();
+        self.verts.clear();
+        self.verts.push(Vertex {
+            s: self.wrap_rad,
+            g,
+            tail: 0.0,
+        });
+        self.verts.push(Vertex {
+            s: 0.0,
+            g,
+            tail: 0.0,
+        });
+    }
+
+    /// Radius of the pulley or drum the cable wraps, m.
+    pub fn radius_m(&self) -> f64 {
+        self.radius_m
+    }
+
+    /// Available wrap angle, rad.
+    pub fn wrap_rad(&self) -> f64 {
+        self.wrap_rad
+    }
+
+    /// Number of breakpoints currently held (2 for a virgin region; one more per un-wiped
+    /// reversal).
+    pub fn breakpoint_count(&self) -> usize {
+        self.verts.len()
+    }
+
+    /// Tension at the contact point (the boundary tension last committed), N.
+    pub fn boundary_tension_n(&self) -> f64 {
+        self.verts[self.verts.len() - 1].g.exp()
+    }
+
+    /// Where the line `ln Tb -+ mu*s` first meets the stored profile.
+    ///
+    /// Returns `(index of the first breakpoint beyond the crossing, s*, g*)`; the index is
+    /// `usize::MAX` when the new slip zone reaches the inner end.
+    #[inline]
+    fn crossing(&self, ln_tb: f64, rising: bool) -> (usize, f64, f64) {
+        let slope = if rising { -self.mu } else { self.mu };
+        // For a rising boundary, d(s) = g_old(s) - line(s) is non-decreasing (the old profile
+        // obeys the slope bound), so the first breakpoint with d >= 0 closes the crossing
+        // segment. Mirror image for a falling boundary.
+        let sign = if rising { 1.0 } else { -1.0 };
+        let top = self.verts.len() - 1;
+        let mut d_prev = sign * (self.verts[top].g - ln_tb);
+        let mut k = top;
+        while k > 0 {
+            let b = self.verts[k - 1];
+            let d_b = sign * (b.g - (ln_tb + slope * b.s));
+            if d_b >= 0.0 {
+                let a = self.verts[k];
+                let frac = if d_b > d_prev {
+                    (-d_prev / (d_b - d_prev)).clamp(0.0, 1.0)
+                } else {
+                    1.0
+                };
+                let s_star = a.s + (b.s - a.s) * frac;
+                return (k - 1, s_star, ln_tb + slope * s_star);
+            }
+            d_prev = d_b;
+            k -= 1;
+        }
+        (usize::MAX, self.wrap_rad, ln_tb + slope * self.wrap_rad)
+    }
+
+    /// Elongation and its derivative if the boundary tension became `tb_n` (N > 0), the
+    /// stored profile left unchanged.
+    #[inline]
+    pub fn trial(&self, tb_n: f64) -> WrapTrial {
+        let ln_tb = tb_n.ln();
+        let top = self.verts.len() - 1;
+        let g0 = self.verts[top].g;
+        let scale = self.radius_m / self.modulus_n;
+        if ln_tb == g0 {
+            return WrapTrial {
+                elongation_m: scale * self.verts[top].tail,
+                d_elongation_m_per_n: 0.0,
+                slip_angle_rad: 0.0,
+                reaches_end: false,
+            };
+        }
+        let rising = ln_tb > g0;
+        let (idx, s_star, g_star) = self.crossing(ln_tb, rising);
+        let t_star = g_star.exp();
+        // Slip zone: T = Tb*exp(-+mu*s); its integral and d/dTb are closed forms. The
+        // crossing point moves with Tb, but the profile is continuous there, so the
+        // boundary terms of the Leibniz rule cancel.
+        let (slip_integral, d_slip) = if rising {
+            ((tb_n - t_star) / self.mu, (1.0 - t_star / tb_n) / self.mu)
+        } else {
+            ((t_star - tb_n) / self.mu, (t_star / tb_n - 1.0) / self.mu)
+        };
+        let mut tension_integral = slip_integral - self.preload_n * s_star;
+        let reaches_end = idx == usize::MAX;
+        if !reaches_end {
+            let b = self.verts[idx];
+            tension_integral += segment_integral(b.s - s_star, g_star, b.g)
+                - self.preload_n * (b.s - s_star)
+                + b.tail;
+        }
+        WrapTrial {
+            elongation_m: scale * tension_integral,
+            d_elongation_m_per_n: scale * d_slip,
+            slip_angle_rad: s_star,
+            reaches_end,
+        }
+    }
+
+    /// Commit a boundary tension `tb_n` (N > 0): the slip zone replaces the part of the
+    /// profile it wipes out.
+    pub fn commit(&mut self, tb_n: f64) {
+        let ln_tb = tb_n.ln();
+        let top = self.verts.len() - 1;
+        if ln_tb == self.verts[top].g {
+            return;
+        }
+        let rising = ln_tb > self.verts[top].g;
+        let (idx, s_star, g_star) = self.crossing(ln_tb, rising);
+        let slip_integral = if rising {
+            (tb_n - g_star.exp()) / self.mu
+        } else {
+            (g_star.exp() - tb_n) / self.mu
+        } - self.preload_n * s_star;
+        if idx == usize::MAX {
+            self.verts.clear();
+            self.verts.push(Vertex {
+                s: self.wrap_rad,
+                g: g_star,
+                tail: 0.0,
+            });
+        } else {
+            self.verts.truncate(idx + 1);
+            let b = self.verts[idx];
+            // A crossing at an existing breakpoint would leave a zero-length segment.
+            if b.s - s_star > 1e-14 * self.wrap_rad.max(1.0) {
+                let tail = segment_integral(b.s - s_star, g_star, b.g)
+                    - self.preload_n * (b.s - s_star)
+                    + b.tail;
+                self.verts.push(Vertex {
+                    s: s_star,
+                    g: g_star,
+                    tail,
+                });
+            }
+        }
+        let below = self.verts[self.verts.len() - 1].tail;
+        if s_star > 0.0 {
+            self.verts.push(Vertex {
+                s: 0.0,
+                g: ln_tb,
+                tail: slip_integral + below,
+            });
+        } else {
+            // Zero-length slip zone (only when the crossing is at s = 0).
+            let last = self.verts.len() - 1;
+            self.verts[last].g = ln_tb;
+        }
+    }
+
+    /// Elongation of the region as committed, relative to the preloaded state, m.
+    pub fn elongation_m(&self) -> f64 {
+        self.radius_m / self.modulus_n * self.verts[self.verts.len() - 1].tail
+    }
+
+    /// Tension at wrap angle `s_rad` (clamped to the region), N.
+    pub fn tension_at(&self, s_rad: f64) -> f64 {
+        let s = s_rad.clamp(0.0, self.wrap_rad);
+        for k in (1..self.verts.len()).rev() {
+            let a = self.verts[k];
+            let b = self.verts[k - 1];
+            if s <= b.s {
+                let h = b.s - a.s;
+                let g = if h > 0.0 {
+                    a.g + (b.g - a.g) * (s - a.s) / h
+                } else {
+                    b.g
+                };
+                return g.exp();
+            }
+        }
+        self.verts[0].g.exp()
+    }
+
+    /// The committed profile's breakpoints as `(wrap angle rad, tension N)`, from the
+    /// contact point inward, ending at the inner end of the region. Exact: straight lines
+    /// between them in `(s, ln T)`.
+    pub fn breakpoints(&self) -> Vec<(f64, f64)> {
+        let mut out: Vec<(f64, f64)> = self.verts.iter().rev().map(|v| (v.s, v.g.exp())).collect();
+        if let Some(&(s, t)) = out.last() {
+            if s < self.wrap_rad {
+                out.push((self.wrap_rad, t));
+            }
+        }
+        out
+    }
+
+    /// Largest magnitude of the log-tension slope over all segments, 1/rad. Never exceeds
+    /// the friction coefficient (up to rounding).
+    pub fn max_log_slope(&self) -> f64 {
+        self.verts
+            .windows(2)
+            .filter(|w| w[0].s - w[1].s > 1e-12)
+            .map(|w| ((w[0].g - w[1].g) / (w[0].s - w[1].s)).abs())
+            .fold(0.0, f64::max)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `x - 1 - ln x`, written to keep its precision near `x = 1`.
+    fn f(x: f64) -> f64 {
+        let d = x - 1.0;
+        d - d.ln_1p()
+    }
+
+    const R: f64 = 0.1;
+    const MU: f64 = 0.2;
+    const TPRE: f64 = 100.0;
+    const G: f64 = 1.4e4;
+
+    #[test]
+    fn first_loading_matches_closed_form() {
+        let region = WrapRegion::new(R, 20.0, MU, TPRE, G);
+        for v in [1.001, 1.07, 1.5, 3.0] {
+            let trial = region.trial(v * TPRE);
+            let expect = R * TPRE / (G * MU) * f(v);
+            // The slip integral and the preload term nearly cancel for tiny loads, so the
+            // error floor is set by the size of those terms, not of their difference.
+            let floor = 1e-12 * R * TPRE / (G * MU);
+            let err = (trial.elongation_m - expect).abs();
+            assert!(err < 1e-10 * expect.abs() + floor, "v {v}: err {err}");
+            assert!((trial.slip_angle_rad - v.ln() / MU).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn first_unloading_matches_closed_form() {
+        let region = WrapRegion::new(R, 20.0, MU, TPRE, G);
+        for u in [0.999, 0.93, 0.5, 0.2] {
+            let trial = region.trial(u * TPRE);
+            let expect = -R * TPRE / (G * MU) * f(u);
+            // The slip integral and the preload term nearly cancel for tiny loads, so the
+            // error floor is set by the size of those terms, not of their difference.
+            let floor = 1e-12 * R * TPRE / (G * MU);
+            let err = (trial.elongation_m - expect).abs();
+            assert!(err < 1e-10 * expect.abs() + floor, "u {u}: err {err}");
+        }
+    }
+
+    #[test]
+    fn reversal_with_surviving_bump_matches_closed_form() {
+        let mut region = WrapRegion::new(R, 20.0, MU, TPRE, G);
+        let (t1, t2) = (130.0, 90.0);
+        assert!(t1 * t2 >= TPRE * TPRE);
+        region.commit(t1);
+        let before = region.elongation_m();
+        region.commit(t2);
+        let drop = before - region.elongation_m();
+        let expect = R / (G * MU) * (t1.sqrt() - t2.sqrt()).powi(2);
+        assert!((drop - expect).abs() <= 1e-12 * expect);
+        // The bump sits at s_M = ln(T1/T2)/(2 mu) with tension sqrt(T1 T2).
+        let s_m = (t1 / t2).ln() / (2.0 * MU);
+        assert!((region.tension_at(s_m) - (t1 * t2).sqrt()).abs() < 1e-9);
+        assert_eq!(region.breakpoint_count(), 4);
+    }
+
+    #[test]
+    fn derivative_matches_finite_difference() {
+        let mut region = WrapRegion::new(R, 2.0, MU, TPRE, G);
+        for t in [140.0, 80.0, 120.0, 95.0] {
+            region.commit(t);
+        }
+        for tb in [60.0, 97.0, 105.0, 118.0, 125.0, 200.0, 400.0] {
+            let h = 1e-5 * tb;
+            let num =
+                (region.trial(tb + h).elongation_m - region.trial(tb - h).elongation_m) / (2.0 * h);
+            let ana = region.trial(tb).d_elongation_m_per_n;
+            assert!(
+                (num - ana).abs() <= 1e-6 * ana.abs().max(1e-12),
+                "tb {tb}: {num} vs {ana}"
+            );
+        }
+    }
+
+    #[test]
+    fn committed_elongation_equals_trial() {
+        let mut region = WrapRegion::new(R, 1.0, MU, TPRE, G);
+        for t in [150.0, 70.0, 130.0, 110.0, 400.0, 20.0] {
+            let trial = region.trial(t);
+            region.commit(t);
+            assert!((trial.elongation_m - region.elongation_m()).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn slip_to_the_end_cuts_the_profile() {
+        let mut region = WrapRegion::new(R, 0.5, MU, TPRE, G);
+        let trial = region.trial(200.0);
+        assert!(trial.reaches_end);
+        assert_eq!(trial.slip_angle_rad, 0.5);
+        region.commit(200.0);
+        assert!((region.tension_at(0.5) - 200.0 * (-MU * 0.5f64).exp()).abs() < 1e-9);
+        // Integral of the cut line minus preload.
+        let expect = R / G * (200.0 * (1.0 - (-MU * 0.5f64).exp()) / MU - TPRE * 0.5);
+        assert!((region.elongation_m() - expect).abs() < 1e-15);
+    }
+}
