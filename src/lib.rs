@@ -1,4 +1,8 @@
 //! cable-servo: preloaded cable-drive physics, closed-loop gimbal simulation, design sweeps
 //! and bench-log diagnosis for electro-optical pointing systems.
 
+pub mod closed_loop;
 pub mod physics;
+pub mod scenario;
+pub mod signal;
+pub mod sweep;

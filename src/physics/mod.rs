@@ -4,7 +4,9 @@
 
 pub mod drive;
 pub mod half;
+pub mod load;
 pub mod newton;
 pub mod wrap;
 
 pub use drive::{CableDrive, DriveFault, DriveParams, DriveState, Half, HysteresisModel, Routing};
+pub use load::LoadParams;

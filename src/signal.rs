@@ -1,0 +1,379 @@
+//! Time signals: prescribed input motion and closed-loop references.
+//!
+//! A [`Signal`] is evaluated analytically (value, first and second derivative), so feedforward
+//! terms are exact; tabulated signals interpolate linearly between samples.
+
+use serde::{Deserialize, Serialize};
+
+/// A scalar signal of time, in radians for motions and references.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Signal {
+    /// `offset + amplitude*sin(2 pi f t + phase)`.
+    Sine {
+        /// Amplitude, rad (0.1 for the paper bench's input).
+        amplitude_rad: f64,
+        /// Frequency, Hz (0.1 on the bench).
+        frequency_hz: f64,
+        /// Phase at t = 0, rad.
+        #[serde(default)]
+        phase_rad: f64,
+        /// Constant offset, rad.
+        #[serde(default)]
+        offset_rad: f64,
+    },
+    /// Step of `amplitude_rad` at `time_s` (0 before).
+    Step {
+        /// Step height, rad (e.g. 0.005 for a 5 mrad step-and-stare).
+        amplitude_rad: f64,
+        /// Step time, s.
+        #[serde(default)]
+        time_s: f64,
+    },
+    /// Repeated step-and-stare: a staircase of `amplitude_rad` steps every `period_s`,
+    /// alternating direction after `steps_per_sweep` steps.
+    StepStare {
+        /// Height of each step, rad.
+        amplitude_rad: f64,
+        /// Dwell between steps, s.
+        period_s: f64,
+        /// Steps before the staircase turns back.
+        #[serde(default = "default_steps")]
+        steps_per_sweep: u32,
+    },
+    /// Slew at constant rate from `start_s`, optionally stopping at `stop_s`.
+    Ramp {
+        /// Rate, rad/s.
+        rate_rad_s: f64,
+        /// Start time, s.
+        #[serde(default)]
+        start_s: f64,
+        /// End of the slew, s (holds afterwards).
+        #[serde(default)]
+        stop_s: Option<f64>,
+    },
+    /// Triangle scan between `-amplitude` and `+amplitude` with rounded turnarounds
+    /// (constant acceleration over `turn_fraction` of each half period) so the reference
+    /// stays twice differentiable in the mean.
+    Triangle {
+        /// Amplitude, rad.
+        amplitude_rad: f64,
+        /// Scan frequency, Hz.
+        frequency_hz: f64,
+        /// Fraction of each half period spent turning around, (0, 1).
+        #[serde(default = "default_turn")]
+        turn_fraction: f64,
+    },
+    /// Sum of several signals.
+    Sum {
+        /// Components.
+        parts: Vec<Signal>,
+    },
+    /// Tabulated trajectory (time s, value rad), linear interpolation, held at the ends.
+    /// Built from a CSV file by the I/O layer.
+    Table {
+        /// Path of the CSV file (columns `t_s` and a value column) as given in the scenario.
+        path: String,
+        /// Name of the value column.
+        #[serde(default = "default_table_column")]
+        column: String,
+        /// Samples, filled by the loader (not part of the file format).
+        #[serde(skip)]
+        samples: Vec<(f64, f64)>,
+    },
+}
+
+fn default_steps() -> u32 {
+    4
+}
+fn default_turn() -> f64 {
+    0.2
+}
+fn default_table_column() -> String {
+    "value".to_string()
+}
+
+/// Value and derivatives of a signal at one instant.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SignalPoint {
+    /// Value, rad.
+    pub value: f64,
+    /// First time derivative, rad/s.
+    pub rate: f64,
+    /// Second time derivative, rad/s^2.
+    pub accel: f64,
+}
+
+impl Signal {
+    /// Evaluate at time `t_s`.
+    pub fn at(&self, t_s: f64) -> SignalPoint {
+        use std::f64::consts::TAU;
+        match self {
+            Signal::Sine {
+                amplitude_rad,
+                frequency_hz,
+                phase_rad,
+                offset_rad,
+            } => {
+                let w = TAU * frequency_hz;
+                let ph = w * t_s + phase_rad;
+                SignalPoint {
+                    value: offset_rad + amplitude_rad * ph.sin(),
+                    rate: amplitude_rad * w * ph.cos(),
+                    accel: -amplitude_rad * w * w * ph.sin(),
+                }
+            }
+            Signal::Step {
+                amplitude_rad,
+                time_s,
+            } => SignalPoint {
+                value: if t_s >= *time_s { *amplitude_rad } else { 0.0 },
+                ..SignalPoint::default()
+            },
+            Signal::StepStare {
+                amplitude_rad,
+                period_s,
+                steps_per_sweep,
+            } => {
+                let n = (t_s / period_s).floor().max(0.0) as u64;
+                let m = u64::from((*steps_per_sweep).max(1));
+                let phase = n % (2 * m);
+                let level = if phase <= m { phase } else { 2 * m - phase };
+                SignalPoint {
+                    value: amplitude_rad * level as f64,
+                    ..SignalPoint::default()
+                }
+            }
+            Signal::Ramp {
+                rate_rad_s,
+                start_s,
+                stop_s,
+            } => {
+                let end = stop_s.unwrap_or(f64::INFINITY);
+                let tc = t_s.clamp(*start_s, end.max(*start_s));
+                let moving = t_s > *start_s && t_s < end;
+                SignalPoint {
+                    value: rate_rad_s * (tc - start_s),
+                    rate: if moving { *rate_rad_s } else { 0.0 },
+                    accel: 0.0,
+                }
+            }
+            Signal::Triangle {
+                amplitude_rad,
+                frequency_hz,
+                turn_fraction,
+            } => triangle(*amplitude_rad, *frequency_hz, *turn_fraction, t_s),
+            Signal::Sum { parts } => parts.iter().fold(SignalPoint::default(), |acc, p| {
+                let q = p.at(t_s);
+                SignalPoint {
+                    value: acc.value + q.value,
+                    rate: acc.rate + q.rate,
+                    accel: acc.accel + q.accel,
+                }
+            }),
+            Signal::Table { samples, .. } => table(samples, t_s),
+        }
+    }
+
+    /// Check the parameters; returns a description of the first problem.
+    pub fn validate(&self) -> Result<(), String> {
+        let finite = |name: &str, v: f64| {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(format!("{name} = {v} must be a finite number"))
+            }
+        };
+        match self {
+            Signal::Sine {
+                amplitude_rad,
+                frequency_hz,
+                phase_rad,
+                offset_rad,
+            } => {
+                finite("amplitude_rad", *amplitude_rad)?;
+                finite("phase_rad", *phase_rad)?;
+                finite("offset_rad", *offset_rad)?;
+                if !(frequency_hz.is_finite() && *frequency_hz >= 0.0) {
+                    return Err(format!("frequency_hz = {frequency_hz} must be >= 0"));
+                }
+                Ok(())
+            }
+            Signal::Step {
+                amplitude_rad,
+                time_s,
+            } => {
+                finite("amplitude_rad", *amplitude_rad)?;
+                finite("time_s", *time_s)
+            }
+            Signal::StepStare {
+                amplitude_rad,
+                period_s,
+                ..
+            } => {
+                finite("amplitude_rad", *amplitude_rad)?;
+                if !(period_s.is_finite() && *period_s > 0.0) {
+                    return Err(format!("period_s = {period_s} must be > 0"));
+                }
+                Ok(())
+            }
+            Signal::Ramp {
+                rate_rad_s,
+                start_s,
+                stop_s,
+            } => {
+                finite("rate_rad_s", *rate_rad_s)?;
+                finite("start_s", *start_s)?;
+                if let Some(s) = stop_s {
+                    finite("stop_s", *s)?;
+                }
+                Ok(())
+            }
+            Signal::Triangle {
+                amplitude_rad,
+                frequency_hz,
+                turn_fraction,
+            } => {
+                finite("amplitude_rad", *amplitude_rad)?;
+                if !(frequency_hz.is_finite() && *frequency_hz > 0.0) {
+                    return Err(format!("frequency_hz = {frequency_hz} must be > 0"));
+                }
+                if !(*turn_fraction > 0.0 && *turn_fraction < 1.0) {
+                    return Err(format!("turn_fraction = {turn_fraction} must be in (0, 1)"));
+                }
+                Ok(())
+            }
+            Signal::Sum { parts } => parts.iter().try_for_each(Signal::validate),
+            Signal::Table { samples, path, .. } => {
+                if samples.is_empty() {
+                    Err(format!("trajectory table {path} holds no samples"))
+                } else {
+                    Ok(())
+                }
+            }
+        }
+    }
+
+    /// Tables still to be loaded from files: `(path, column)` pairs, for the I/O layer.
+    pub fn tables_mut(&mut self) -> Vec<(&String, &String, &mut Vec<(f64, f64)>)> {
+        match self {
+            Signal::Table {
+                path,
+                column,
+                samples,
+            } => vec![(&*path, &*column, samples)],
+            Signal::Sum { parts } => parts.iter_mut().flat_map(|p| p.tables_mut()).collect(),
+            _ => Vec::new(),
+        }
+    }
+}
+
+/// Triangle wave with parabolic blends at the turnarounds: each half period the scan runs
+/// from one extreme to the other on a trapezoidal speed profile (accelerate over `tb/2`,
+/// cruise, decelerate over `tb/2`).
+fn triangle(amp: f64, freq: f64, turn: f64, t: f64) -> SignalPoint {
+    let half = 0.5 / freq;
+    // Shift by a quarter period so the scan starts at 0 moving up, like a sine.
+    let tau = (t + 0.5 * half).rem_euclid(2.0 * half);
+    let (local, sign) = if tau < half {
+        (tau, 1.0)
+    } else {
+        (tau - half, -1.0)
+    };
+    let ta = 0.5 * turn * half;
+    let v = 2.0 * amp / (half - ta);
+    let a = v / ta;
+    let (p, r, acc) = if local < ta {
+        (0.5 * a * local * local, a * local, a)
+    } else if local <= half - ta {
+        (0.5 * a * ta * ta + v * (local - ta), v, 0.0)
+    } else {
+        let s = half - local;
+        (2.0 * amp - 0.5 * a * s * s, a * s, -a)
+    };
+    SignalPoint {
+        value: sign * (p - amp),
+        rate: sign * r,
+        accel: sign * acc,
+    }
+}
+
+fn table(samples: &[(f64, f64)], t: f64) -> SignalPoint {
+    let n = samples.len();
+    if n == 0 {
+        return SignalPoint::default();
+    }
+    if t <= samples[0].0 {
+        return SignalPoint {
+            value: samples[0].1,
+            ..SignalPoint::default()
+        };
+    }
+    if t >= samples[n - 1].0 {
+        return SignalPoint {
+            value: samples[n - 1].1,
+            ..SignalPoint::default()
+        };
+    }
+    let k = samples.partition_point(|s| s.0 <= t);
+    let (t0, v0) = samples[k - 1];
+    let (t1, v1) = samples[k];
+    let rate = (v1 - v0) / (t1 - t0);
+    SignalPoint {
+        value: v0 + rate * (t - t0),
+        rate,
+        accel: 0.0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn check_derivatives(sig: &Signal, t0: f64, t1: f64) {
+        let n = 997;
+        for i in 1..n {
+            let t = t0 + (t1 - t0) * i as f64 / n as f64;
+            let h = 1e-6;
+            let p = sig.at(t);
+            let num = (sig.at(t + h).value - sig.at(t - h).value) / (2.0 * h);
+            assert!(
+                (num - p.rate).abs() < 1e-4 * (1.0 + p.rate.abs()),
+                "t {t}: {num} vs {}",
+                p.rate
+            );
+        }
+    }
+
+    #[test]
+    fn sine_derivatives() {
+        let s = Signal::Sine {
+            amplitude_rad: 0.1,
+            frequency_hz: 0.1,
+            phase_rad: 0.3,
+            offset_rad: 0.0,
+        };
+        check_derivatives(&s, 0.0, 10.0);
+    }
+
+    #[test]
+    fn triangle_spans_amplitude_and_is_continuous() {
+        let s = Signal::Triangle {
+            amplitude_rad: 0.02,
+            frequency_hz: 0.5,
+            turn_fraction: 0.2,
+        };
+        check_derivatives(&s, 0.0, 4.0);
+        let max = (0..4000)
+            .map(|i| s.at(i as f64 * 1e-3).value)
+            .fold(f64::MIN, f64::max);
+        let min = (0..4000)
+            .map(|i| s.at(i as f64 * 1e-3).value)
+            .fold(f64::MAX, f64::min);
+        assert!(
+            (max - 0.02).abs() < 1e-6 && (min + 0.02).abs() < 1e-6,
+            "{min} {max}"
+        );
+        assert!(s.at(0.0).value.abs() < 1e-12);
+    }
+}
