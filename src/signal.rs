@@ -93,6 +93,9 @@ fn default_table_column() -> String {
     "value".to_string()
 }
 
+/// Callback filling a tabulated signal: `(path, column, samples)`.
+pub type TableVisitor<'a> = dyn FnMut(&str, &str, &mut Vec<(f64, f64)>) + 'a;
+
 /// Value and derivatives of a signal at one instant.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SignalPoint {
@@ -254,16 +257,17 @@ impl Signal {
         }
     }
 
-    /// Tables still to be loaded from files: `(path, column)` pairs, for the I/O layer.
-    pub fn tables_mut(&mut self) -> Vec<(&String, &String, &mut Vec<(f64, f64)>)> {
+    /// Visit every tabulated part as `(path, column, samples)`, so the I/O layer can fill
+    /// the samples from files.
+    pub fn for_each_table(&mut self, f: &mut TableVisitor<'_>) {
         match self {
             Signal::Table {
                 path,
                 column,
                 samples,
-            } => vec![(&*path, &*column, samples)],
-            Signal::Sum { parts } => parts.iter_mut().flat_map(|p| p.tables_mut()).collect(),
-            _ => Vec::new(),
+            } => f(path, column, samples),
+            Signal::Sum { parts } => parts.iter_mut().for_each(|p| p.for_each_table(f)),
+            _ => {}
         }
     }
 }
