@@ -62,7 +62,7 @@ pub struct QsTrace {
     pub profiles: Vec<ProfileSnapshot>,
     /// Set when the drive left its capacity; the samples end there.
     pub stop: Option<Stop>,
-    /// Largest number of breakpoints held by any wrap region (memory depth).
+    /// Largest number of breakpoints held by any half's wrap profile (memory depth).
     pub max_breakpoints: usize,
 }
 
@@ -187,10 +187,8 @@ pub fn run_model(
                     slip_angles_rad: state.slip_angles_rad,
                 });
                 max_breakpoints = max_breakpoints
-                    .max(drive.upper().drum().breakpoint_count())
-                    .max(drive.upper().pulley().breakpoint_count())
-                    .max(drive.lower().drum().breakpoint_count())
-                    .max(drive.lower().pulley().breakpoint_count());
+                    .max(drive.upper().wrap().breakpoint_count())
+                    .max(drive.lower().wrap().breakpoint_count());
             }
             Err(fault) => {
                 stop = Some(Stop { t_s: t, fault });
@@ -214,16 +212,16 @@ pub fn run_model(
 /// Tension profiles of all four wrap regions.
 pub fn snapshot(drive: &CableDrive, t_s: f64) -> Vec<ProfileSnapshot> {
     [
-        ("upper_drum", drive.upper().drum()),
-        ("upper_pulley", drive.upper().pulley()),
-        ("lower_drum", drive.lower().drum()),
-        ("lower_pulley", drive.lower().pulley()),
+        ("upper_drum", drive.upper().drum_breakpoints()),
+        ("upper_pulley", drive.upper().pulley_breakpoints()),
+        ("lower_drum", drive.lower().drum_breakpoints()),
+        ("lower_pulley", drive.lower().pulley_breakpoints()),
     ]
     .into_iter()
-    .map(|(region, w)| ProfileSnapshot {
+    .map(|(region, breakpoints)| ProfileSnapshot {
         t_s,
         region,
-        breakpoints: w.breakpoints(),
+        breakpoints,
     })
     .collect()
 }
