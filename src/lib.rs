@@ -2,6 +2,8 @@
 //! and bench-log diagnosis for electro-optical pointing systems.
 
 pub mod closed_loop;
+pub mod io_tables;
+pub mod metrics;
 pub mod physics;
 pub mod scenario;
 pub mod signal;

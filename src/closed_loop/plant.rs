@@ -1,0 +1,310 @@
+//! Continuous-time plant: torque motor, cable drive as a history-dependent spring, output
+//! drum with its loads, and the brake's stick/slip state.
+//!
+//! State `x = [theta_m, omega_m, i, theta_o, omega_o]` (rad, rad/s, A, rad, rad/s).
+//! The cable's wrap memory is frozen during a control period and committed at its end, so
+//! the right-hand side is a pure function of `(t, x)` inside a period.
+
+use std::cell::Cell;
+
+use nalgebra::SVector;
+use ode_solvers::System;
+
+use super::params::{Amplifier, CableModel, ClosedLoopParams};
+use crate::physics::{CableDrive, DriveFault, DriveParams, Half, HysteresisModel, LoadParams};
+
+/// Plant state vector.
+pub type State = SVector<f64, 5>;
+
+/// Index of the motor angle in [`State`].
+pub const THETA_M: usize = 0;
+/// Index of the motor speed.
+pub const OMEGA_M: usize = 1;
+/// Index of the winding current.
+pub const CURRENT: usize = 2;
+/// Index of the output angle.
+pub const THETA_O: usize = 3;
+/// Index of the output speed.
+pub const OMEGA_O: usize = 4;
+
+/// Whether the powder brake holds the drum.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum BrakeState {
+    /// Drum held: no output motion until the driving torque exceeds the breakaway torque.
+    Stuck,
+    /// Drum sliding in direction `+1` or `-1`; the brake opposes with the sliding torque.
+    Slipping(f64),
+}
+
+/// Cable law of the plant.
+#[derive(Clone, Debug)]
+pub enum PlantCable {
+    /// Capstan model with memory.
+    Hysteretic(CableDrive),
+    /// Linear halves: `Tu = Tpre + k D`, `Tl = Tpre - k D`.
+    Linear {
+        /// Stiffness of each half, N/m.
+        k_n_per_m: f64,
+        /// Preload, N.
+        preload_n: f64,
+    },
+}
+
+impl PlantCable {
+    /// The plant cable for a scenario.
+    pub fn new(model: CableModel, drive: &DriveParams) -> Self {
+        match model {
+            CableModel::Hysteretic => {
+                PlantCable::Hysteretic(CableDrive::new(drive.clone(), HysteresisModel::Memory))
+            }
+            CableModel::Linear => PlantCable::Linear {
+                k_n_per_m: ClosedLoopParams::half_stiffness_n_per_m(drive),
+                preload_n: drive.preload_n,
+            },
+        }
+    }
+
+    /// Elastic span tensions `(Tu, Tl)` for displacement `D` (m), Newton warm-started at
+    /// `guess`; memory not committed.
+    #[inline]
+    pub fn tensions(&self, d: f64, guess: (f64, f64)) -> Result<(f64, f64), DriveFault> {
+        match self {
+            PlantCable::Hysteretic(drive) => drive.tensions_for_displacement(d, guess),
+            PlantCable::Linear {
+                k_n_per_m,
+                preload_n,
+            } => {
+                let tu = preload_n + k_n_per_m * d;
+                let tl = preload_n - k_n_per_m * d;
+                if tu <= 0.0 || tl <= 0.0 {
+                    Err(DriveFault::Slack {
+                        half: if tu <= 0.0 { Half::Upper } else { Half::Lower },
+                        torque_nm: 0.0,
+                        needed_preload_n: k_n_per_m * d.abs(),
+                    })
+                } else {
+                    Ok((tu, tl))
+                }
+            }
+        }
+    }
+
+    /// Full check at a period boundary (slack and gross slip) and commit of the memory.
+    /// Returns the elastic tensions.
+    pub fn commit(&mut self, d: f64) -> Result<(f64, f64), DriveFault> {
+        match self {
+            PlantCable::Hysteretic(drive) => {
+                let state = drive.trial_displacement(d)?;
+                drive.commit_state(state);
+                Ok((state.tension_upper_n, state.tension_lower_n))
+            }
+            PlantCable::Linear { .. } => self.tensions(d, (0.0, 0.0)),
+        }
+    }
+}
+
+/// Constant coefficients of the plant equations.
+#[derive(Clone, Debug)]
+pub struct PlantCoefficients {
+    /// Pulley radius, m.
+    pub ri: f64,
+    /// Drum radius, m.
+    pub ro: f64,
+    /// Viscous coefficient per half, N s/m.
+    pub cable_damping: f64,
+    /// Motor parameters in SI units.
+    pub jm: f64,
+    /// Motor viscous friction, N m s/rad.
+    pub bm: f64,
+    /// Motor Coulomb friction, N m.
+    pub tcm: f64,
+    /// Motor friction smoothing speed, rad/s.
+    pub wcm: f64,
+    /// Torque constant, N m/A.
+    pub kt: f64,
+    /// Back-EMF constant, V s/rad.
+    pub ke: f64,
+    /// Resistance, ohm.
+    pub r: f64,
+    /// Inductance, H.
+    pub l: f64,
+    /// Whether the command is a voltage.
+    pub voltage_mode: bool,
+    /// Output inertia, kg m^2.
+    pub jo: f64,
+    /// Output viscous friction, N m s/rad.
+    pub bo: f64,
+    /// Sliding brake torque, N m.
+    pub brake: f64,
+    /// Breakaway brake torque, N m.
+    pub breakaway: f64,
+}
+
+impl PlantCoefficients {
+    /// From the scenario parts.
+    pub fn new(p: &ClosedLoopParams, drive: &DriveParams, load: &LoadParams) -> Self {
+        PlantCoefficients {
+            ri: drive.pulley_radius_m,
+            ro: drive.drum_radius_m,
+            cable_damping: p.cable_damping_n_s_per_m(drive),
+            jm: p.motor.inertia_kg_m2,
+            bm: p.motor.viscous_nm_s_per_rad,
+            tcm: p.motor.coulomb_nm,
+            wcm: p.motor.coulomb_smoothing_rad_s,
+            kt: p.motor.torque_constant_nm_per_a,
+            ke: p.motor.back_emf(),
+            r: p.motor.resistance_ohm,
+            l: p.motor.inductance_h,
+            voltage_mode: p.motor.amplifier == Amplifier::Voltage,
+            jo: p.output.inertia_kg_m2,
+            bo: p.output.viscous_nm_s_per_rad,
+            brake: load.brake_nm,
+            breakaway: load.breakaway_nm(),
+        }
+    }
+}
+
+/// Right-hand side for one control period, in scaled time: the integrator runs
+/// `tau = 0..N` with unit steps and `t = t0 + tau*h`, so exactly `N` RK4 steps land on
+/// the period's end without floating-point step counting.
+pub struct PeriodRhs<'a> {
+    /// Coefficients.
+    pub c: &'a PlantCoefficients,
+    /// Cable with memory frozen for the period.
+    pub cable: &'a PlantCable,
+    /// Loads (smooth part; the brake is handled by `brake`).
+    pub load: &'a LoadParams,
+    /// Brake state for the period.
+    pub brake: BrakeState,
+    /// Held command (V in voltage mode; ignored in current mode).
+    pub command: f64,
+    /// Period start time, s.
+    pub t0: f64,
+    /// Substep length, s.
+    pub h: f64,
+    /// Last tensions found, to warm-start Newton.
+    pub guess: Cell<(f64, f64)>,
+    /// First fault met inside the period.
+    pub fault: Cell<Option<DriveFault>>,
+}
+
+/// Forces in the plant at one state, for records and the brake logic.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Forces {
+    /// Upper span tension including damping, N.
+    pub tension_upper_n: f64,
+    /// Lower span tension including damping, N.
+    pub tension_lower_n: f64,
+    /// Torque of the cable on the drum, `ro*(Tu - Tl)`, N m.
+    pub cable_torque_nm: f64,
+    /// Smooth load torque on the drum (unbalance, constant, sine, series), N m.
+    pub smooth_load_nm: f64,
+}
+
+/// Tensions including structural damping for elastic tensions `el` and state `x`.
+#[inline]
+pub fn damped(c: &PlantCoefficients, el: (f64, f64), x: &State) -> (f64, f64) {
+    let d_dot = c.ri * x[OMEGA_M] - c.ro * x[OMEGA_O];
+    let f = c.cable_damping * d_dot;
+    (el.0 + f, el.1 - f)
+}
+
+/// State derivative for tensions `(tu, tl)` (damping included).
+#[inline]
+pub fn derivative(
+    c: &PlantCoefficients,
+    x: &State,
+    tensions: (f64, f64),
+    smooth_load: f64,
+    brake: BrakeState,
+    command: f64,
+) -> State {
+    let f = tensions.0 - tensions.1;
+    let wm = x[OMEGA_M];
+    let friction = c.bm * wm + c.tcm * (wm / c.wcm).clamp(-1.0, 1.0);
+    let dwm = (c.kt * x[CURRENT] - friction - c.ri * f) / c.jm;
+    let di = if c.voltage_mode {
+        (command - c.r * x[CURRENT] - c.ke * wm) / c.l
+    } else {
+        0.0
+    };
+    let (dto, dwo) = match brake {
+        BrakeState::Stuck => (0.0, 0.0),
+        BrakeState::Slipping(dir) => (
+            x[OMEGA_O],
+            (c.ro * f + smooth_load - c.bo * x[OMEGA_O] - c.brake * dir) / c.jo,
+        ),
+    };
+    State::new(wm, dwm, di, dto, dwo)
+}
+
+impl System<f64, State> for &PeriodRhs<'_> {
+    #[inline]
+    fn system(&self, tau: f64, x: &State, dx: &mut State) {
+        let c = self.c;
+        let d = c.ri * x[THETA_M] - c.ro * x[THETA_O];
+        let el = match self.cable.tensions(d, self.guess.get()) {
+            Ok(t) => t,
+            Err(e) => {
+                if self.fault.get().is_none() {
+                    self.fault.set(Some(e));
+                }
+                *dx = State::zeros();
+                return;
+            }
+        };
+        self.guess.set(el);
+        let t = self.t0 + tau * self.h;
+        let smooth = self.load.smooth_torque_nm(t, x[THETA_O]);
+        let dxt = derivative(c, x, damped(c, el, x), smooth, self.brake, self.command);
+        *dx = dxt * self.h;
+    }
+}
+
+/// Stick/slip decision at a period boundary, given the driving torque on the drum
+/// (`cable + smooth load`, N m) and the state (output speed may be reset to 0).
+///
+/// Stuck -> slipping only when the driving torque exceeds the breakaway torque; slipping
+/// -> stuck only when the speed has reached or crossed zero and the driving torque is
+/// below it. A reversal therefore always passes through `Stuck` and needs the full
+/// breakaway torque the other way, so the drum cannot chatter between directions. The
+/// overshoot of a speed crossing inside a period (at most `brake*T/Jo` in speed) is
+/// removed by resetting the speed to zero.
+pub fn update_brake(
+    c: &PlantCoefficients,
+    state: BrakeState,
+    driving_nm: f64,
+    x: &mut State,
+) -> BrakeState {
+    if c.breakaway <= 0.0 {
+        // No brake: always free; the direction is irrelevant.
+        return BrakeState::Slipping(1.0);
+    }
+    let from_rest = |x: &mut State| {
+        x[OMEGA_O] = 0.0;
+        if driving_nm.abs() > c.breakaway {
+            BrakeState::Slipping(driving_nm.signum())
+        } else {
+            BrakeState::Stuck
+        }
+    };
+    match state {
+        BrakeState::Stuck => from_rest(x),
+        BrakeState::Slipping(dir) => {
+            if x[OMEGA_O] * dir > 0.0 {
+                state
+            } else {
+                from_rest(x)
+            }
+        }
+    }
+}
+
+/// Load torque the brake and the other loads put on the drum, N m (reaction of a held
+/// brake included), for records.
+pub fn load_torque(c: &PlantCoefficients, brake: BrakeState, f: &Forces) -> f64 {
+    match brake {
+        BrakeState::Stuck => -f.cable_torque_nm,
+        BrakeState::Slipping(dir) => f.smooth_load_nm - c.brake * dir,
+    }
+}

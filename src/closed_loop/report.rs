@@ -1,0 +1,322 @@
+//! Files of a closed-loop run: `timeseries.csv`, `summary.json`, a text table, and the
+//! chart descriptions for the plot module.
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use super::sim::{ClosedLoopResult, Completion, ModeResult, SolverStats};
+use crate::metrics::Metrics;
+use crate::scenario::Scenario;
+
+/// Why outputs could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// File system error.
+    #[error("cannot write {path}: {source}")]
+    Io {
+        /// File path.
+        path: PathBuf,
+        /// Underlying error.
+        source: std::io::Error,
+    },
+    /// CSV encoding error.
+    #[error("cannot write {path}: {source}")]
+    Csv {
+        /// File path.
+        path: PathBuf,
+        /// Underlying error.
+        source: csv::Error,
+    },
+    /// JSON encoding error.
+    #[error("cannot encode {path}: {source}")]
+    Json {
+        /// File path.
+        path: PathBuf,
+        /// Underlying error.
+        source: serde_json::Error,
+    },
+}
+
+/// Header of `timeseries.csv` (units in the names).
+pub const TIMESERIES_HEADER: [&str; 12] = [
+    "mode",
+    "t_s",
+    "reference_rad",
+    "motor_angle_rad",
+    "output_angle_rad",
+    "pointing_error_mrad",
+    "transmission_error_mrad",
+    "tension_upper_n",
+    "tension_lower_n",
+    "motor_command",
+    "motor_current_a",
+    "load_torque_nm",
+];
+
+#[derive(Serialize)]
+struct ModeSummary<'a> {
+    name: &'static str,
+    rms_mrad: f64,
+    peak_mrad: f64,
+    p95_mrad: f64,
+    within_target_fraction: f64,
+    passes_target: bool,
+    metrics: &'a Metrics,
+    solver: &'a SolverStats,
+    completion: &'a Completion,
+    simulated_s: f64,
+}
+
+#[derive(Serialize)]
+struct Summary<'a> {
+    program_version: &'static str,
+    scenario_name: &'a str,
+    simulated_s: f64,
+    duration_s: f64,
+    complete: bool,
+    command_unit: &'static str,
+    modes: Vec<ModeSummary<'a>>,
+    solver: SolverStats,
+    scenario: &'a Scenario,
+}
+
+fn mode_summary(m: &ModeResult) -> ModeSummary<'_> {
+    ModeSummary {
+        name: m.mode.name(),
+        rms_mrad: m.metrics.rms_mrad,
+        peak_mrad: m.metrics.peak_mrad,
+        p95_mrad: m.metrics.p95_mrad,
+        within_target_fraction: m.metrics.within_target_fraction,
+        passes_target: m.metrics.passes_target,
+        metrics: &m.metrics,
+        solver: &m.stats,
+        completion: &m.completion,
+        simulated_s: m.simulated_s,
+    }
+}
+
+/// Write `timeseries.csv` (all modes, with a `mode` column; only modes that were
+/// recorded) and `summary.json` into `dir` (created if missing). Returns the paths.
+pub fn write_closed_loop_outputs(
+    dir: &Path,
+    scenario: &Scenario,
+    result: &ClosedLoopResult,
+) -> Result<Vec<PathBuf>, ReportError> {
+    std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let mut written = Vec::new();
+    if result.modes.iter().any(|m| m.series.is_some()) {
+        let path = dir.join("timeseries.csv");
+        let csv_err = |source| ReportError::Csv {
+            path: path.clone(),
+            source,
+        };
+        let mut w = csv::Writer::from_path(&path).map_err(csv_err)?;
+        w.write_record(TIMESERIES_HEADER).map_err(csv_err)?;
+        for m in &result.modes {
+            let Some(s) = &m.series else { continue };
+            for i in 0..s.len() {
+                let cols = [
+                    s.t_s[i],
+                    s.reference_rad[i],
+                    s.motor_angle_rad[i],
+                    s.output_angle_rad[i],
+                    s.pointing_error_mrad[i],
+                    s.transmission_error_mrad[i],
+                    s.tension_upper_n[i],
+                    s.tension_lower_n[i],
+                    s.motor_command[i],
+                    s.motor_current_a[i],
+                    s.load_torque_nm[i],
+                ];
+                let mut row = Vec::with_capacity(12);
+                row.push(m.mode.name().to_string());
+                row.extend(cols.iter().map(|v| format!("{v:.10e}")));
+                w.write_record(&row).map_err(csv_err)?;
+            }
+        }
+        w.flush().map_err(|source| ReportError::Io {
+            path: path.clone(),
+            source,
+        })?;
+        written.push(path);
+    }
+    let total = result
+        .modes
+        .iter()
+        .fold(SolverStats::default(), |a, m| SolverStats {
+            periods: a.periods + m.stats.periods,
+            steps: a.steps + m.stats.steps,
+            rhs_evaluations: a.rhs_evaluations + m.stats.rhs_evaluations,
+            rejected_steps: a.rejected_steps + m.stats.rejected_steps,
+            compensator_faults: a.compensator_faults + m.stats.compensator_faults,
+            wall_s: a.wall_s + m.stats.wall_s,
+        });
+    let command_unit = match scenario.closed_loop.as_ref().map(|p| p.motor.amplifier) {
+        Some(super::Amplifier::Voltage) => "V",
+        _ => "A",
+    };
+    let summary = Summary {
+        program_version: env!("CARGO_PKG_VERSION"),
+        scenario_name: scenario.name(),
+        simulated_s: result
+            .modes
+            .iter()
+            .map(|m| m.simulated_s)
+            .fold(f64::INFINITY, f64::min)
+            .min(result.duration_s),
+        duration_s: result.duration_s,
+        complete: result.complete,
+        command_unit,
+        modes: result.modes.iter().map(mode_summary).collect(),
+        solver: total,
+        scenario,
+    };
+    let path = dir.join("summary.json");
+    let text = serde_json::to_string_pretty(&summary).map_err(|source| ReportError::Json {
+        path: path.clone(),
+        source,
+    })?;
+    std::fs::write(&path, text).map_err(|source| ReportError::Io {
+        path: path.clone(),
+        source,
+    })?;
+    written.push(path);
+    Ok(written)
+}
+
+/// Fixed-width table: mode, RMS, peak, p95 (mrad), whether it passes, and completion.
+pub fn format_table(result: &ClosedLoopResult) -> String {
+    let mut out = format!(
+        "{:<12} {:>10} {:>10} {:>10} {:>8}  {}\n",
+        "mode", "rms_mrad", "peak_mrad", "p95_mrad", "passes", "status"
+    );
+    for m in &result.modes {
+        let status = match &m.completion {
+            Completion::Complete => "complete".to_string(),
+            Completion::Incomplete { fault, .. } => format!("INCOMPLETE: {fault}"),
+        };
+        out.push_str(&format!(
+            "{:<12} {:>10.5} {:>10.5} {:>10.5} {:>8}  {}\n",
+            m.mode.name(),
+            m.metrics.rms_mrad,
+            m.metrics.peak_mrad,
+            m.metrics.p95_mrad,
+            if m.metrics.passes_target { "yes" } else { "no" },
+            status
+        ));
+    }
+    out
+}
+
+/// One curve of a chart (maps onto `plot::Series::line(label, x, y)`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CurveData {
+    /// Legend label.
+    pub label: String,
+    /// Abscissae.
+    pub x: Vec<f64>,
+    /// Ordinates.
+    pub y: Vec<f64>,
+}
+
+/// A chart description (maps field by field onto `plot::Chart`; `bands` onto
+/// `plot::HBand { lo, hi, label }`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChartData {
+    /// Title.
+    pub title: String,
+    /// File stem suggested for `save_chart`.
+    pub stem: String,
+    /// Abscissa label with unit.
+    pub x_label: String,
+    /// Ordinate label with unit.
+    pub y_label: String,
+    /// Curves.
+    pub series: Vec<CurveData>,
+    /// Horizontal bands `(lo, hi, label)`.
+    pub bands: Vec<(f64, f64, String)>,
+}
+
+/// The closed-loop charts: pointing error of every mode against time with the target
+/// band, pointing error against output angle, span tensions, motor command. Built from
+/// recorded series only (empty list when nothing was recorded).
+pub fn plot_closed_loop(result: &ClosedLoopResult, target_mrad: f64) -> Vec<ChartData> {
+    let recorded: Vec<_> = result
+        .modes
+        .iter()
+        .filter_map(|m| m.series.as_ref().map(|s| (m.mode.name(), s)))
+        .collect();
+    if recorded.is_empty() {
+        return Vec::new();
+    }
+    let band = vec![(-target_mrad, target_mrad, format!("+-{target_mrad} mrad"))];
+    let curves = |f: &dyn Fn(&super::sim::TimeSeries) -> (Vec<f64>, Vec<f64>), suffix: &str| {
+        recorded
+            .iter()
+            .map(|(name, s)| {
+                let (x, y) = f(s);
+                CurveData {
+                    label: format!("{name}{suffix}"),
+                    x,
+                    y,
+                }
+            })
+            .collect::<Vec<_>>()
+    };
+    let chart = |title: &str, stem: &str, xl: &str, yl: &str, series, bands| ChartData {
+        title: title.into(),
+        stem: stem.into(),
+        x_label: xl.into(),
+        y_label: yl.into(),
+        series,
+        bands,
+    };
+    let mut tensions = curves(&|s| (s.t_s.clone(), s.tension_upper_n.clone()), " upper");
+    tensions.extend(curves(&|s| (s.t_s.clone(), s.tension_lower_n.clone()), " lower"));
+    vec![
+        chart(
+            "Pointing error",
+            "pointing_error",
+            "time (s)",
+            "pointing error (mrad)",
+            curves(&|s| (s.t_s.clone(), s.pointing_error_mrad.clone()), ""),
+            band.clone(),
+        ),
+        chart(
+            "Pointing error against output angle",
+            "error_vs_angle",
+            "output angle (mrad)",
+            "pointing error (mrad)",
+            curves(
+                &|s| {
+                    (
+                        s.output_angle_rad.iter().map(|v| v * 1e3).collect(),
+                        s.pointing_error_mrad.clone(),
+                    )
+                },
+                "",
+            ),
+            band,
+        ),
+        chart(
+            "Span tensions",
+            "tensions",
+            "time (s)",
+            "tension (N)",
+            tensions,
+            Vec::new(),
+        ),
+        chart(
+            "Motor command",
+            "motor_command",
+            "time (s)",
+            "command (A or V)",
+            curves(&|s| (s.t_s.clone(), s.motor_command.clone()), ""),
+            Vec::new(),
+        ),
+    ]
+}
