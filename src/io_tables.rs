@@ -131,7 +131,10 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("a.csv");
         std::fs::write(&p, "t_s, value\n0, 0\n1, 0.5\n").unwrap();
-        assert_eq!(read_table(&p, "value").unwrap(), vec![(0.0, 0.0), (1.0, 0.5)]);
+        assert_eq!(
+            read_table(&p, "value").unwrap(),
+            vec![(0.0, 0.0), (1.0, 0.5)]
+        );
         assert!(matches!(
             read_table(&p, "torque_nm"),
             Err(TableError::MissingColumn { .. })

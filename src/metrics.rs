@@ -293,7 +293,8 @@ impl MetricsAccumulator {
         } else {
             None
         };
-        let rms = |sq: Option<f64>, k: u64| sq.map(|s| if k > 0 { (s / k as f64).sqrt() } else { 0.0 });
+        let rms =
+            |sq: Option<f64>, k: u64| sq.map(|s| if k > 0 { (s / k as f64).sqrt() } else { 0.0 });
         Metrics {
             samples: n,
             window_s: [self.first_t, self.last_t],

@@ -153,7 +153,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "eots_tracking",
         include_str!("../scenarios/eots_tracking.toml"),
     ),
-    ("eots_mismatch", include_str!("../scenarios/eots_mismatch.toml")),
+    (
+        "eots_mismatch",
+        include_str!("../scenarios/eots_mismatch.toml"),
+    ),
     ("eots_scan", include_str!("../scenarios/eots_scan.toml")),
     ("step_stare", include_str!("../scenarios/step_stare.toml")),
     ("paper_bench", include_str!("../scenarios/paper_bench.toml")),
@@ -441,7 +444,8 @@ impl Scenario {
                         "study = \"closed_loop\" needs a [closed_loop] section with duration_s, [closed_loop.reference] and [closed_loop.controller]".into(),
                     )
                 })?;
-                cl.validate(&self.drive).map_err(|(key, msg)| bad(&key, msg))?;
+                cl.validate(&self.drive)
+                    .map_err(|(key, msg)| bad(&key, msg))?;
             }
         }
         if let Some(sweep) = &self.sweep {

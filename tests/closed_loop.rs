@@ -112,7 +112,10 @@ fn linear_loop_matches_exact_discrete_time_response() {
         x = ad * x + bd * u;
     }
     assert!(scale > 1e-3, "the output must move: {scale}");
-    assert!(worst_cmd <= 1e-6 * max_cmd, "command {worst_cmd:e} of {max_cmd:e}");
+    assert!(
+        worst_cmd <= 1e-6 * max_cmd,
+        "command {worst_cmd:e} of {max_cmd:e}"
+    );
     assert!(
         worst <= 1e-6 * scale,
         "max deviation {worst:e} rad vs scale {scale:e} rad"
@@ -158,8 +161,16 @@ fn slow_motion_reproduces_quasi_static_core() {
         ts.transmission_error_mrad[k]
     };
     // Sine reference: moving down around t = 5 s, up around t = 10 s.
-    assert!((at(5.0) - minus).abs() < 0.01 * (plus - minus).abs(), "{} {minus}", at(5.0));
-    assert!((at(10.0) - plus).abs() < 0.01 * (plus - minus).abs(), "{} {plus}", at(10.0));
+    assert!(
+        (at(5.0) - minus).abs() < 0.01 * (plus - minus).abs(),
+        "{} {minus}",
+        at(5.0)
+    );
+    assert!(
+        (at(10.0) - plus).abs() < 0.01 * (plus - minus).abs(),
+        "{} {plus}",
+        at(10.0)
+    );
 }
 
 /// The EOTS case: uncompensated misses 0.1 mrad, memory compensation meets it with margin.
@@ -229,13 +240,23 @@ fn validation_names_the_key() {
         err.contains("closed_loop.controller.sample_rate_hz") && err.contains("fastest mode"),
         "{err}"
     );
-    let err = Scenario::from_toml(text, "x.toml", "x", &["closed_loop.motor.inertia_kg=1".into()])
-        .unwrap_err()
-        .to_string();
+    let err = Scenario::from_toml(
+        text,
+        "x.toml",
+        "x",
+        &["closed_loop.motor.inertia_kg=1".into()],
+    )
+    .unwrap_err()
+    .to_string();
     assert!(err.contains("did you mean `inertia_kg_m2`"), "{err}");
-    let err = Scenario::from_toml(text, "x.toml", "x", &["closed_loop.modes=[\"memory\", \"memory\"]".into()])
-        .unwrap_err()
-        .to_string();
+    let err = Scenario::from_toml(
+        text,
+        "x.toml",
+        "x",
+        &["closed_loop.modes=[\"memory\", \"memory\"]".into()],
+    )
+    .unwrap_err()
+    .to_string();
     assert!(err.contains("closed_loop.modes"), "{err}");
     // A non-closed-loop scenario is refused with a typed error.
     let qs = builtin("paper_bench");
@@ -275,18 +296,26 @@ fn outputs_are_written_and_metrics_do_not_depend_on_recording() {
     assert_eq!(files.len(), 2);
     let text = std::fs::read_to_string(dir.path().join("timeseries.csv")).unwrap();
     let mut lines = text.lines();
-    assert!(lines
-        .next()
-        .unwrap()
-        .starts_with("mode,t_s,reference_rad,motor_angle_rad,output_angle_rad,pointing_error_mrad"));
-    assert_eq!(lines.count(), 2 * rec.modes[0].series.as_ref().unwrap().len());
+    assert!(lines.next().unwrap().starts_with(
+        "mode,t_s,reference_rad,motor_angle_rad,output_angle_rad,pointing_error_mrad"
+    ));
+    assert_eq!(
+        lines.count(),
+        2 * rec.modes[0].series.as_ref().unwrap().len()
+    );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
             .unwrap();
     assert_eq!(json["complete"], true);
     assert_eq!(json["program_version"], env!("CARGO_PKG_VERSION"));
     assert_eq!(json["modes"][1]["name"], "memory");
-    for key in ["rms_mrad", "peak_mrad", "p95_mrad", "within_target_fraction", "passes_target"] {
+    for key in [
+        "rms_mrad",
+        "peak_mrad",
+        "p95_mrad",
+        "within_target_fraction",
+        "passes_target",
+    ] {
         assert!(!json["modes"][0][key].is_null(), "{key}");
     }
     assert_eq!(json["scenario"]["study"], "closed_loop");

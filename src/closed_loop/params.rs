@@ -559,7 +559,10 @@ impl ClosedLoopParams {
             pos("motor.voltage_limit_v", v)?;
         }
         pos("output.inertia_kg_m2", self.output.inertia_kg_m2)?;
-        nonneg("output.viscous_nm_s_per_rad", self.output.viscous_nm_s_per_rad)?;
+        nonneg(
+            "output.viscous_nm_s_per_rad",
+            self.output.viscous_nm_s_per_rad,
+        )?;
         let s = &self.sensors;
         if s.quantize {
             for (k, v) in [
@@ -599,7 +602,9 @@ impl ClosedLoopParams {
         if periods < 2.0 {
             return Err((
                 key("controller.sample_rate_hz"),
-                format!("{periods:.1} control periods in duration_s: raise the rate or the duration"),
+                format!(
+                    "{periods:.1} control periods in duration_s: raise the rate or the duration"
+                ),
             ));
         }
         if self.compensator_drive.is_some() {

@@ -37,6 +37,8 @@ pub enum BrakeState {
 }
 
 /// Cable law of the plant.
+// One instance per run, read on every RHS evaluation: kept inline rather than boxed.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum PlantCable {
     /// Capstan model with memory.

@@ -241,6 +241,9 @@ pub struct ChartData {
     pub bands: Vec<(f64, f64, String)>,
 }
 
+/// Picks the `(x, y)` columns of a chart from a series.
+type Columns = dyn Fn(&super::sim::TimeSeries) -> (Vec<f64>, Vec<f64>);
+
 /// The closed-loop charts: pointing error of every mode against time with the target
 /// band, pointing error against output angle, span tensions, motor command. Built from
 /// recorded series only (empty list when nothing was recorded).
@@ -254,7 +257,7 @@ pub fn plot_closed_loop(result: &ClosedLoopResult, target_mrad: f64) -> Vec<Char
         return Vec::new();
     }
     let band = vec![(-target_mrad, target_mrad, format!("+-{target_mrad} mrad"))];
-    let curves = |f: &dyn Fn(&super::sim::TimeSeries) -> (Vec<f64>, Vec<f64>), suffix: &str| {
+    let curves = |f: &Columns, suffix: &str| {
         recorded
             .iter()
             .map(|(name, s)| {
@@ -276,7 +279,10 @@ pub fn plot_closed_loop(result: &ClosedLoopResult, target_mrad: f64) -> Vec<Char
         bands,
     };
     let mut tensions = curves(&|s| (s.t_s.clone(), s.tension_upper_n.clone()), " upper");
-    tensions.extend(curves(&|s| (s.t_s.clone(), s.tension_lower_n.clone()), " lower"));
+    tensions.extend(curves(
+        &|s| (s.t_s.clone(), s.tension_lower_n.clone()),
+        " lower",
+    ));
     vec![
         chart(
             "Pointing error",

@@ -294,9 +294,7 @@ pub fn run_closed_loop(
         .map(|&m| run_mode(scenario, p, m, options))
         .collect();
     Ok(ClosedLoopResult {
-        complete: results
-            .iter()
-            .all(|r| r.completion == Completion::Complete),
+        complete: results.iter().all(|r| r.completion == Completion::Complete),
         modes: results,
         duration_s: p.duration_s,
     })
@@ -397,9 +395,8 @@ fn run_mode(
         };
         prev_ref = r.value;
         let m_brake = brake_pred.update(delta);
-        let m_pred = m_brake - load.smooth_torque_nm(t, r.value)
-            + coeff.jo * r.accel
-            + coeff.bo * r.rate;
+        let m_pred =
+            m_brake - load.smooth_torque_nm(t, r.value) + coeff.jo * r.accel + coeff.bo * r.rate;
         let e_pred = comp.as_mut().map_or(0.0, |cp| cp.predict(m_pred));
         let r_m = ic * (r.value - e_pred);
         let shift_rate = if k > 0 {
@@ -412,11 +409,7 @@ fn run_mode(
             + c.acceleration_feedforward * ic * r.accel;
         if c.load_feedforward {
             let i_ff = m_pred / (ic * coeff.kt);
-            u_ff += if voltage_mode {
-                coeff.r * i_ff
-            } else {
-                i_ff
-            };
+            u_ff += if voltage_mode { coeff.r * i_ff } else { i_ff };
         }
         let (rr, yy) = match c.feedback {
             Feedback::Motor => (r_m, ym),
@@ -441,8 +434,7 @@ fn run_mode(
             s.reference_rad.push(r.value);
             s.motor_angle_rad.push(x[THETA_M]);
             s.output_angle_rad.push(x[THETA_O]);
-            s.pointing_error_mrad
-                .push((x[THETA_O] - r.value) * 1e3);
+            s.pointing_error_mrad.push((x[THETA_O] - r.value) * 1e3);
             s.transmission_error_mrad
                 .push((x[THETA_O] - x[THETA_M] / ic) * 1e3);
             s.tension_upper_n.push(tu);
@@ -470,11 +462,13 @@ fn run_mode(
         };
         let mut solver = Rk4::new(&rhs, 0.0, x, f64::from(sub), 1.0);
         // Rk4 never fails; a cable fault is reported through the RHS.
-        let st = solver.integrate().unwrap_or_else(|_| ode_solvers::dop_shared::Stats {
-            num_eval: 0,
-            accepted_steps: 0,
-            rejected_steps: 0,
-        });
+        let st = solver
+            .integrate()
+            .unwrap_or(ode_solvers::dop_shared::Stats {
+                num_eval: 0,
+                accepted_steps: 0,
+                rejected_steps: 0,
+            });
         stats.steps += u64::from(st.accepted_steps);
         stats.rhs_evaluations += u64::from(st.num_eval);
         stats.rejected_steps += u64::from(st.rejected_steps);
