@@ -11,7 +11,11 @@ use nalgebra::SVector;
 use ode_solvers::System;
 
 use super::params::{Amplifier, CableModel, ClosedLoopParams};
-use crate::physics::{CableDrive, DriveFault, DriveParams, Half, HysteresisModel, LoadParams};
+use crate::physics::half::CableHalf;
+use crate::physics::newton::solve_increasing;
+use crate::physics::{
+    CableDrive, DriveFault, DriveParams, DriveState, Half, HysteresisModel, LoadParams,
+};
 
 /// Plant state vector.
 pub type State = SVector<f64, 5>;
@@ -26,6 +30,105 @@ pub const CURRENT: usize = 2;
 pub const THETA_O: usize = 3;
 /// Index of the output speed.
 pub const OMEGA_O: usize = 4;
+
+/// Where the last tension solve of one half ended: tension, its elongation target and
+/// the local stiffness `dT/d elong`, for a tangent-line first guess.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HalfGuess {
+    /// Span tension, N.
+    pub tension_n: f64,
+    /// Elongation target it solved, m.
+    pub elongation_m: f64,
+    /// Local stiffness, N/m.
+    pub stiffness_n_per_m: f64,
+}
+
+/// Warm start of the tension solves, carried from one evaluation to the next.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WarmStart {
+    /// Upper and lower half.
+    pub half: [HalfGuess; 2],
+    /// Evaluations of a half's elongation law so far (Newton iterations).
+    pub trials: u64,
+}
+
+impl WarmStart {
+    /// Starting from the preload with stiffness `k` (N/m).
+    pub fn new(preload_n: f64, k: f64) -> Self {
+        let g = HalfGuess {
+            tension_n: preload_n,
+            elongation_m: 0.0,
+            stiffness_n_per_m: k,
+        };
+        WarmStart {
+            half: [g, g],
+            trials: 0,
+        }
+    }
+
+    /// Re-anchor at committed tensions `(Tu, Tl)` for displacement `d`, keeping the
+    /// stiffnesses.
+    pub fn anchor(&mut self, d: f64, tensions: (f64, f64)) {
+        self.half[0].tension_n = tensions.0;
+        self.half[0].elongation_m = d;
+        self.half[1].tension_n = tensions.1;
+        self.half[1].elongation_m = -d;
+    }
+}
+
+/// Tension of one half whose elongation must equal `target` (m).
+///
+/// First guess on the tangent line through the last solution; one Newton step from
+/// there. Newton's error after a step is about `|f''/(2 f')| * step^2`, and for a cable
+/// half `|f''/f'| <= 1/(mu*T)`-ish (0.05 /N on the bench), so a step below `1e-6*T`
+/// leaves an error near 1e-12 relative: accepted without a second evaluation. Anything
+/// else goes to the safeguarded solver. `None` = no positive tension fits (slack).
+#[inline]
+fn solve_half(
+    half: &CableHalf,
+    target: f64,
+    g: &mut HalfGuess,
+    preload_n: f64,
+    trials: &mut u64,
+) -> Option<f64> {
+    let t0 = g.tension_n + (target - g.elongation_m) * g.stiffness_n_per_m;
+    if t0 > 0.0 && t0.is_finite() {
+        let tr = half.trial(t0);
+        *trials += 1;
+        let step = (tr.elongation_m - target) / tr.d_elongation_m_per_n;
+        let t1 = t0 - step;
+        if step.abs() <= 1e-6 * t1 && t1 > 0.0 {
+            *g = HalfGuess {
+                tension_n: t1,
+                elongation_m: target,
+                stiffness_n_per_m: 1.0 / tr.d_elongation_m_per_n,
+            };
+            return Some(t1);
+        }
+    }
+    let count = Cell::new(0u64);
+    let t = solve_increasing(
+        |t| {
+            count.set(count.get() + 1);
+            let tr = half.trial(t);
+            (tr.elongation_m - target, tr.d_elongation_m_per_n)
+        },
+        0.0,
+        g.tension_n,
+        preload_n,
+        1e-10,
+    )
+    .ok()?;
+    *trials += count.get();
+    let tr = half.trial(t);
+    *trials += 1;
+    *g = HalfGuess {
+        tension_n: t,
+        elongation_m: target,
+        stiffness_n_per_m: 1.0 / tr.d_elongation_m_per_n,
+    };
+    Some(t)
+}
 
 /// Whether the powder brake holds the drum.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -66,12 +169,27 @@ impl PlantCable {
         }
     }
 
-    /// Elastic span tensions `(Tu, Tl)` for displacement `D` (m), Newton warm-started at
-    /// `guess`; memory not committed.
+    /// Elastic span tensions `(Tu, Tl)` for displacement `D` (m), warm-started from
+    /// `warm` (updated); memory not committed.
     #[inline]
-    pub fn tensions(&self, d: f64, guess: (f64, f64)) -> Result<(f64, f64), DriveFault> {
+    pub fn tensions(&self, d: f64, warm: &mut WarmStart) -> Result<(f64, f64), DriveFault> {
         match self {
-            PlantCable::Hysteretic(drive) => drive.tensions_for_displacement(d, guess),
+            PlantCable::Hysteretic(drive) => {
+                let pre = drive.params().preload_n;
+                let tu = solve_half(drive.upper(), d, &mut warm.half[0], pre, &mut warm.trials)
+                    .ok_or(DriveFault::Slack {
+                        half: Half::Upper,
+                        torque_nm: 0.0,
+                        needed_preload_n: pre,
+                    })?;
+                let tl = solve_half(drive.lower(), -d, &mut warm.half[1], pre, &mut warm.trials)
+                    .ok_or(DriveFault::Slack {
+                        half: Half::Lower,
+                        torque_nm: 0.0,
+                        needed_preload_n: pre,
+                    })?;
+                Ok((tu, tl))
+            }
             PlantCable::Linear {
                 k_n_per_m,
                 preload_n,
@@ -91,17 +209,43 @@ impl PlantCable {
         }
     }
 
-    /// Full check at a period boundary (slack and gross slip) and commit of the memory.
-    /// Returns the elastic tensions.
-    pub fn commit(&mut self, d: f64) -> Result<(f64, f64), DriveFault> {
-        match self {
-            PlantCable::Hysteretic(drive) => {
-                let state = drive.trial_displacement(d)?;
-                drive.commit_state(state);
-                Ok((state.tension_upper_n, state.tension_lower_n))
+    /// Full check at a period boundary (slack and gross slip on the pulley) and commit of
+    /// the memory, warm-started like the right-hand side. Returns the elastic tensions.
+    pub fn commit(&mut self, d: f64, warm: &mut WarmStart) -> Result<(f64, f64), DriveFault> {
+        let (tu, tl) = self.tensions(d, warm)?;
+        if let PlantCable::Hysteretic(drive) = self {
+            let p = drive.params();
+            let (up, lo) = (drive.upper().trial(tu), drive.lower().trial(tl));
+            for (half, t, tr) in [(Half::Upper, tu, &up), (Half::Lower, tl, &lo)] {
+                if tr.pulley.reaches_end {
+                    // Where the slip zone would end on an unlimited pulley wrap.
+                    let demanded = (t / p.preload_n).ln().abs() / p.friction_coefficient;
+                    return Err(DriveFault::GrossSlip {
+                        half,
+                        slip_angle_rad: demanded.max(tr.pulley.slip_angle_rad),
+                        available_rad: 0.5 * p.pulley_wrap_rad,
+                        tension_n: t,
+                    });
+                }
             }
-            PlantCable::Linear { .. } => self.tensions(d, (0.0, 0.0)),
+            let state = DriveState {
+                tension_upper_n: tu,
+                tension_lower_n: tl,
+                surface_displacement_m: d,
+                transmission_error_rad: -d / p.drum_radius_m,
+                elongation_upper_m: up.elongation_m,
+                elongation_lower_m: lo.elongation_m,
+                slip_angles_rad: [
+                    up.drum.slip_angle_rad,
+                    up.pulley.slip_angle_rad,
+                    lo.drum.slip_angle_rad,
+                    lo.pulley.slip_angle_rad,
+                ],
+                anchor_reached: [up.drum.reaches_end, lo.drum.reaches_end],
+            };
+            drive.commit_state(state);
         }
+        Ok((tu, tl))
     }
 }
 
@@ -140,6 +284,9 @@ pub struct PlantCoefficients {
     pub brake: f64,
     /// Breakaway brake torque, N m.
     pub breakaway: f64,
+    /// Whether any smooth load (unbalance, constant, sine, series) is present; saves a
+    /// sine per evaluation when none is.
+    pub smooth_load: bool,
 }
 
 impl PlantCoefficients {
@@ -162,6 +309,10 @@ impl PlantCoefficients {
             bo: p.output.viscous_nm_s_per_rad,
             brake: load.brake_nm,
             breakaway: load.breakaway_nm(),
+            smooth_load: load.unbalance_nm != 0.0
+                || load.constant_nm != 0.0
+                || load.sine_nm != 0.0
+                || !load.disturbance.is_empty(),
         }
     }
 }
@@ -184,8 +335,8 @@ pub struct PeriodRhs<'a> {
     pub t0: f64,
     /// Substep length, s.
     pub h: f64,
-    /// Last tensions found, to warm-start Newton.
-    pub guess: Cell<(f64, f64)>,
+    /// Warm start of the tension solves (and their count).
+    pub warm: Cell<WarmStart>,
     /// First fault met inside the period.
     pub fault: Cell<Option<DriveFault>>,
 }
@@ -245,7 +396,8 @@ impl System<f64, State> for &PeriodRhs<'_> {
     fn system(&self, tau: f64, x: &State, dx: &mut State) {
         let c = self.c;
         let d = c.ri * x[THETA_M] - c.ro * x[THETA_O];
-        let el = match self.cable.tensions(d, self.guess.get()) {
+        let mut warm = self.warm.get();
+        let el = match self.cable.tensions(d, &mut warm) {
             Ok(t) => t,
             Err(e) => {
                 if self.fault.get().is_none() {
@@ -255,9 +407,13 @@ impl System<f64, State> for &PeriodRhs<'_> {
                 return;
             }
         };
-        self.guess.set(el);
+        self.warm.set(warm);
         let t = self.t0 + tau * self.h;
-        let smooth = self.load.smooth_torque_nm(t, x[THETA_O]);
+        let smooth = if c.smooth_load {
+            self.load.smooth_torque_nm(t, x[THETA_O])
+        } else {
+            0.0
+        };
         let dxt = derivative(c, x, damped(c, el, x), smooth, self.brake, self.command);
         *dx = dxt * self.h;
     }

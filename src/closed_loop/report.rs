@@ -38,7 +38,8 @@ pub enum ReportError {
     },
 }
 
-/// Header of `timeseries.csv` (units in the names).
+/// Header of `timeseries.csv` (units in the names); the command column is
+/// `motor_command_a` with a current amplifier and `motor_command_v` with a voltage one.
 pub const TIMESERIES_HEADER: [&str; 12] = [
     "mode",
     "t_s",
@@ -49,7 +50,7 @@ pub const TIMESERIES_HEADER: [&str; 12] = [
     "transmission_error_mrad",
     "tension_upper_n",
     "tension_lower_n",
-    "motor_command",
+    "motor_command_a",
     "motor_current_a",
     "load_torque_nm",
 ];
@@ -108,6 +109,10 @@ pub fn write_closed_loop_outputs(
         source,
     })?;
     let mut written = Vec::new();
+    let command_unit = match scenario.closed_loop.as_ref().map(|p| p.motor.amplifier) {
+        Some(super::Amplifier::Voltage) => "V",
+        _ => "A",
+    };
     if result.modes.iter().any(|m| m.series.is_some()) {
         let path = dir.join("timeseries.csv");
         let csv_err = |source| ReportError::Csv {
@@ -115,7 +120,11 @@ pub fn write_closed_loop_outputs(
             source,
         };
         let mut w = csv::Writer::from_path(&path).map_err(csv_err)?;
-        w.write_record(TIMESERIES_HEADER).map_err(csv_err)?;
+        let mut header = TIMESERIES_HEADER;
+        if command_unit == "V" {
+            header[9] = "motor_command_v";
+        }
+        w.write_record(header).map_err(csv_err)?;
         for m in &result.modes {
             let Some(s) = &m.series else { continue };
             for i in 0..s.len() {
@@ -151,14 +160,11 @@ pub fn write_closed_loop_outputs(
             periods: a.periods + m.stats.periods,
             steps: a.steps + m.stats.steps,
             rhs_evaluations: a.rhs_evaluations + m.stats.rhs_evaluations,
+            newton_evaluations: a.newton_evaluations + m.stats.newton_evaluations,
             rejected_steps: a.rejected_steps + m.stats.rejected_steps,
             compensator_faults: a.compensator_faults + m.stats.compensator_faults,
             wall_s: a.wall_s + m.stats.wall_s,
         });
-    let command_unit = match scenario.closed_loop.as_ref().map(|p| p.motor.amplifier) {
-        Some(super::Amplifier::Voltage) => "V",
-        _ => "A",
-    };
     let summary = Summary {
         program_version: env!("CARGO_PKG_VERSION"),
         scenario_name: scenario.name(),

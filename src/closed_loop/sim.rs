@@ -10,7 +10,7 @@ use super::controller::{BrakePredictor, Compensator, Pid, Sensors};
 use super::params::{Amplifier, ClosedLoopParams, CompensationMode, Feedback};
 use super::plant::{
     damped, load_torque, update_brake, BrakeState, Forces, PeriodRhs, PlantCable,
-    PlantCoefficients, State, CURRENT, OMEGA_O, THETA_M, THETA_O,
+    PlantCoefficients, State, WarmStart, CURRENT, OMEGA_O, THETA_M, THETA_O,
 };
 use crate::metrics::{Metrics, MetricsAccumulator, MetricsConfig, Sample, StepEvent};
 use crate::physics::DriveFault;
@@ -105,6 +105,9 @@ pub struct SolverStats {
     pub steps: u64,
     /// Right-hand-side evaluations (each solves both span tensions by Newton).
     pub rhs_evaluations: u64,
+    /// Evaluations of a cable half's elongation law inside the right-hand side (Newton
+    /// iterations of the tension solves; 0 for the linear cable).
+    pub newton_evaluations: u64,
     /// Rejected steps (always 0 with fixed-step RK4; kept for adaptive solvers).
     pub rejected_steps: u64,
     /// Samples at which the compensator's own model faulted and held its prediction.
@@ -305,7 +308,24 @@ pub fn run_closed_loop_metrics(scenario: &Scenario) -> Result<ClosedLoopResult, 
     run_closed_loop(scenario, &RunOptions::metrics_only())
 }
 
-fn describe(fault: &DriveFault, t: f64, mode: CompensationMode) -> String {
+/// Fault message with time and mode. A slack span found while solving by displacement
+/// carries no torque; the transmitted torque at the last sample fills it in, so the
+/// message can say how much preload would carry the load.
+fn describe(
+    fault: &DriveFault,
+    t: f64,
+    mode: CompensationMode,
+    cable_torque_nm: f64,
+    drum_radius_m: f64,
+) -> String {
+    let fault = match *fault {
+        DriveFault::Slack { half, .. } => DriveFault::Slack {
+            half,
+            torque_nm: cable_torque_nm,
+            needed_preload_n: cable_torque_nm.abs() / (2.0 * drum_radius_m),
+        },
+        other => other,
+    };
     format!(
         "plant cable fault at t = {t:.4} s (mode {}): {fault}",
         mode.name()
@@ -355,28 +375,37 @@ fn run_mode(
     let mut stats = SolverStats::default();
     let mut completion = Completion::Complete;
     let mut reached = 0.0;
+    let mut last_torque = 0.0;
+    let mut warm = WarmStart::new(
+        drive.preload_n,
+        ClosedLoopParams::half_stiffness_n_per_m(drive),
+    );
 
     for k in 0..=n {
         let t = k as f64 * ts;
         let d = coeff.ri * x[THETA_M] - coeff.ro * x[THETA_O];
-        let el = match cable.commit(d) {
+        let el = match cable.commit(d, &mut warm) {
             Ok(el) => el,
             Err(f) => {
                 completion = Completion::Incomplete {
-                    fault: describe(&f, t, mode),
+                    fault: describe(&f, t, mode, last_torque, coeff.ro),
                     time_s: t,
                 };
                 break;
             }
         };
-        let guess = el;
         let (tu, tl) = damped(&coeff, el, &x);
         let forces = Forces {
             tension_upper_n: tu,
             tension_lower_n: tl,
             cable_torque_nm: coeff.ro * (tu - tl),
-            smooth_load_nm: load.smooth_torque_nm(t, x[THETA_O]),
+            smooth_load_nm: if coeff.smooth_load {
+                load.smooth_torque_nm(t, x[THETA_O])
+            } else {
+                0.0
+            },
         };
+        last_torque = forces.cable_torque_nm;
         brake = update_brake(
             &coeff,
             brake,
@@ -457,7 +486,7 @@ fn run_mode(
             command: u,
             t0: t,
             h: ts / f64::from(sub),
-            guess: std::cell::Cell::new(guess),
+            warm: std::cell::Cell::new(warm),
             fault: std::cell::Cell::new(None),
         };
         let mut solver = Rk4::new(&rhs, 0.0, x, f64::from(sub), 1.0);
@@ -475,12 +504,13 @@ fn run_mode(
         stats.periods += 1;
         if let Some(f) = rhs.fault.get() {
             completion = Completion::Incomplete {
-                fault: describe(&f, t + ts, mode),
+                fault: describe(&f, t + ts, mode, last_torque, coeff.ro),
                 time_s: t + ts,
             };
             reached = t + ts;
             break;
         }
+        warm = rhs.warm.get();
         if let Some(y) = solver.y_out().last() {
             x = *y;
         }
@@ -488,6 +518,7 @@ fn run_mode(
             x[OMEGA_O] = 0.0;
         }
     }
+    stats.newton_evaluations = warm.trials;
     stats.compensator_faults = comp.as_ref().map_or(0, Compensator::faults);
     stats.wall_s = wall.elapsed().as_secs_f64();
     ModeResult {
