@@ -2,9 +2,13 @@
 //! and bench-log diagnosis for electro-optical pointing systems.
 
 pub mod closed_loop;
-pub mod io_tables;
+pub mod io;
 pub mod metrics;
 pub mod physics;
+pub mod plot;
+pub mod report;
+pub mod run;
 pub mod scenario;
 pub mod signal;
+pub mod study;
 pub mod sweep;

@@ -320,6 +320,9 @@ fn outputs_are_written_and_metrics_do_not_depend_on_recording() {
     }
     assert_eq!(json["scenario"]["study"], "closed_loop");
     assert!(format_table(&rec).contains("memory"));
-    let charts = report::plot_closed_loop(&rec, 0.1);
+    let charts = closed_loop_charts(&rec, 0.1);
     assert_eq!(charts.len(), 4);
+    let pictures = plot_closed_loop(dir.path(), &rec, 0.1).unwrap();
+    assert_eq!(pictures.len(), 8);
+    assert!(pictures.iter().all(|p| p.exists()));
 }

@@ -217,12 +217,12 @@ impl PlantCable {
             let p = drive.params();
             let (up, lo) = (drive.upper().trial(tu), drive.lower().trial(tl));
             for (half, t, tr) in [(Half::Upper, tu, &up), (Half::Lower, tl, &lo)] {
-                if tr.pulley.reaches_end {
+                if tr.pulley_neutral_reached {
                     // Where the slip zone would end on an unlimited pulley wrap.
                     let demanded = (t / p.preload_n).ln().abs() / p.friction_coefficient;
                     return Err(DriveFault::GrossSlip {
                         half,
-                        slip_angle_rad: demanded.max(tr.pulley.slip_angle_rad),
+                        slip_angle_rad: demanded.max(tr.pulley_slip_rad),
                         available_rad: 0.5 * p.pulley_wrap_rad,
                         tension_n: t,
                     });
@@ -236,12 +236,12 @@ impl PlantCable {
                 elongation_upper_m: up.elongation_m,
                 elongation_lower_m: lo.elongation_m,
                 slip_angles_rad: [
-                    up.drum.slip_angle_rad,
-                    up.pulley.slip_angle_rad,
-                    lo.drum.slip_angle_rad,
-                    lo.pulley.slip_angle_rad,
+                    up.drum_slip_rad,
+                    up.pulley_slip_rad,
+                    lo.drum_slip_rad,
+                    lo.pulley_slip_rad,
                 ],
-                anchor_reached: [up.drum.reaches_end, lo.drum.reaches_end],
+                anchor_reached: [up.drum_anchor_reached, lo.drum_anchor_reached],
             };
             drive.commit_state(state);
         }

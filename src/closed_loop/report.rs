@@ -5,8 +5,9 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use super::sim::{ClosedLoopResult, Completion, ModeResult, SolverStats};
+use super::sim::{ClosedLoopResult, Completion, ModeResult, SolverStats, TimeSeries};
 use crate::metrics::Metrics;
+use crate::plot::{save_chart, Chart, HBand, PlotError, Series};
 use crate::scenario::Scenario;
 
 /// Why outputs could not be written.
@@ -218,43 +219,11 @@ pub fn format_table(result: &ClosedLoopResult) -> String {
     out
 }
 
-/// One curve of a chart (maps onto `plot::Series::line(label, x, y)`).
-#[derive(Clone, Debug, PartialEq)]
-pub struct CurveData {
-    /// Legend label.
-    pub label: String,
-    /// Abscissae.
-    pub x: Vec<f64>,
-    /// Ordinates.
-    pub y: Vec<f64>,
-}
-
-/// A chart description (maps field by field onto `plot::Chart`; `bands` onto
-/// `plot::HBand { lo, hi, label }`).
-#[derive(Clone, Debug, PartialEq)]
-pub struct ChartData {
-    /// Title.
-    pub title: String,
-    /// File stem suggested for `save_chart`.
-    pub stem: String,
-    /// Abscissa label with unit.
-    pub x_label: String,
-    /// Ordinate label with unit.
-    pub y_label: String,
-    /// Curves.
-    pub series: Vec<CurveData>,
-    /// Horizontal bands `(lo, hi, label)`.
-    pub bands: Vec<(f64, f64, String)>,
-}
-
-/// Picks the `(x, y)` columns of a chart from a series.
-type Columns = dyn Fn(&super::sim::TimeSeries) -> (Vec<f64>, Vec<f64>);
-
-/// The closed-loop charts: pointing error of every mode against time with the target
-/// band, pointing error against output angle, span tensions, motor command. Built from
-/// recorded series only (empty list when nothing was recorded).
-pub fn plot_closed_loop(result: &ClosedLoopResult, target_mrad: f64) -> Vec<ChartData> {
-    let recorded: Vec<_> = result
+/// The closed-loop charts as `(file stem, chart)`: pointing error of every mode against
+/// time with the +-target band, pointing error against output angle, span tensions and
+/// motor command. Built from recorded series only (empty when nothing was recorded).
+pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(String, Chart)> {
+    let recorded: Vec<(&str, &TimeSeries)> = result
         .modes
         .iter()
         .filter_map(|m| m.series.as_ref().map(|s| (m.mode.name(), s)))
@@ -262,73 +231,104 @@ pub fn plot_closed_loop(result: &ClosedLoopResult, target_mrad: f64) -> Vec<Char
     if recorded.is_empty() {
         return Vec::new();
     }
-    let band = vec![(-target_mrad, target_mrad, format!("+-{target_mrad} mrad"))];
-    let curves = |f: &Columns, suffix: &str| {
+    let band = || {
+        vec![HBand {
+            lo: -target_mrad,
+            hi: target_mrad,
+            label: format!("target +-{target_mrad} mrad"),
+        }]
+    };
+    let curves = |f: &Columns, suffix: &str| -> Vec<Series> {
         recorded
             .iter()
             .map(|(name, s)| {
                 let (x, y) = f(s);
-                CurveData {
-                    label: format!("{name}{suffix}"),
-                    x,
-                    y,
-                }
+                Series::line(format!("{name}{suffix}"), x, y)
             })
-            .collect::<Vec<_>>()
+            .collect()
     };
-    let chart = |title: &str, stem: &str, xl: &str, yl: &str, series, bands| ChartData {
+    let chart = |title: &str, x_label: &str, y_label: &str, series, bands| Chart {
         title: title.into(),
-        stem: stem.into(),
-        x_label: xl.into(),
-        y_label: yl.into(),
+        x_label: x_label.into(),
+        y_label: y_label.into(),
         series,
         bands,
+        ..Chart::default()
     };
     let mut tensions = curves(&|s| (s.t_s.clone(), s.tension_upper_n.clone()), " upper");
     tensions.extend(curves(
         &|s| (s.t_s.clone(), s.tension_lower_n.clone()),
         " lower",
     ));
+    // Commands are held between samples: drawn as staircases.
+    let commands = recorded
+        .iter()
+        .map(|(name, s)| Series::step(*name, s.t_s.clone(), s.motor_command.clone()))
+        .collect();
     vec![
-        chart(
-            "Pointing error",
-            "pointing_error",
-            "time (s)",
-            "pointing error (mrad)",
-            curves(&|s| (s.t_s.clone(), s.pointing_error_mrad.clone()), ""),
-            band.clone(),
-        ),
-        chart(
-            "Pointing error against output angle",
-            "error_vs_angle",
-            "output angle (mrad)",
-            "pointing error (mrad)",
-            curves(
-                &|s| {
-                    (
-                        s.output_angle_rad.iter().map(|v| v * 1e3).collect(),
-                        s.pointing_error_mrad.clone(),
-                    )
-                },
-                "",
+        (
+            "pointing_error".into(),
+            chart(
+                "Pointing error",
+                "time [s]",
+                "pointing error [mrad]",
+                curves(&|s| (s.t_s.clone(), s.pointing_error_mrad.clone()), ""),
+                band(),
             ),
-            band,
         ),
-        chart(
-            "Span tensions",
-            "tensions",
-            "time (s)",
-            "tension (N)",
-            tensions,
-            Vec::new(),
+        (
+            "error_vs_angle".into(),
+            chart(
+                "Pointing error against output angle",
+                "output angle [mrad]",
+                "pointing error [mrad]",
+                curves(
+                    &|s| {
+                        (
+                            s.output_angle_rad.iter().map(|v| v * 1e3).collect(),
+                            s.pointing_error_mrad.clone(),
+                        )
+                    },
+                    "",
+                ),
+                band(),
+            ),
         ),
-        chart(
-            "Motor command",
-            "motor_command",
-            "time (s)",
-            "command (A or V)",
-            curves(&|s| (s.t_s.clone(), s.motor_command.clone()), ""),
-            Vec::new(),
+        (
+            "tensions".into(),
+            chart(
+                "Span tensions",
+                "time [s]",
+                "tension [N]",
+                tensions,
+                Vec::new(),
+            ),
+        ),
+        (
+            "motor_command".into(),
+            chart(
+                "Motor command",
+                "time [s]",
+                "command [A or V]",
+                commands,
+                Vec::new(),
+            ),
         ),
     ]
+}
+
+/// Picks the `(x, y)` columns of a chart from a series.
+type Columns = dyn Fn(&TimeSeries) -> (Vec<f64>, Vec<f64>);
+
+/// Draw the closed-loop charts into `dir` (PNG and SVG each); returns the files.
+pub fn plot_closed_loop(
+    dir: &Path,
+    result: &ClosedLoopResult,
+    target_mrad: f64,
+) -> Result<Vec<PathBuf>, PlotError> {
+    let mut files = Vec::new();
+    for (stem, chart) in closed_loop_charts(result, target_mrad) {
+        files.extend(save_chart(&chart, &dir.join(stem))?);
+    }
+    Ok(files)
 }

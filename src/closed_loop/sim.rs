@@ -66,7 +66,7 @@ pub enum ClosedLoopError {
         message: String,
     },
     /// A CSV table named in the scenario has not been loaded.
-    #[error("{key}: the table {path} holds no samples; load it with io_tables::load_tables before running")]
+    #[error("{key}: the table {path} holds no samples; load it with io::tables::load_tables before running")]
     TableNotLoaded {
         /// Dotted scenario key.
         key: String,
