@@ -146,6 +146,13 @@ fn slow_motion_reproduces_quasi_static_core() {
         let e_core = core.apply_torque(m).unwrap().transmission_error_rad * 1e3;
         worst = worst.max((ts.transmission_error_mrad[k] - e_core).abs());
     }
+    // The brake reverses once per reversal of motion (at 2.5 and 7.5 s), never chatters.
+    let flips = ts
+        .load_torque_nm
+        .windows(2)
+        .filter(|w| w[0] * w[1] < 0.0)
+        .count();
+    assert!(flips <= 3, "load torque changed sign {flips} times");
     // 0.2 % of the 0.433 mrad reversal jump (damping and drum inertia make up the rest).
     assert!(worst < 8.7e-4, "worst deviation {worst} mrad");
 
@@ -325,4 +332,23 @@ fn outputs_are_written_and_metrics_do_not_depend_on_recording() {
     let pictures = plot_closed_loop(dir.path(), &rec, 0.1).unwrap();
     assert_eq!(pictures.len(), 8);
     assert!(pictures.iter().all(|p| p.exists()));
+}
+
+/// Partial reversals (unbalance plus brake): the memory compensator beats the memoryless.
+#[test]
+fn eots_scan_memory_beats_memoryless() {
+    let s = builtin("eots_scan");
+    let opts = RunOptions {
+        modes: Some(vec![CompensationMode::Memoryless, CompensationMode::Memory]),
+        ..RunOptions::metrics_only()
+    };
+    let r = run_closed_loop(&s, &opts).unwrap();
+    let (less, mem) = (&r.modes[0].metrics, &r.modes[1].metrics);
+    assert!(
+        mem.rms_mrad < 0.9 * less.rms_mrad,
+        "{} vs {}",
+        mem.rms_mrad,
+        less.rms_mrad
+    );
+    assert!(mem.p95_mrad < less.p95_mrad);
 }
