@@ -13,7 +13,7 @@ use super::plant::{
     PlantCoefficients, State, WarmStart, CURRENT, OMEGA_O, THETA_M, THETA_O,
 };
 use crate::metrics::{Metrics, MetricsAccumulator, MetricsConfig, Sample, StepEvent};
-use crate::physics::DriveFault;
+use crate::physics::{DriveFault, Half};
 use crate::scenario::{Scenario, Study};
 use crate::signal::Signal;
 
@@ -318,16 +318,26 @@ fn describe(
     cable_torque_nm: f64,
     drum_radius_m: f64,
 ) -> String {
+    let mut hint = "";
     let fault = match *fault {
-        DriveFault::Slack { half, .. } => DriveFault::Slack {
-            half,
-            torque_nm: cable_torque_nm,
-            needed_preload_n: cable_torque_nm.abs() / (2.0 * drum_radius_m),
-        },
+        DriveFault::Slack { half, .. } => {
+            // Positive torque tightens the upper span: a slack span on the tight side's
+            // opposite is expected, the other way round means the tension swung through
+            // a whole preload within one period.
+            let swung = (half == Half::Upper) == (cable_torque_nm > 0.0);
+            if swung {
+                hint = "; the tensions swung within one period, so the loop is likely unstable: lower the controller gains";
+            }
+            DriveFault::Slack {
+                half,
+                torque_nm: cable_torque_nm,
+                needed_preload_n: cable_torque_nm.abs() / (2.0 * drum_radius_m),
+            }
+        }
         other => other,
     };
     format!(
-        "plant cable fault at t = {t:.4} s (mode {}): {fault}",
+        "plant cable fault at t = {t:.4} s (mode {}): {fault}{hint}",
         mode.name()
     )
 }
@@ -513,6 +523,18 @@ fn run_mode(
         warm = rhs.warm.get();
         if let Some(y) = solver.y_out().last() {
             x = *y;
+        }
+        if !x.iter().all(|v| v.is_finite()) {
+            completion = Completion::Incomplete {
+                fault: format!(
+                    "the loop diverged (plant state not finite) at t = {:.4} s (mode {}); lower closed_loop.controller gains or raise sample_rate_hz",
+                    t + ts,
+                    mode.name()
+                ),
+                time_s: t + ts,
+            };
+            reached = t + ts;
+            break;
         }
         if let BrakeState::Stuck = brake {
             x[OMEGA_O] = 0.0;
