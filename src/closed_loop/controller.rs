@@ -173,28 +173,38 @@ impl Compensator {
 }
 
 /// Expected brake torque seen by the cable, reversing gradually with the reference.
+///
+/// After each reversal the cable has to pull the brake free, so the prediction first
+/// climbs to the breakaway torque and then settles to the sliding torque: the compensator
+/// copy then remembers the breakaway peak as the real cable does (its slip zones reach as
+/// far as the peak tension drove them).
 #[derive(Clone, Debug)]
 pub struct BrakePredictor {
     brake_nm: f64,
+    breakaway_nm: f64,
     step_nm: f64,
     dir: f64,
     value_nm: f64,
+    broke_free: bool,
 }
 
 impl BrakePredictor {
-    /// Sliding torque `brake_nm` (N m), full reversal over `transition_s` at sample
-    /// period `period_s`.
-    pub fn new(brake_nm: f64, transition_s: f64, period_s: f64) -> Self {
+    /// Sliding torque `brake_nm` and breakaway torque `breakaway_nm` (N m), full reversal
+    /// over `transition_s` at sample period `period_s`.
+    pub fn new(brake_nm: f64, breakaway_nm: f64, transition_s: f64, period_s: f64) -> Self {
+        let breakaway_nm = breakaway_nm.max(brake_nm);
         let step_nm = if transition_s > 0.0 {
-            2.0 * brake_nm * period_s / transition_s
+            2.0 * breakaway_nm * period_s / transition_s
         } else {
             f64::INFINITY
         };
         BrakePredictor {
             brake_nm,
+            breakaway_nm,
             step_nm,
             dir: 0.0,
             value_nm: 0.0,
+            broke_free: false,
         }
     }
 
@@ -202,11 +212,65 @@ impl BrakePredictor {
     /// reference; zero keeps the last direction). Returns the transmitted torque the brake
     /// demands, N m (`+brake` when moving in `+`).
     pub fn update(&mut self, delta: f64) -> f64 {
-        if delta != 0.0 {
+        if delta != 0.0 && delta.signum() != self.dir {
             self.dir = delta.signum();
+            self.broke_free = false;
         }
-        let target = self.brake_nm * self.dir;
+        let level = if self.broke_free {
+            self.brake_nm
+        } else {
+            self.breakaway_nm
+        };
+        let target = level * self.dir;
         self.value_nm += (target - self.value_nm).clamp(-self.step_nm, self.step_nm);
+        if self.value_nm == target {
+            self.broke_free = true;
+        }
         self.value_nm
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn brake_prediction_peaks_at_breakaway_then_slides() {
+        // 0.1 N m per sample.
+        let mut b = BrakePredictor::new(0.5, 0.6, 1.2, 0.1);
+        let seq: Vec<f64> = (0..9).map(|_| b.update(1.0)).collect();
+        let expect = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.5, 0.5, 0.5];
+        for (a, e) in seq.iter().zip(expect) {
+            assert!((a - e).abs() < 1e-12, "{seq:?}");
+        }
+        // Standing still keeps the direction; reversing climbs to -breakaway.
+        assert!((b.update(0.0) - 0.5).abs() < 1e-12);
+        let back: Vec<f64> = (0..13).map(|_| b.update(-2.0)).collect();
+        assert!((back[10] + 0.6).abs() < 1e-12, "{back:?}");
+        assert!((back[12] + 0.5).abs() < 1e-12, "{back:?}");
+    }
+
+    #[test]
+    fn pid_freezes_integral_in_saturation() {
+        let p = ControllerParams {
+            sample_rate_hz: 1000.0,
+            kp: 1.0,
+            ki: 100.0,
+            kd: 0.0,
+            ..ControllerParams::default()
+        };
+        let mut pid = Pid::new(&p, 2.0);
+        // Error 10: saturated at +2 from the start; the integral must not grow.
+        for _ in 0..100 {
+            assert_eq!(pid.update(10.0, 0.0, 0.0), 2.0);
+        }
+        // Error back to zero: unsaturated output is the (small) integral only.
+        let u = pid.update(0.0, 0.0, 0.0);
+        assert!(u.abs() < 1e-12, "{u}");
+        // Unsaturated: integral accumulates ki*T*e per sample.
+        let mut pid = Pid::new(&p, 1e9);
+        pid.update(1.0, 0.0, 0.0);
+        let u = pid.update(1.0, 0.0, 0.0);
+        assert!((u - (1.0 + 2.0 * 0.1)).abs() < 1e-12, "{u}");
     }
 }

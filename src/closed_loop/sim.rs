@@ -362,7 +362,12 @@ fn run_mode(
     let mut comp = mode
         .model()
         .map(|m| Compensator::new(p.compensator_params(drive), m));
-    let mut brake_pred = BrakePredictor::new(load.brake_nm, p.controller.brake_transition_s, ts);
+    let mut brake_pred = BrakePredictor::new(
+        load.brake_nm,
+        load.breakaway_nm(),
+        p.controller.brake_transition_s,
+        ts,
+    );
     let voltage_mode = p.motor.amplifier == Amplifier::Voltage;
     let c = &p.controller;
 
