@@ -3,6 +3,7 @@
 
 pub mod closed_loop;
 pub mod io;
+pub mod metrics;
 pub mod physics;
 pub mod plot;
 pub mod report;
