@@ -380,7 +380,10 @@ impl Scenario {
     /// Signals other than the quasi-static motion (closed-loop references), for the I/O
     /// layer to fill tabulated ones.
     pub fn signals_mut(&mut self) -> Vec<&mut Signal> {
-        Vec::new()
+        self.closed_loop
+            .as_mut()
+            .map(|c| vec![&mut c.reference])
+            .unwrap_or_default()
     }
 
     /// Scenario name (file stem unless set).
