@@ -232,7 +232,39 @@ impl CaseRunner for QuasiStaticRunner {
             return Vec::new();
         };
         let model = qs.models.first().copied().unwrap_or_default();
-        let f = quasi_static::run_model(&scenario.drive, &scenario.load, qs, model).figures();
+        let trace = quasi_static::run_model(&scenario.drive, &scenario.load, qs, model);
+        Self::cells(&trace)
+    }
+
+    fn writes_case_files(&self) -> bool {
+        true
+    }
+
+    /// With a folder, every model of the scenario runs (as `run` does) and their traces go
+    /// to `timeseries.csv` and `profiles.csv`; the row keeps the first model's figures.
+    fn run_case(
+        &self,
+        scenario: &Scenario,
+        case: &Case,
+        dir: Option<&Path>,
+    ) -> std::io::Result<Vec<Cell>> {
+        let (Some(dir), Some(qs)) = (dir, &scenario.quasi_static) else {
+            return Ok(self.run(scenario, case));
+        };
+        let traces: Vec<_> = qs
+            .models
+            .iter()
+            .map(|&m| quasi_static::run_model(&scenario.drive, &scenario.load, qs, m))
+            .collect();
+        report::quasi_static::write_tables(dir, &traces)
+            .map_err(|e| std::io::Error::other(e.to_string()))?;
+        Ok(traces.first().map(Self::cells).unwrap_or_default())
+    }
+}
+
+impl QuasiStaticRunner {
+    fn cells(trace: &quasi_static::QsTrace) -> Vec<Cell> {
+        let f = trace.figures();
         vec![
             Cell::Num(Some(f.peak_error_mrad)),
             Cell::Num(Some(f.peak_to_peak_error_mrad)),
@@ -254,6 +286,8 @@ pub struct SweepOptions {
     pub threads: usize,
     /// Part of the sweep to run.
     pub shard: Shard,
+    /// Also write each case's time series to `cases/case-NNNNNN/` (quasi-static studies).
+    pub case_timeseries: bool,
 }
 
 /// The case runner for a scenario's study.
@@ -280,8 +314,14 @@ pub fn run_sweep(
             scenario.name()
         ))
     })?;
-    let cases = engine::expand(spec);
     let base = scenario.to_table();
+    let cases = engine::expand(spec, &base).map_err(|(key, message)| {
+        RunError::Scenario(ScenarioError::Invalid {
+            source_name: scenario.name().to_string(),
+            key,
+            message,
+        })
+    })?;
     let runner = runner_for(scenario)?;
     // Validate every case before anything is written: bad input leaves no results.
     for case in cases.iter().filter(|c| options.shard.owns(c.index)) {
@@ -290,7 +330,16 @@ pub fn run_sweep(
             source: Box::new(e),
         })?;
     }
-    let warnings = scenario.warnings();
+    let mut warnings = scenario.warnings();
+    if options.case_timeseries && !runner.writes_case_files() {
+        warnings.push(format!(
+            "--case-timeseries: {} cases have no time series; only sweep.csv is written",
+            serde_json::to_value(scenario.study)
+                .ok()
+                .and_then(|v| v.as_str().map(str::to_string))
+                .unwrap_or_default()
+        ));
+    }
     let staged = StagedDir::create(&options.output.dir, options.output.force)?;
     let dir = staged.path().to_path_buf();
     let parameter_columns: Vec<String> = spec
@@ -310,6 +359,7 @@ pub fn run_sweep(
         cases: &cases,
         shard: options.shard,
         threads: options.threads,
+        case_files: options.case_timeseries.then_some(dir.as_path()),
     };
     let outcome = engine::run_cases(
         &plan,
@@ -319,8 +369,12 @@ pub fn run_sweep(
     );
     table.finish()?;
     let failure = outcome.err().map(|e| e.to_string());
-    let answers = design_answers(scenario, &parameter_columns, &figure_columns, &table.rows);
-    let mut warnings = warnings;
+    let sampled = spec.mode.is_sampled();
+    let answers = if sampled {
+        report::sweep::statistics(&figure_columns, &table.rows)
+    } else {
+        design_answers(scenario, &parameter_columns, &figure_columns, &table.rows)
+    };
     report::write_json(
         &dir.join("summary.json"),
         &serde_json::json!({
@@ -332,11 +386,16 @@ pub fn run_sweep(
             "cases_total": cases.len(),
             "cases_written": table.rows.len(),
             "shard": format!("{}/{}", options.shard.k, options.shard.n),
-            "design_answers": answers.0,
+            "mode": spec.mode.as_str(),
+            "seed": sampled.then(|| spec.seed.unwrap_or(0)),
+            "design_answers": if sampled { serde_json::Value::Null } else { answers.0.clone() },
+            "statistics": if sampled { answers.0.clone() } else { serde_json::Value::Null },
             "scenario": scenario,
         }),
     )?;
-    plots(
+    let drawn = if sampled {
+        report::sweep::plot_samples(&dir, &parameter_columns, &figure_columns, &table.rows, 3)
+    } else {
         report::sweep::plot(
             &dir,
             &parameter_columns,
@@ -344,9 +403,9 @@ pub fn run_sweep(
             &table.rows,
             Some(0.1),
             3,
-        ),
-        &mut warnings,
-    );
+        )
+    };
+    plots(drawn, &mut warnings);
     let mut text = format!(
         "{} cases written to sweep.csv ({} in the sweep)\n",
         table.rows.len(),
