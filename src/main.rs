@@ -287,7 +287,7 @@ fn main() -> ExitCode {
                     ))
             );
             println!(
-                "  slack bound of an ideal drive M/(2*drum_radius_m) = {:.3} N",
+                "  for comparison M/(2*drum_radius_m) = {:.3} N (slack limit if span tensions moved equally and oppositely)",
                 r.slack_bound_n
             );
             println!("  definition: {}", r.definition);

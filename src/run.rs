@@ -416,7 +416,8 @@ pub fn run_sweep(
 }
 
 /// Answers a designer reads off a sweep: for backlash sweeps over preload and load, the
-/// preload above which backlash flattens, per load. Returns JSON and a printable text.
+/// preload above which backlash flattens, and the least preload free of slack and gross
+/// slip (by bisection, independent of the swept preloads), per load. Returns JSON and a printable text.
 fn design_answers(
     scenario: &Scenario,
     parameter_columns: &[String],
@@ -439,7 +440,7 @@ fn design_answers(
     loads.dedup();
     let mut json_rows = Vec::new();
     let mut text = format!(
-        "Preload above which backlash flattens (reversal backlash within {:.0} % of its\ninfinite-preload limit Lf*M/(ro^2*G), the free-span stretch alone):\n",
+        "Preload above which backlash flattens (reversal backlash within {:.0} % of its\ninfinite-preload limit Lf*M/(ro^2*G), the free-span stretch alone), and least preload\nwith no slack span and no gross slip:\n",
         TOLERANCE * 100.0
     );
     for load in loads {
@@ -456,14 +457,30 @@ fn design_answers(
             .collect();
         let limit = report::quasi_static::free_span_backlash_mrad(&scenario.drive, load);
         let threshold = crate::sweep::answers::flattening_preload(&pts, limit, TOLERANCE);
+        let model = scenario
+            .backlash
+            .as_ref()
+            .map(|b| b.model)
+            .unwrap_or_default();
+        let least = crate::sweep::answers::least_preload_at_load(
+            &scenario.drive,
+            load,
+            model,
+            (0.01, 1e5),
+            0.01,
+        );
         text.push_str(&format!(
-            "  load {load:>6.3} N m: limit {limit:.4} mrad, threshold {}\n",
-            threshold.map_or("above the swept range".to_string(), |p| format!("{p:.1} N"))
+            "  load {load:>6.3} N m: limit {limit:.4} mrad, threshold {}, least preload {}\n",
+            threshold.map_or("above the swept range".to_string(), |p| format!("{p:.1} N")),
+            least
+                .preload_n
+                .map_or("none up to 1e5 N".to_string(), |p| format!("{p:.2} N"))
         ));
         json_rows.push(serde_json::json!({
             "load_nm": load,
             "infinite_preload_backlash_mrad": limit,
             "flattening_preload_n": threshold,
+            "least_preload_n": least.preload_n,
         }));
     }
     (
@@ -472,7 +489,12 @@ fn design_answers(
                 "definition": "smallest preload at which reversal backlash is within tolerance of its infinite-preload limit Lf*M/(ro^2*G) (free-span stretch only); linear interpolation between swept preloads",
                 "tolerance": TOLERANCE,
                 "per_load": json_rows,
-            }
+            },
+            "least_preload": {
+                "definition": crate::sweep::answers::LEAST_PRELOAD_DEFINITION,
+                "tolerance_n": 0.01,
+                "search_range_n": [0.01, 1e5],
+            },
         }),
         text,
     )

@@ -515,7 +515,6 @@ mod tests {
                     ..SweepParameter::default()
                 },
             ],
-            ..SweepSpec::default()
         };
         let cases = expand(&spec, &toml::Table::new()).unwrap();
         assert_eq!(cases.len(), n);

@@ -288,6 +288,13 @@ impl SweepSpec {
                 Some(0) => return Err(("sweep.samples".into(), "must be at least 1".into())),
                 Some(_) => {}
             }
+            if let Some(seed) = self.seed.filter(|&s| s > i64::MAX as u64) {
+                // Results record the scenario as TOML, whose integers are signed 64-bit.
+                return Err((
+                    "sweep.seed".into(),
+                    format!("{seed} is above {}; pick a smaller seed", i64::MAX),
+                ));
+            }
         } else {
             if self.samples.is_some() {
                 return Err((
@@ -323,7 +330,7 @@ impl SweepSpec {
             match (&p.dist, p.values.is_empty()) {
                 (Some(_), false) => {
                     return Err((
-                        format!("{at}"),
+                        at.clone(),
                         format!("{}: give either values or dist, not both", p.key),
                     ))
                 }
