@@ -619,6 +619,20 @@ mod tests {
     }
 
     #[test]
+    fn tolerance_scenario_file_expands() {
+        let text = include_str!("../../scenarios/paper_bench_tolerance.toml");
+        let scenario = Scenario::from_toml(text, "t", "t", &[]).unwrap();
+        let base = scenario.to_table();
+        let cases = expand(scenario.sweep.as_ref().unwrap(), &base).unwrap();
+        assert_eq!(cases.len(), 200);
+        for c in &cases {
+            let preload = num(&c.assignments[0].2);
+            assert!((85.0..=115.0).contains(&preload), "{preload}");
+            case_scenario(&base, c, "t").unwrap();
+        }
+    }
+
+    #[test]
     fn shards_partition_the_cases() {
         for n in 1..6 {
             for index in 0..50 {
