@@ -7,7 +7,7 @@ use clap::{Parser, Subcommand};
 
 use cable_servo::run::{self, OutputOptions, RunError, RunReport, SweepOptions};
 use cable_servo::scenario::{Scenario, DEFAULT_SCENARIO};
-use cable_servo::sweep::Shard;
+use cable_servo::sweep::{answers, vary, Shard};
 
 /// Exit codes, listed in the README.
 mod exit {
@@ -36,6 +36,32 @@ Built-in scenarios (usable by name from any directory): eots_tracking, paper_ben
 struct Cli {
     #[command(subcommand)]
     command: Command,
+}
+
+#[derive(Subcommand)]
+enum Design {
+    /// Least preload (N) at which the +M, -M, +M backlash protocol at the given load runs
+    /// with no slack span and no gross slip (drive otherwise as in the scenario).
+    LeastPreload {
+        /// Scenario file or built-in name giving the drive (default: paper_fig11).
+        scenario: Option<String>,
+        /// Transmitted torque M, N m (default: the scenario's backlash.load_nm, else its
+        /// peak load).
+        #[arg(long = "load-nm", value_name = "M")]
+        load_nm: Option<f64>,
+        /// Override a scenario value (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Lower end of the search, N.
+        #[arg(long, default_value_t = 0.01)]
+        min_n: f64,
+        /// Upper end of the search, N.
+        #[arg(long, default_value_t = 1e5)]
+        max_n: f64,
+        /// Bisection tolerance, N.
+        #[arg(long, default_value_t = 0.01)]
+        tol_n: f64,
+    },
 }
 
 #[derive(Subcommand)]
@@ -71,9 +97,33 @@ enum Command {
         /// Run only shard K of N (cluster array jobs); join shards with `merge`.
         #[arg(long, value_name = "K/N")]
         shard: Option<String>,
+        /// Vary a scenario key (repeatable; replaces the file's parameter of that key).
+        /// SPEC: a,b,c | start:stop:step | lin(start,stop,n) | log(start,stop,n) |
+        /// uniform(min,max) | normal(mean,std) | tnormal(mean,std,min,max) |
+        /// uniform_rel(tol) | normal_rel(std[,tol]), e.g. drive.preload_n=10:100:10.
+        #[arg(long = "vary", value_name = "KEY=SPEC")]
+        vary: Vec<String>,
+        /// How cases are formed: grid, list, random or latin_hypercube (default: the
+        /// file's; random when --samples, --seed or a distribution is given).
+        #[arg(long, value_name = "MODE")]
+        mode: Option<String>,
+        /// Cases drawn in random and latin_hypercube modes.
+        #[arg(long, value_name = "N")]
+        samples: Option<usize>,
+        /// Master seed of random and latin_hypercube draws.
+        #[arg(long, value_name = "S")]
+        seed: Option<u64>,
+        /// Also write every case's time series to cases/case-NNNNNN/ (quasi-static).
+        #[arg(long)]
+        case_timeseries: bool,
         /// Replace an existing results directory.
         #[arg(long)]
         force: bool,
+    },
+    /// Design answers computed directly (no sweep table).
+    Design {
+        #[command(subcommand)]
+        question: Design,
     },
     /// Join the sweep.csv files of shard runs into the file a single run writes.
     Merge {
@@ -123,6 +173,11 @@ fn main() -> ExitCode {
             set,
             threads,
             shard,
+            vary,
+            mode,
+            samples,
+            seed,
+            case_timeseries,
             force,
         } => {
             let shard = match shard.as_deref().map(Shard::parse).transpose() {
@@ -132,16 +187,34 @@ fn main() -> ExitCode {
                     return ExitCode::from(exit::USAGE);
                 }
             };
-            let scenario = match load(&scenario, &set) {
+            let overrides = match mode.as_deref().map(vary::parse_mode).transpose() {
+                Ok(mode) => vary::SweepOverrides {
+                    vary,
+                    mode,
+                    samples,
+                    seed,
+                },
+                Err(msg) => {
+                    eprintln!("error: {msg}");
+                    return ExitCode::from(exit::USAGE);
+                }
+            };
+            let mut scenario = match load(&scenario, &set) {
                 Ok(s) => s,
                 Err(code) => return code,
             };
+            if !overrides.is_empty() {
+                match overrides.apply(scenario.sweep.take()) {
+                    Ok(spec) => scenario.sweep = Some(spec),
+                    Err(msg) => {
+                        eprintln!("error: {msg}");
+                        return ExitCode::from(exit::INPUT);
+                    }
+                }
+            }
             let dir = out.unwrap_or_else(|| PathBuf::from("results").join(scenario.name()));
             let total = scenario.sweep.as_ref().map_or(0, |s| {
-                cable_servo::sweep::expand(s)
-                    .iter()
-                    .filter(|c| shard.owns(c.index))
-                    .count()
+                (0..s.case_count()).filter(|&i| shard.owns(i)).count()
             });
             let bar = indicatif::ProgressBar::new(total as u64);
             bar.set_style(
@@ -157,11 +230,72 @@ fn main() -> ExitCode {
                     output: OutputOptions { dir, force },
                     threads,
                     shard,
+                    case_timeseries,
                 },
                 &tick,
             );
             bar.finish_and_clear();
             report(result)
+        }
+        Command::Design {
+            question:
+                Design::LeastPreload {
+                    scenario,
+                    load_nm,
+                    set,
+                    min_n,
+                    max_n,
+                    tol_n,
+                },
+        } => {
+            let scenario = match load(scenario.as_deref().unwrap_or("paper_fig11"), &set) {
+                Ok(s) => s,
+                Err(code) => return code,
+            };
+            let load_nm = load_nm.unwrap_or_else(|| {
+                scenario
+                    .backlash
+                    .as_ref()
+                    .map_or(scenario.load.peak_torque_nm(), |b| b.load_nm)
+            });
+            if !(load_nm.is_finite() && load_nm > 0.0) {
+                eprintln!("error: --load-nm {load_nm}: give a torque > 0 N m");
+                return ExitCode::from(exit::USAGE);
+            }
+            if !(min_n > 0.0 && max_n > min_n && tol_n > 0.0) {
+                eprintln!("error: need 0 < --min-n < --max-n and --tol-n > 0");
+                return ExitCode::from(exit::USAGE);
+            }
+            let model = scenario
+                .backlash
+                .as_ref()
+                .map(|b| b.model)
+                .unwrap_or_default();
+            let r = answers::least_preload_at_load(
+                &scenario.drive,
+                load_nm,
+                model,
+                (min_n, max_n),
+                tol_n,
+            );
+            println!(
+                "least preload at M = {load_nm} N m ({} model): {}",
+                cable_servo::study::quasi_static::model_name(model),
+                r.preload_n
+                    .map_or(format!("none up to {max_n} N"), |p| format!(
+                        "{p:.3} N (+{tol_n} N)"
+                    ))
+            );
+            println!(
+                "  for comparison M/(2*drum_radius_m) = {:.3} N (slack limit if span tensions moved equally and oppositely)",
+                r.slack_bound_n
+            );
+            println!("  definition: {}", r.definition);
+            if r.preload_n.is_some() {
+                ExitCode::SUCCESS
+            } else {
+                ExitCode::from(exit::PHYSICAL)
+            }
         }
         Command::Merge { out, shards, force } => {
             match cable_servo::sweep::merge::merge_files(&shards, &out, force) {

@@ -256,7 +256,39 @@ impl CaseRunner for QuasiStaticRunner {
             return Vec::new();
         };
         let model = qs.models.first().copied().unwrap_or_default();
-        let f = quasi_static::run_model(&scenario.drive, &scenario.load, qs, model).figures();
+        let trace = quasi_static::run_model(&scenario.drive, &scenario.load, qs, model);
+        Self::cells(&trace)
+    }
+
+    fn writes_case_files(&self) -> bool {
+        true
+    }
+
+    /// With a folder, every model of the scenario runs (as `run` does) and their traces go
+    /// to `timeseries.csv` and `profiles.csv`; the row keeps the first model's figures.
+    fn run_case(
+        &self,
+        scenario: &Scenario,
+        case: &Case,
+        dir: Option<&Path>,
+    ) -> std::io::Result<Vec<Cell>> {
+        let (Some(dir), Some(qs)) = (dir, &scenario.quasi_static) else {
+            return Ok(self.run(scenario, case));
+        };
+        let traces: Vec<_> = qs
+            .models
+            .iter()
+            .map(|&m| quasi_static::run_model(&scenario.drive, &scenario.load, qs, m))
+            .collect();
+        report::quasi_static::write_tables(dir, &traces)
+            .map_err(|e| std::io::Error::other(e.to_string()))?;
+        Ok(traces.first().map(Self::cells).unwrap_or_default())
+    }
+}
+
+impl QuasiStaticRunner {
+    fn cells(trace: &quasi_static::QsTrace) -> Vec<Cell> {
+        let f = trace.figures();
         vec![
             Cell::Num(Some(f.peak_error_mrad)),
             Cell::Num(Some(f.peak_to_peak_error_mrad)),
@@ -344,6 +376,8 @@ pub struct SweepOptions {
     pub threads: usize,
     /// Part of the sweep to run.
     pub shard: Shard,
+    /// Also write each case's time series to `cases/case-NNNNNN/` (quasi-static studies).
+    pub case_timeseries: bool,
 }
 
 /// The case runner for a scenario's study.
@@ -368,8 +402,14 @@ pub fn run_sweep(
             scenario.name()
         ))
     })?;
-    let cases = engine::expand(spec);
     let base = scenario.to_table();
+    let cases = engine::expand(spec, &base).map_err(|(key, message)| {
+        RunError::Scenario(ScenarioError::Invalid {
+            source_name: scenario.name().to_string(),
+            key,
+            message,
+        })
+    })?;
     let runner = runner_for(scenario)?;
     // Validate every case before anything is written: bad input leaves no results.
     for case in cases.iter().filter(|c| options.shard.owns(c.index)) {
@@ -378,7 +418,16 @@ pub fn run_sweep(
             source: Box::new(e),
         })?;
     }
-    let warnings = scenario.warnings();
+    let mut warnings = scenario.warnings();
+    if options.case_timeseries && !runner.writes_case_files() {
+        warnings.push(format!(
+            "--case-timeseries: {} cases have no time series; only sweep.csv is written",
+            serde_json::to_value(scenario.study)
+                .ok()
+                .and_then(|v| v.as_str().map(str::to_string))
+                .unwrap_or_default()
+        ));
+    }
     let staged = StagedDir::create(&options.output.dir, options.output.force)?;
     let dir = staged.path().to_path_buf();
     let parameter_columns: Vec<String> = spec
@@ -398,6 +447,7 @@ pub fn run_sweep(
         cases: &cases,
         shard: options.shard,
         threads: options.threads,
+        case_files: options.case_timeseries.then_some(dir.as_path()),
     };
     let outcome = engine::run_cases(
         &plan,
@@ -407,8 +457,12 @@ pub fn run_sweep(
     );
     table.finish()?;
     let failure = outcome.err().map(|e| e.to_string());
-    let answers = design_answers(scenario, &parameter_columns, &figure_columns, &table.rows);
-    let mut warnings = warnings;
+    let sampled = spec.mode.is_sampled();
+    let answers = if sampled {
+        report::sweep::statistics(&figure_columns, &table.rows)
+    } else {
+        design_answers(scenario, &parameter_columns, &figure_columns, &table.rows)
+    };
     report::write_json(
         &dir.join("summary.json"),
         &serde_json::json!({
@@ -420,11 +474,16 @@ pub fn run_sweep(
             "cases_total": cases.len(),
             "cases_written": table.rows.len(),
             "shard": format!("{}/{}", options.shard.k, options.shard.n),
-            "design_answers": answers.0,
+            "mode": spec.mode.as_str(),
+            "seed": sampled.then(|| spec.seed.unwrap_or(0)),
+            "design_answers": if sampled { serde_json::Value::Null } else { answers.0.clone() },
+            "statistics": if sampled { answers.0.clone() } else { serde_json::Value::Null },
             "scenario": scenario,
         }),
     )?;
-    plots(
+    let drawn = if sampled {
+        report::sweep::plot_samples(&dir, &parameter_columns, &figure_columns, &table.rows, 3)
+    } else {
         report::sweep::plot(
             &dir,
             &parameter_columns,
@@ -432,9 +491,9 @@ pub fn run_sweep(
             &table.rows,
             Some(0.1),
             3,
-        ),
-        &mut warnings,
-    );
+        )
+    };
+    plots(drawn, &mut warnings);
     let mut text = format!(
         "{} cases written to sweep.csv ({} in the sweep)\n",
         table.rows.len(),
@@ -445,7 +504,8 @@ pub fn run_sweep(
 }
 
 /// Answers a designer reads off a sweep: for backlash sweeps over preload and load, the
-/// preload above which backlash flattens, per load. Returns JSON and a printable text.
+/// preload above which backlash flattens, and the least preload free of slack and gross
+/// slip (by bisection, independent of the swept preloads), per load. Returns JSON and a printable text.
 fn design_answers(
     scenario: &Scenario,
     parameter_columns: &[String],
@@ -468,7 +528,7 @@ fn design_answers(
     loads.dedup();
     let mut json_rows = Vec::new();
     let mut text = format!(
-        "Preload above which backlash flattens (reversal backlash within {:.0} % of its\ninfinite-preload limit Lf*M/(ro^2*G), the free-span stretch alone):\n",
+        "Preload above which backlash flattens (reversal backlash within {:.0} % of its\ninfinite-preload limit Lf*M/(ro^2*G), the free-span stretch alone), and least preload\nwith no slack span and no gross slip:\n",
         TOLERANCE * 100.0
     );
     for load in loads {
@@ -485,14 +545,30 @@ fn design_answers(
             .collect();
         let limit = report::quasi_static::free_span_backlash_mrad(&scenario.drive, load);
         let threshold = crate::sweep::answers::flattening_preload(&pts, limit, TOLERANCE);
+        let model = scenario
+            .backlash
+            .as_ref()
+            .map(|b| b.model)
+            .unwrap_or_default();
+        let least = crate::sweep::answers::least_preload_at_load(
+            &scenario.drive,
+            load,
+            model,
+            (0.01, 1e5),
+            0.01,
+        );
         text.push_str(&format!(
-            "  load {load:>6.3} N m: limit {limit:.4} mrad, threshold {}\n",
-            threshold.map_or("above the swept range".to_string(), |p| format!("{p:.1} N"))
+            "  load {load:>6.3} N m: limit {limit:.4} mrad, threshold {}, least preload {}\n",
+            threshold.map_or("above the swept range".to_string(), |p| format!("{p:.1} N")),
+            least
+                .preload_n
+                .map_or("none up to 1e5 N".to_string(), |p| format!("{p:.2} N"))
         ));
         json_rows.push(serde_json::json!({
             "load_nm": load,
             "infinite_preload_backlash_mrad": limit,
             "flattening_preload_n": threshold,
+            "least_preload_n": least.preload_n,
         }));
     }
     (
@@ -501,7 +577,12 @@ fn design_answers(
                 "definition": "smallest preload at which reversal backlash is within tolerance of its infinite-preload limit Lf*M/(ro^2*G) (free-span stretch only); linear interpolation between swept preloads",
                 "tolerance": TOLERANCE,
                 "per_load": json_rows,
-            }
+            },
+            "least_preload": {
+                "definition": crate::sweep::answers::LEAST_PRELOAD_DEFINITION,
+                "tolerance_n": 0.01,
+                "search_range_n": [0.01, 1e5],
+            },
         }),
         text,
     )

@@ -194,3 +194,97 @@ pub fn plot(
     }
     Ok(files)
 }
+
+/// Spread of each numeric figure over the cases of a sampled (tolerance) sweep: mean,
+/// standard deviation, extremes and the 5, 50 and 95 % points (empirical, nearest rank),
+/// in the figure's own unit. Returns JSON and a printable table.
+pub fn statistics(
+    figure_columns: &[String],
+    rows: &[(Case, Vec<Cell>)],
+) -> (serde_json::Value, String) {
+    let mut json = serde_json::Map::new();
+    let mut text = format!(
+        "{:<26} {:>7} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12}\n",
+        "figure", "cases", "mean", "std", "min", "p5", "p50", "p95", "max"
+    );
+    for (j, name) in figure_columns.iter().enumerate() {
+        let mut v: Vec<f64> = rows
+            .iter()
+            .filter_map(|r| match r.1.get(j) {
+                Some(Cell::Num(Some(x))) if x.is_finite() => Some(*x),
+                _ => None,
+            })
+            .collect();
+        if v.is_empty() {
+            continue;
+        }
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let mean = v.iter().sum::<f64>() / n as f64;
+        let std = if n > 1 {
+            (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt()
+        } else {
+            0.0
+        };
+        let pct = |p: f64| v[((p * n as f64).ceil() as usize).clamp(1, n) - 1];
+        let (p5, p50, p95) = (pct(0.05), pct(0.5), pct(0.95));
+        text.push_str(&format!(
+            "{name:<26} {n:>7} {mean:>12.6} {std:>12.6} {:>12.6} {p5:>12.6} {p50:>12.6} {p95:>12.6} {:>12.6}\n",
+            v[0],
+            v[n - 1]
+        ));
+        json.insert(
+            name.clone(),
+            serde_json::json!({
+                "cases": n, "mean": mean, "std": std, "min": v[0], "p5": p5,
+                "p50": p50, "p95": p95, "max": v[n - 1],
+            }),
+        );
+    }
+    (serde_json::Value::Object(json), text)
+}
+
+/// Plots of a sampled sweep: each numeric figure against each parameter, one point per
+/// case (curves and heat maps need a grid).
+pub fn plot_samples(
+    dir: &Path,
+    parameter_columns: &[String],
+    figure_columns: &[String],
+    rows: &[(Case, Vec<Cell>)],
+    max_figures: usize,
+) -> Result<Vec<PathBuf>, ReportError> {
+    let mut files = Vec::new();
+    let figures = (0..figure_columns.len())
+        .filter(|&j| {
+            rows.iter()
+                .any(|r| matches!(r.1.get(j), Some(Cell::Num(Some(_)))))
+        })
+        .take(max_figures);
+    for j in figures {
+        for (i, param) in parameter_columns.iter().enumerate().take(4) {
+            let (x, y): (Vec<f64>, Vec<f64>) = rows
+                .iter()
+                .filter_map(|r| {
+                    let x = r.0.assignments.get(i).and_then(|a| numeric(&a.2))?;
+                    match r.1.get(j) {
+                        Some(Cell::Num(Some(v))) if v.is_finite() => Some((x, *v)),
+                        _ => None,
+                    }
+                })
+                .unzip();
+            if x.is_empty() {
+                continue;
+            }
+            let fig = &figure_columns[j];
+            let chart = Chart {
+                title: format!("{fig} against {param} ({} cases)", x.len()),
+                x_label: param.clone(),
+                y_label: fig.clone(),
+                series: vec![Series::points(fig.clone(), x, y)],
+                ..Chart::default()
+            };
+            files.extend(save_chart(&chart, &dir.join(format!("{fig}_vs_{param}")))?);
+        }
+    }
+    Ok(files)
+}

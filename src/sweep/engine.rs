@@ -1,11 +1,13 @@
 //! Running the cases of a sweep in parallel and streaming one row per case, in case order.
 
 use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use std::sync::mpsc;
 
 use rayon::prelude::*;
 
-use super::spec::{SweepMode, SweepSpec};
+use super::sample::{self, Draw};
+use super::spec::{DistKind, SweepMode, SweepParameter, SweepSpec};
 use crate::scenario::{set_path, Scenario, ScenarioError};
 
 /// One case: the scenario keys it sets.
@@ -17,43 +19,169 @@ pub struct Case {
     pub assignments: Vec<(String, String, toml::Value)>,
 }
 
-/// Expand a sweep declaration into its cases.
-pub fn expand(spec: &SweepSpec) -> Vec<Case> {
-    let params = &spec.parameters;
-    let count = match spec.mode {
-        SweepMode::Grid => params.iter().map(|p| p.values.len()).product(),
-        SweepMode::List => params.first().map_or(0, |p| p.values.len()),
+/// How one parameter gets its value in each case.
+enum Source<'a> {
+    /// Listed values, picked by position.
+    Values(&'a [toml::Value]),
+    /// A distribution.
+    Draw(Draw),
+}
+
+/// Numeric value of a dotted key in a scenario table.
+fn base_number(base: &toml::Table, key: &str) -> Option<f64> {
+    let mut parts = key.split('.');
+    let first = parts.next()?;
+    let mut cur = base.get(first)?;
+    for part in parts {
+        cur = cur.as_table()?.get(part)?;
+    }
+    match cur {
+        toml::Value::Float(f) => Some(*f),
+        toml::Value::Integer(i) => Some(*i as f64),
+        _ => None,
+    }
+}
+
+/// The distribution of a parameter, relative ones resolved against the base scenario.
+fn draw_of(
+    p: &SweepParameter,
+    kind: DistKind,
+    at: &str,
+    base: &toml::Table,
+) -> Result<Draw, (String, String)> {
+    let need = |v: Option<f64>, name: &str| {
+        v.ok_or_else(|| {
+            (
+                format!("{at}.{name}"),
+                format!("dist = \"{}\" needs {name}", kind.as_str()),
+            )
+        })
     };
-    (0..count)
+    let base_value = || {
+        base_number(base, &p.key)
+            .filter(|b| b.is_finite() && *b != 0.0)
+            .ok_or_else(|| {
+                (
+                    format!("{at}.key"),
+                    format!(
+                        "dist = \"{}\" is relative to the scenario's value of {}, which is not a non-zero number",
+                        kind.as_str(),
+                        p.key
+                    ),
+                )
+            })
+    };
+    Ok(match kind {
+        DistKind::Uniform => Draw::Uniform {
+            lo: need(p.min, "min")?,
+            hi: need(p.max, "max")?,
+        },
+        DistKind::Normal => Draw::Normal {
+            mean: need(p.mean, "mean")?,
+            std: need(p.std, "std")?,
+        },
+        DistKind::TruncatedNormal => Draw::TruncatedNormal {
+            mean: need(p.mean, "mean")?,
+            std: need(p.std, "std")?,
+            lo: need(p.min, "min")?,
+            hi: need(p.max, "max")?,
+        },
+        DistKind::UniformRelative => {
+            let b = base_value()?;
+            let t = need(p.rel_tol, "rel_tol")?;
+            let (lo, hi) = (b * (1.0 - t), b * (1.0 + t));
+            Draw::Uniform {
+                lo: lo.min(hi),
+                hi: lo.max(hi),
+            }
+        }
+        DistKind::NormalRelative => {
+            let b = base_value()?;
+            let std = need(p.rel_std, "rel_std")? * b.abs();
+            match p.rel_tol {
+                None => Draw::Normal { mean: b, std },
+                Some(t) => {
+                    let (lo, hi) = (b * (1.0 - t), b * (1.0 + t));
+                    Draw::TruncatedNormal {
+                        mean: b,
+                        std,
+                        lo: lo.min(hi),
+                        hi: lo.max(hi),
+                    }
+                }
+            }
+        }
+    })
+}
+
+/// Expand a sweep declaration into its cases. `base` is the scenario table the sweep
+/// varies (relative distributions take their centre from it). Errors are `(key, message)`.
+pub fn expand(spec: &SweepSpec, base: &toml::Table) -> Result<Vec<Case>, (String, String)> {
+    spec.validate()?;
+    let params = &spec.parameters;
+    let count = spec.case_count();
+    let seed = spec.seed.unwrap_or(0);
+    let sources: Vec<Source> = params
+        .iter()
+        .enumerate()
+        .map(|(i, p)| match p.dist {
+            Some(kind) => {
+                draw_of(p, kind, &format!("sweep.parameters[{i}]"), base).map(Source::Draw)
+            }
+            None => Ok(Source::Values(&p.values)),
+        })
+        .collect::<Result<_, _>>()?;
+    let strata: Vec<Vec<u32>> = if spec.mode == SweepMode::LatinHypercube {
+        (0..params.len())
+            .map(|j| sample::lhs_strata(seed, j, count))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let cases = (0..count)
         .map(|index| {
             let mut rest = index;
             let mut picks = vec![0usize; params.len()];
-            match spec.mode {
-                SweepMode::Grid => {
-                    // First parameter varies slowest, like nested loops written in order.
-                    for (i, p) in params.iter().enumerate().rev() {
-                        picks[i] = rest % p.values.len();
-                        rest /= p.values.len();
-                    }
+            if spec.mode == SweepMode::Grid {
+                // First parameter varies slowest, like nested loops written in order.
+                for (i, p) in params.iter().enumerate().rev() {
+                    picks[i] = rest % p.values.len();
+                    rest /= p.values.len();
                 }
-                SweepMode::List => picks.iter_mut().for_each(|k| *k = index),
+            } else {
+                picks.iter_mut().for_each(|k| *k = index);
             }
-            Case {
-                index,
-                assignments: params
-                    .iter()
-                    .zip(&picks)
-                    .map(|(p, &k)| {
-                        (
-                            p.key.clone(),
-                            p.column_name().to_string(),
-                            p.values[k].clone(),
-                        )
-                    })
-                    .collect(),
-            }
+            let assignments = params
+                .iter()
+                .zip(&sources)
+                .enumerate()
+                .map(|(j, (p, source))| {
+                    let value = if spec.mode.is_sampled() {
+                        let u = sample::case_uniform(seed, index, j);
+                        let u = match strata.get(j) {
+                            Some(s) => (f64::from(s[index]) + u) / count as f64,
+                            None => u,
+                        };
+                        match source {
+                            Source::Draw(d) => toml::Value::Float(d.quantile(u)),
+                            Source::Values(v) => {
+                                v[((u * v.len() as f64) as usize).min(v.len() - 1)].clone()
+                            }
+                        }
+                    } else {
+                        match source {
+                            Source::Values(v) => v[picks[j]].clone(),
+                            // Rejected by validation: distributions only in sampled modes.
+                            Source::Draw(d) => toml::Value::Float(d.quantile(0.5)),
+                        }
+                    };
+                    (p.key.clone(), p.column_name().to_string(), value)
+                })
+                .collect();
+            Case { index, assignments }
         })
-        .collect()
+        .collect();
+    Ok(cases)
 }
 
 /// Which part of a sweep this process runs: shard `k` of `n` (1-based) takes the cases whose
@@ -132,6 +260,30 @@ pub trait CaseRunner: Sync {
     /// Figures of one resolved case scenario; must return one cell per column. Failures of
     /// the physics are results (a regime column), not errors.
     fn run(&self, scenario: &Scenario, case: &Case) -> Vec<Cell>;
+
+    /// Whether [`CaseRunner::run_case`] writes anything into a case folder (per-case time
+    /// series); when false, asking for them only earns a warning.
+    fn writes_case_files(&self) -> bool {
+        false
+    }
+
+    /// Figures of one case, also writing its own files (time series) into `dir` when
+    /// given. Runners with per-case files override this so the case is computed once.
+    fn run_case(
+        &self,
+        scenario: &Scenario,
+        case: &Case,
+        dir: Option<&Path>,
+    ) -> std::io::Result<Vec<Cell>> {
+        let _ = dir;
+        Ok(self.run(scenario, case))
+    }
+}
+
+/// Folder of one case's own files under a sweep's results directory:
+/// `cases/case-000123`.
+pub fn case_dir(results: &Path, index: usize) -> PathBuf {
+    results.join("cases").join(format!("case-{index:06}"))
 }
 
 /// Build the scenario of one case from the base scenario table.
@@ -164,6 +316,9 @@ pub struct Plan<'a> {
     pub shard: Shard,
     /// Worker threads (0 = all cores).
     pub threads: usize,
+    /// Results directory under which each case writes `cases/case-NNNNNN/` (time series);
+    /// `None` keeps only the sweep table.
+    pub case_files: Option<&'a Path>,
 }
 
 /// Run the plan's cases on its threads and hand each row to `sink` in case order as soon
@@ -184,7 +339,8 @@ pub fn run_cases(
         .num_threads(plan.threads)
         .build()
         .map_err(|e| SweepError::Threads(e.to_string()))?;
-    let (tx, rx) = mpsc::sync_channel::<(usize, Result<Vec<Cell>, ScenarioError>)>(256);
+    let case_files = plan.case_files;
+    let (tx, rx) = mpsc::sync_channel::<(usize, Result<Vec<Cell>, SweepError>)>(256);
     let n_cols = runner.columns().len();
     let mut outcome = Ok(());
     std::thread::scope(|scope| {
@@ -195,8 +351,7 @@ pub fn run_cases(
                     .par_iter()
                     .enumerate()
                     .for_each_with(tx, |tx, (pos, case)| {
-                        let row =
-                            case_scenario(base, case, default_name).map(|s| runner.run(&s, case));
+                        let row = one_case(base, default_name, case, runner, case_files);
                         progress();
                         // The receiver only stops early on a write error; then the rest is moot.
                         let _ = tx.send((pos, row));
@@ -204,7 +359,7 @@ pub fn run_cases(
             });
         });
         // Reorder buffer: rows arrive roughly in order, so it stays small.
-        let mut waiting: BTreeMap<usize, Result<Vec<Cell>, ScenarioError>> = BTreeMap::new();
+        let mut waiting: BTreeMap<usize, Result<Vec<Cell>, SweepError>> = BTreeMap::new();
         let mut next = 0;
         for (pos, row) in rx.iter() {
             if outcome.is_err() {
@@ -218,10 +373,7 @@ pub fn run_cases(
                         cells.resize(n_cols, Cell::Num(None));
                         sink(case, cells).map_err(SweepError::Write)
                     }
-                    Err(e) => Err(SweepError::Case {
-                        index: case.index,
-                        source: Box::new(e),
-                    }),
+                    Err(e) => Err(e),
                 };
                 if let Err(e) = result {
                     outcome = Err(e);
@@ -232,6 +384,37 @@ pub fn run_cases(
         }
     });
     outcome
+}
+
+/// Resolve, run and (when asked) write the files of one case.
+fn one_case(
+    base: &toml::Table,
+    default_name: &str,
+    case: &Case,
+    runner: &dyn CaseRunner,
+    case_files: Option<&Path>,
+) -> Result<Vec<Cell>, SweepError> {
+    let scenario = case_scenario(base, case, default_name).map_err(|e| SweepError::Case {
+        index: case.index,
+        source: Box::new(e),
+    })?;
+    let dir = match case_files {
+        Some(root) if runner.writes_case_files() => {
+            let dir = case_dir(root, case.index);
+            std::fs::create_dir_all(&dir).map_err(|source| SweepError::CaseFiles {
+                index: case.index,
+                source,
+            })?;
+            Some(dir)
+        }
+        _ => None,
+    };
+    runner
+        .run_case(&scenario, case, dir.as_deref())
+        .map_err(|source| SweepError::CaseFiles {
+            index: case.index,
+            source,
+        })
 }
 
 /// A sweep that could not finish.
@@ -248,6 +431,14 @@ pub enum SweepError {
     /// Writing the table failed.
     #[error("writing the sweep table: {0}")]
     Write(std::io::Error),
+    /// A case's own files (time series) could not be written.
+    #[error("writing the files of sweep case {index}: {source}")]
+    CaseFiles {
+        /// Case index.
+        index: usize,
+        /// Cause.
+        source: std::io::Error,
+    },
     /// The thread pool could not start.
     #[error("cannot start worker threads: {0}")]
     Threads(String),
@@ -259,10 +450,17 @@ mod tests {
     use crate::sweep::spec::SweepParameter;
 
     fn param(key: &str, n: usize) -> SweepParameter {
-        SweepParameter {
-            key: key.into(),
-            values: (0..n).map(|i| toml::Value::Integer(i as i64)).collect(),
-            column: None,
+        SweepParameter::with_values(
+            key,
+            (0..n).map(|i| toml::Value::Integer(i as i64)).collect(),
+        )
+    }
+
+    fn num(v: &toml::Value) -> f64 {
+        match v {
+            toml::Value::Float(f) => *f,
+            toml::Value::Integer(i) => *i as f64,
+            other => panic!("not a number: {other}"),
         }
     }
 
@@ -271,8 +469,9 @@ mod tests {
         let spec = SweepSpec {
             mode: SweepMode::Grid,
             parameters: vec![param("a.x", 3), param("b.y", 2)],
+            ..SweepSpec::default()
         };
-        let cases = expand(&spec);
+        let cases = expand(&spec, &toml::Table::new()).unwrap();
         assert_eq!(cases.len(), 6);
         let picks: Vec<(String, String)> = cases
             .iter()
@@ -286,6 +485,151 @@ mod tests {
         assert_eq!(picks[1], ("0".into(), "1".into()));
         assert_eq!(picks[2], ("1".into(), "0".into()));
         assert_eq!(cases[0].assignments[0].1, "x");
+    }
+
+    fn uniform(key: &str, lo: f64, hi: f64) -> SweepParameter {
+        SweepParameter {
+            key: key.into(),
+            dist: Some(DistKind::Uniform),
+            min: Some(lo),
+            max: Some(hi),
+            ..SweepParameter::default()
+        }
+    }
+
+    #[test]
+    fn latin_hypercube_hits_every_stratum_once() {
+        let n = 37;
+        let spec = SweepSpec {
+            mode: SweepMode::LatinHypercube,
+            samples: Some(n),
+            seed: Some(9),
+            parameters: vec![
+                uniform("a.x", 0.0, 1.0),
+                uniform("b.y", -10.0, 30.0),
+                SweepParameter {
+                    key: "c.z".into(),
+                    dist: Some(DistKind::Normal),
+                    mean: Some(0.0),
+                    std: Some(1.0),
+                    ..SweepParameter::default()
+                },
+            ],
+        };
+        let cases = expand(&spec, &toml::Table::new()).unwrap();
+        assert_eq!(cases.len(), n);
+        let to_u: [&dyn Fn(f64) -> f64; 3] = [
+            &|x| x,
+            &|y| (y + 10.0) / 40.0,
+            &crate::sweep::sample::normal_cdf,
+        ];
+        for (j, u_of) in to_u.iter().enumerate() {
+            let mut hits = vec![0; n];
+            for c in &cases {
+                let u = u_of(num(&c.assignments[j].2));
+                hits[((u * n as f64) as usize).min(n - 1)] += 1;
+            }
+            assert!(hits.iter().all(|&h| h == 1), "parameter {j}: {hits:?}");
+        }
+        // Columns are not stratified in lockstep.
+        assert_ne!(cases[0].assignments[0].2, cases[1].assignments[0].2);
+    }
+
+    #[test]
+    fn relative_distributions_centre_on_the_base_value() {
+        let base: toml::Table = toml::from_str("[drive]\npreload_n = 80.0").unwrap();
+        let spec = SweepSpec {
+            mode: SweepMode::Random,
+            samples: Some(200),
+            parameters: vec![SweepParameter {
+                key: "drive.preload_n".into(),
+                dist: Some(DistKind::UniformRelative),
+                rel_tol: Some(0.1),
+                ..SweepParameter::default()
+            }],
+            ..SweepSpec::default()
+        };
+        let cases = expand(&spec, &base).unwrap();
+        assert!(cases
+            .iter()
+            .all(|c| (72.0..=88.0).contains(&num(&c.assignments[0].2))));
+        let (key, msg) = expand(&spec, &toml::Table::new()).unwrap_err();
+        assert_eq!(key, "sweep.parameters[0].key");
+        assert!(msg.contains("drive.preload_n"), "{msg}");
+    }
+
+    #[test]
+    fn rows_do_not_depend_on_threads_or_shards() {
+        let scenario = Scenario::from_toml(
+            crate::scenario::builtin("paper_fig11").unwrap(),
+            "f",
+            "f",
+            &[],
+        )
+        .unwrap();
+        let base = scenario.to_table();
+        let spec = SweepSpec {
+            mode: SweepMode::Random,
+            samples: Some(40),
+            seed: Some(17),
+            parameters: vec![
+                uniform("drive.preload_n", 5.0, 150.0),
+                SweepParameter {
+                    key: "backlash.load_nm".into(),
+                    dist: Some(DistKind::TruncatedNormal),
+                    mean: Some(0.7),
+                    std: Some(0.3),
+                    min: Some(0.1),
+                    max: Some(2.0),
+                    ..SweepParameter::default()
+                },
+            ],
+        };
+        let cases = expand(&spec, &base).unwrap();
+        let run = |threads: usize, shard: Shard| {
+            let plan = Plan {
+                base: &base,
+                default_name: "f",
+                cases: &cases,
+                shard,
+                threads,
+                case_files: None,
+            };
+            let mut rows = Vec::new();
+            run_cases(
+                &plan,
+                &crate::run::BacklashRunner,
+                &mut |case, cells| {
+                    rows.push(crate::report::sweep::row_line(case, &cells));
+                    Ok(())
+                },
+                &|| {},
+            )
+            .unwrap();
+            rows
+        };
+        let one = run(1, Shard::ALL);
+        assert_eq!(one.len(), 40);
+        assert_eq!(one, run(2, Shard::ALL));
+        let mut sharded: Vec<String> = (1..=3).flat_map(|k| run(2, Shard { k, n: 3 })).collect();
+        sharded.sort_by_key(|r| r.split(',').next().unwrap().parse::<usize>().unwrap());
+        assert_eq!(one, sharded);
+        // A fresh expansion draws the same values.
+        assert_eq!(cases, expand(&spec, &base).unwrap());
+    }
+
+    #[test]
+    fn tolerance_scenario_file_expands() {
+        let text = include_str!("../../scenarios/paper_bench_tolerance.toml");
+        let scenario = Scenario::from_toml(text, "t", "t", &[]).unwrap();
+        let base = scenario.to_table();
+        let cases = expand(scenario.sweep.as_ref().unwrap(), &base).unwrap();
+        assert_eq!(cases.len(), 200);
+        for c in &cases {
+            let preload = num(&c.assignments[0].2);
+            assert!((85.0..=115.0).contains(&preload), "{preload}");
+            case_scenario(&base, c, "t").unwrap();
+        }
     }
 
     #[test]

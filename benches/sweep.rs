@@ -1,0 +1,87 @@
+//! Sweep throughput (cases per second) at 1 and 2 worker threads.
+//!
+//! `fig11`: the 48-case backlash grid of the paper's Fig. 11. `tolerance`: 1000 random
+//! cases of the quasi-static paper bench (20 s of 0.1 Hz sine at 200 Hz, first model)
+//! with preload, friction, cable stiffness and brake torque drawn around their nominal
+//! values. Rows go to a sink that only counts them, so the figures exclude file output.
+
+use cable_servo::run::{BacklashRunner, QuasiStaticRunner};
+use cable_servo::scenario::{builtin, Scenario};
+use cable_servo::sweep::engine::{expand, run_cases, CaseRunner, Plan};
+use cable_servo::sweep::vary::SweepOverrides;
+use cable_servo::sweep::{Case, Shard};
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+
+fn prepared(name: &str, overrides: &SweepOverrides) -> (toml::Table, Vec<Case>) {
+    let mut scenario = Scenario::from_toml(builtin(name).unwrap(), name, name, &[]).unwrap();
+    if !overrides.is_empty() {
+        scenario.sweep = Some(overrides.apply(scenario.sweep.take()).unwrap());
+    }
+    let base = scenario.to_table();
+    let cases = expand(scenario.sweep.as_ref().unwrap(), &base).unwrap();
+    (base, cases)
+}
+
+fn run(base: &toml::Table, cases: &[Case], runner: &dyn CaseRunner, threads: usize) -> usize {
+    let plan = Plan {
+        base,
+        default_name: "bench",
+        cases,
+        shard: Shard::ALL,
+        threads,
+        case_files: None,
+    };
+    let mut rows = 0;
+    run_cases(
+        &plan,
+        runner,
+        &mut |_, _| {
+            rows += 1;
+            Ok(())
+        },
+        &|| {},
+    )
+    .unwrap();
+    rows
+}
+
+fn sweeps(c: &mut Criterion) {
+    let (base, cases) = prepared("paper_fig11", &SweepOverrides::default());
+    let mut group = c.benchmark_group("fig11");
+    group.throughput(Throughput::Elements(cases.len() as u64));
+    for threads in [1, 2] {
+        group.bench_with_input(BenchmarkId::new("threads", threads), &threads, |b, &t| {
+            b.iter(|| run(&base, &cases, &BacklashRunner, t))
+        });
+    }
+    group.finish();
+
+    let tolerance = SweepOverrides {
+        vary: vec![
+            "drive.preload_n=normal_rel(0.05)".into(),
+            "drive.friction_coefficient=uniform_rel(0.2)".into(),
+            "drive.cable_modulus_n=normal_rel(0.05,0.15)".into(),
+            "load.brake_nm=tnormal(0.7,0.05,0.6,0.8)".into(),
+        ],
+        samples: Some(1000),
+        seed: Some(1),
+        ..SweepOverrides::default()
+    };
+    let (base, cases) = prepared("paper_bench", &tolerance);
+    let mut group = c.benchmark_group("tolerance_1000");
+    group.throughput(Throughput::Elements(cases.len() as u64));
+    group.sample_size(10);
+    for threads in [1, 2] {
+        group.bench_with_input(BenchmarkId::new("threads", threads), &threads, |b, &t| {
+            b.iter(|| run(&base, &cases, &QuasiStaticRunner, t))
+        });
+    }
+    group.finish();
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(20);
+    targets = sweeps
+}
+criterion_main!(benches);
