@@ -2,6 +2,7 @@
 //! and bench-log diagnosis for electro-optical pointing systems.
 
 pub mod closed_loop;
+pub mod design;
 pub mod io;
 pub mod metrics;
 pub mod physics;

@@ -40,6 +40,48 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Design {
+    /// Largest brake load (N m) at which the closed loop still meets the pointing target
+    /// with the given compensation (breakaway torque scaled with it).
+    LargestLoad {
+        /// Closed-loop scenario file or built-in name (default: eots_tracking).
+        scenario: Option<String>,
+        /// Compensation mode judged: none, memoryless or memory.
+        #[arg(long, default_value = "memory")]
+        mode: String,
+        /// Search range, N m.
+        #[arg(long, default_value_t = 0.05)]
+        min: f64,
+        /// Search range, N m.
+        #[arg(long, default_value_t = 3.0)]
+        max: f64,
+        /// Bisection tolerance, N m.
+        #[arg(long, default_value_t = 0.02)]
+        tol: f64,
+        /// Override a scenario value (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+    },
+    /// Fastest scan (reference frequency, Hz, amplitude unchanged) at which the closed loop
+    /// still meets the pointing target with the given compensation.
+    FastestScan {
+        /// Closed-loop scenario file or built-in name (default: eots_scan).
+        scenario: Option<String>,
+        /// Compensation mode judged: none, memoryless or memory.
+        #[arg(long, default_value = "memory")]
+        mode: String,
+        /// Search range, Hz.
+        #[arg(long, default_value_t = 0.05)]
+        min: f64,
+        /// Search range, Hz.
+        #[arg(long, default_value_t = 5.0)]
+        max: f64,
+        /// Bisection tolerance, Hz.
+        #[arg(long, default_value_t = 0.02)]
+        tol: f64,
+        /// Override a scenario value (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+    },
     /// Least preload (N) at which the +M, -M, +M backlash protocol at the given load runs
     /// with no slack span and no gross slip (drive otherwise as in the scenario).
     LeastPreload {
@@ -239,6 +281,40 @@ fn main() -> ExitCode {
         }
         Command::Design {
             question:
+                Design::LargestLoad {
+                    scenario,
+                    mode,
+                    min,
+                    max,
+                    tol,
+                    set,
+                },
+        } => closed_loop_answer(
+            scenario.as_deref().unwrap_or("eots_tracking"),
+            &set,
+            &mode,
+            cable_servo::design::Question::LargestLoad,
+            (min, max, tol),
+        ),
+        Command::Design {
+            question:
+                Design::FastestScan {
+                    scenario,
+                    mode,
+                    min,
+                    max,
+                    tol,
+                    set,
+                },
+        } => closed_loop_answer(
+            scenario.as_deref().unwrap_or("eots_scan"),
+            &set,
+            &mode,
+            cable_servo::design::Question::FastestScan,
+            (min, max, tol),
+        ),
+        Command::Design {
+            question:
                 Design::LeastPreload {
                     scenario,
                     load_nm,
@@ -323,6 +399,48 @@ fn main() -> ExitCode {
                 ExitCode::from(exit::INPUT)
             }
         },
+    }
+}
+
+/// Closed-loop design answer: bisect, print the value with its definition.
+fn closed_loop_answer(
+    name: &str,
+    set: &[String],
+    mode: &str,
+    question: cable_servo::design::Question,
+    (min, max, tol): (f64, f64, f64),
+) -> ExitCode {
+    use cable_servo::closed_loop::CompensationMode;
+    let mode = match mode {
+        "none" => CompensationMode::None,
+        "memoryless" => CompensationMode::Memoryless,
+        "memory" => CompensationMode::Memory,
+        other => {
+            eprintln!("error: --mode {other}: use none, memoryless or memory");
+            return ExitCode::from(exit::USAGE);
+        }
+    };
+    let scenario = match load(name, set) {
+        Ok(s) => s,
+        Err(code) => return code,
+    };
+    match cable_servo::design::largest_meeting_target(&scenario, question, mode, (min, max), tol) {
+        Ok(a) => {
+            match a.value {
+                Some(v) => println!("{v:.4} {} ({} closed-loop runs)", a.unit, a.runs),
+                None => println!("none: even {min} {} misses the target", a.unit),
+            }
+            println!("  definition: {}", a.definition);
+            if a.value.is_some() {
+                ExitCode::SUCCESS
+            } else {
+                ExitCode::from(exit::PHYSICAL)
+            }
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(exit::INPUT)
+        }
     }
 }
 

@@ -162,6 +162,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("paper_bench", include_str!("../scenarios/paper_bench.toml")),
     ("paper_fig11", include_str!("../scenarios/paper_fig11.toml")),
     (
+        "eots_tolerance",
+        include_str!("../scenarios/eots_tolerance.toml"),
+    ),
+    (
         "paper_tension",
         include_str!("../scenarios/paper_tension.toml"),
     ),

@@ -25,13 +25,6 @@ pub fn flattening_preload(points: &[(f64, f64)], asymptote: f64, tolerance: f64)
     Some(p0 + (p1 - p0) * (b0 - limit) / (b0 - b1))
 }
 
-/// Least preload (N) at which `ok(preload)` holds, by bisection between `lo` and `hi`,
-/// assuming `ok` is monotone (false below the answer, true above). `None` if even `hi`
-/// fails.
-pub fn least_preload(ok: impl Fn(f64) -> bool, lo: f64, hi: f64, tol: f64) -> Option<f64> {
-    least_passing(lo, hi, tol, ok)
-}
-
 /// Smallest `x` in `[lo, hi]` for which `meets(x)` holds, to within `tol` (same unit as
 /// `x`), for a predicate that fails below some threshold and holds above it. Returns a
 /// value that passes (the upper end of the final bracket), or `None` when `hi` fails.
@@ -148,9 +141,9 @@ mod tests {
 
     #[test]
     fn least_preload_bisects() {
-        let p = least_preload(|x| x >= 37.25, 1.0, 500.0, 1e-6).unwrap();
+        let p = least_passing(1.0, 500.0, 1e-6, |x| x >= 37.25).unwrap();
         assert!((p - 37.25).abs() < 1e-5);
-        assert_eq!(least_preload(|_| false, 1.0, 2.0, 1e-3), None);
+        assert_eq!(least_passing(1.0, 2.0, 1e-3, |_| false), None);
     }
 
     #[test]

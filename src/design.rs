@@ -1,0 +1,155 @@
+//! Closed-loop design answers: the largest load, or the fastest scan, that still meets the
+//! pointing target with a given controller and compensation.
+//!
+//! Each answer bisects on one scenario value, running the closed loop at every probe, and
+//! assumes the loop meets the target below the answer and misses it above.
+
+use serde::Serialize;
+
+use crate::closed_loop::{self, CompensationMode, RunOptions};
+use crate::scenario::Scenario;
+use crate::signal::Signal;
+use crate::sweep::answers::largest_passing;
+
+/// What a design question varies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Question {
+    /// Brake torque `load.brake_nm` (N m); the breakaway torque keeps its ratio to it.
+    LargestLoad,
+    /// Reference frequency (Hz) of a sine or triangle scan, amplitude unchanged.
+    FastestScan,
+}
+
+/// Answer to a design question.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DesignAnswer {
+    /// The question.
+    pub question: Question,
+    /// Compensation mode judged.
+    pub mode: CompensationMode,
+    /// Largest value that meets the target (N m or Hz); `None` if even the lower end
+    /// misses.
+    pub value: Option<f64>,
+    /// Unit of `value`.
+    pub unit: &'static str,
+    /// Searched range.
+    pub range: (f64, f64),
+    /// Bisection tolerance.
+    pub tolerance: f64,
+    /// Closed-loop runs made.
+    pub runs: usize,
+    /// What the answer means.
+    pub definition: String,
+}
+
+/// A question that cannot be asked of this scenario.
+#[derive(Debug, thiserror::Error)]
+pub enum DesignError {
+    /// Not a closed-loop scenario, or the mode is not listed, or the reference is not a scan.
+    #[error("{0}")]
+    Unsuitable(String),
+}
+
+fn with_value(base: &Scenario, question: Question, value: f64) -> Scenario {
+    let mut s = base.clone();
+    match question {
+        Question::LargestLoad => {
+            let ratio = base
+                .load
+                .brake_breakaway_nm
+                .filter(|_| base.load.brake_nm > 0.0)
+                .map(|b| b / base.load.brake_nm);
+            s.load.brake_nm = value;
+            s.load.brake_breakaway_nm = ratio.map(|r| r * value);
+        }
+        Question::FastestScan => {
+            if let Some(cl) = s.closed_loop.as_mut() {
+                if let Signal::Sine { frequency_hz, .. } | Signal::Triangle { frequency_hz, .. } =
+                    &mut cl.reference
+                {
+                    *frequency_hz = value;
+                }
+            }
+        }
+    }
+    s
+}
+
+/// Whether `mode` keeps the line of sight within the target over the whole run.
+fn meets(scenario: &Scenario, mode: CompensationMode) -> bool {
+    if scenario.validate("design probe").is_err() {
+        return false;
+    }
+    let options = RunOptions {
+        modes: Some(vec![mode]),
+        ..RunOptions::metrics_only()
+    };
+    match closed_loop::run_closed_loop(scenario, &options) {
+        Ok(r) => r.modes.iter().all(|m| {
+            m.metrics.passes_target && matches!(m.completion, closed_loop::Completion::Complete)
+        }),
+        Err(_) => false,
+    }
+}
+
+/// Largest brake load or fastest scan in `range` that meets the pointing target with
+/// `mode`, to within `tolerance`.
+pub fn largest_meeting_target(
+    base: &Scenario,
+    question: Question,
+    mode: CompensationMode,
+    range: (f64, f64),
+    tolerance: f64,
+) -> Result<DesignAnswer, DesignError> {
+    let cl = base.closed_loop.as_ref().ok_or_else(|| {
+        DesignError::Unsuitable(format!(
+            "scenario {} is not a closed-loop study",
+            base.name()
+        ))
+    })?;
+    if !cl.modes.contains(&mode) {
+        return Err(DesignError::Unsuitable(format!(
+            "mode {} is not listed in closed_loop.modes",
+            mode.name()
+        )));
+    }
+    if question == Question::FastestScan
+        && !matches!(cl.reference, Signal::Sine { .. } | Signal::Triangle { .. })
+    {
+        return Err(DesignError::Unsuitable(
+            "the fastest scan needs a sine or triangle closed_loop.reference".into(),
+        ));
+    }
+    if !(range.0.is_finite() && range.1 > range.0 && tolerance > 0.0) {
+        return Err(DesignError::Unsuitable(format!(
+            "need a range lo < hi and a tolerance > 0, got {range:?} and {tolerance}"
+        )));
+    }
+    let runs = std::cell::Cell::new(0usize);
+    let value = largest_passing(range.0, range.1, tolerance, |v| {
+        runs.set(runs.get() + 1);
+        meets(&with_value(base, question, v), mode)
+    });
+    let (unit, what) = match question {
+        Question::LargestLoad => (
+            "N m",
+            "brake torque load.brake_nm (breakaway scaled with it)",
+        ),
+        Question::FastestScan => ("Hz", "reference scan frequency at the scenario's amplitude"),
+    };
+    Ok(DesignAnswer {
+        question,
+        mode,
+        value,
+        unit,
+        range,
+        tolerance,
+        runs: runs.get(),
+        definition: format!(
+            "largest {what} at which the {} mode keeps the peak pointing error within {} mrad over the metrics window of a complete run; bisection, assuming the loop passes below the answer and fails above",
+            mode.name(),
+            cl.target_mrad
+        ),
+    })
+}
