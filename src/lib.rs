@@ -2,6 +2,7 @@
 //! and bench-log diagnosis for electro-optical pointing systems.
 
 pub mod closed_loop;
+pub mod identify;
 pub mod physics;
 pub mod scenario;
 pub mod signal;

@@ -1,0 +1,592 @@
+//! Diagnosis of bench logs: replay the quasi-static memory model against measurements,
+//! calibrate its parameters, search the effect library for what it misses, and score every
+//! model on data its fit did not see.
+
+pub mod benchlog;
+pub mod effects;
+pub mod lm;
+pub mod model;
+pub mod play;
+pub mod report;
+pub mod synth;
+
+use serde::Serialize;
+
+pub use benchlog::{read_bench_log, write_bench_log, BenchLog, LogError, Sample};
+pub use effects::{EffectName, EffectsParams, IdentifyParams};
+pub use report::{save_model, write_diagnosis};
+pub use synth::{synthesize, Ringing, SynthOptions};
+
+use crate::physics::DriveParams;
+use crate::scenario::Scenario;
+use model::{Evaluator, Fitted, LinParam, NlParam, Prepared, Spec};
+
+/// Why a diagnosis cannot be made.
+#[derive(Debug, thiserror::Error)]
+pub enum IdentifyError {
+    /// No logs.
+    #[error("no bench logs given; pass at least one log (--data LOG.csv)")]
+    NoLogs,
+    /// A log that cannot be used.
+    #[error("{log}: {message}")]
+    BadLog {
+        /// Log source (file).
+        log: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// Reading a log failed.
+    #[error(transparent)]
+    Log(#[from] LogError),
+    /// Settings that do not fit the data.
+    #[error("{key}: {message}")]
+    Config {
+        /// Scenario key or option.
+        key: String,
+        /// What is wrong and what is allowed.
+        message: String,
+    },
+    /// The model cannot follow the log (cable slack or gross slip at these parameters).
+    #[error("{log}: replay fails at t = {t_s:.3} s: {message}; the scenario's drive cannot carry the logged load (check drive.preload_n, the load sign, and load_nm units)")]
+    Replay {
+        /// Log source.
+        log: String,
+        /// Time of the failure, s.
+        t_s: f64,
+        /// The drive fault.
+        message: String,
+    },
+    /// A fit that failed or diverged.
+    #[error("fit failed: {0}")]
+    Fit(String),
+    /// Output cannot be written.
+    #[error("cannot write {path}: {message}")]
+    Write {
+        /// Path.
+        path: String,
+        /// Reason.
+        message: String,
+    },
+}
+
+/// Settings of a diagnosis beyond the scenario's `[identify]` section.
+#[derive(Clone, Debug, Default)]
+pub struct DiagnoseOptions {
+    /// Indices of logs held out entirely (calibrate on the others, score on these). Empty:
+    /// contiguous time blocks of every log are held out in turn.
+    pub holdout_logs: Vec<usize>,
+    /// Restrict the candidate effects (None: scenario's list, or the whole library).
+    pub candidates: Option<Vec<EffectName>>,
+    /// Skip the play-operator baseline (saves time in statistical runs).
+    pub skip_play_operator: bool,
+}
+
+/// One estimated parameter.
+#[derive(Clone, Debug, Serialize)]
+pub struct ParamEstimate {
+    /// Name (scenario key or effect name).
+    pub name: String,
+    /// Value.
+    pub value: f64,
+    /// Standard deviation from `s^2 (J^T J)^-1` (quantisation makes residuals coloured, so
+    /// treat it as a lower bound).
+    pub std: f64,
+    /// Unit.
+    pub unit: String,
+}
+
+/// Held-out score of one candidate.
+#[derive(Clone, Debug, Serialize)]
+pub struct CandidateScore {
+    /// Effect name.
+    pub name: String,
+    /// Held-out RMSE with the effect added to the model it was tried on, mrad.
+    pub rmse_heldout_mrad: f64,
+    /// Relative held-out RMSE gain, percent.
+    pub gain_percent: f64,
+    /// Fraction of the structured residual variance (above noise floor) it explains.
+    pub explained_fraction: f64,
+    /// Score used for ranking (held-out BIC-like: `n ln(mse) + k ln(n)`, lower is better).
+    pub score: f64,
+    /// Whether it was accepted.
+    pub accepted: bool,
+    /// Selection round (1 = tried on the base model).
+    pub round: usize,
+}
+
+/// A baseline model's held-out score.
+#[derive(Clone, Debug, Serialize)]
+pub struct BaselineScore {
+    /// Model name.
+    pub name: String,
+    /// Held-out RMSE, mrad.
+    pub rmse_heldout_mrad: f64,
+    /// Fitted parameters.
+    pub params: Vec<ParamEstimate>,
+}
+
+/// Time histories of one log for plots.
+#[derive(Clone, Debug, Default)]
+pub struct Trace {
+    /// Log source.
+    pub log: String,
+    /// Time, s.
+    pub t_s: Vec<f64>,
+    /// Input angle, rad.
+    pub theta_in_rad: Vec<f64>,
+    /// Output angle, rad.
+    pub theta_out_rad: Vec<f64>,
+    /// Input velocity, rad/s.
+    pub velocity_rad_s: Vec<f64>,
+    /// Measured transmission error (fitted ratio, encoder zero removed), rad.
+    pub measured_rad: Vec<f64>,
+    /// Base model prediction, rad.
+    pub base_rad: Vec<f64>,
+    /// Extended model prediction, rad.
+    pub extended_rad: Vec<f64>,
+    /// Whether the sample was held out in the log-level split.
+    pub held_out: bool,
+}
+
+/// Result of [`diagnose`].
+#[derive(Clone, Debug, Serialize)]
+pub struct Diagnosis {
+    /// Strongest accepted effect, `none` (nothing beats the noise) or `unexplained`
+    /// (structure remains that no candidate explains).
+    pub cause: String,
+    /// Every accepted effect, strongest first.
+    pub causes: Vec<String>,
+    /// Held-out RMSE of the calibrated base model, mrad.
+    pub rmse_base_mrad: f64,
+    /// Held-out RMSE of the extended model, mrad.
+    pub rmse_extended_mrad: f64,
+    /// `100 (1 - extended/base)`.
+    pub gain_percent: f64,
+    /// Noise floor (sensor noise and quantisation), mrad.
+    pub noise_floor_mrad: f64,
+    /// Held-out RMSE of the extended model over the noise floor (about 1 when nothing is
+    /// left).
+    pub structure_ratio: f64,
+    /// Whether structure above the noise remains after the extension.
+    pub unexplained_structure: bool,
+    /// Calibrated base and effect parameters.
+    pub params: Vec<ParamEstimate>,
+    /// Every candidate tried.
+    pub candidates: Vec<CandidateScore>,
+    /// Play-operator (deadband) model for comparison.
+    pub play_operator: Option<BaselineScore>,
+    /// How data was held out.
+    pub holdout: String,
+    /// Logs used.
+    pub logs: Vec<String>,
+    /// Calibrated drive.
+    pub drive: DriveParams,
+    /// Identified effects, as stored in a scenario.
+    pub effects: EffectsParams,
+    /// Plot data.
+    #[serde(skip)]
+    pub traces: Vec<Trace>,
+}
+
+/// Training masks and held-out masks of the cross-validation, and the mask of the final fit.
+struct Split {
+    folds: Vec<(Vec<bool>, Vec<bool>)>,
+    full: Vec<bool>,
+    text: String,
+}
+
+fn make_split(
+    logs: &[Prepared],
+    ident: &IdentifyParams,
+    opts: &DiagnoseOptions,
+) -> Result<Split, IdentifyError> {
+    let n: usize = logs.iter().map(|l| l.t.len()).sum();
+    if !opts.holdout_logs.is_empty() {
+        if let Some(bad) = opts.holdout_logs.iter().find(|i| **i >= logs.len()) {
+            return Err(IdentifyError::Config {
+                key: "holdout_logs".into(),
+                message: format!("log index {bad} does not exist ({} logs given)", logs.len()),
+            });
+        }
+        if opts.holdout_logs.len() >= logs.len() {
+            return Err(IdentifyError::Config {
+                key: "holdout_logs".into(),
+                message: "every log is held out; keep at least one for calibration".into(),
+            });
+        }
+        let mut train = Vec::with_capacity(n);
+        for (k, l) in logs.iter().enumerate() {
+            let held = opts.holdout_logs.contains(&k);
+            train.extend(std::iter::repeat(!held).take(l.t.len()));
+        }
+        let test: Vec<bool> = train.iter().map(|t| !t).collect();
+        let names: Vec<&str> = opts
+            .holdout_logs
+            .iter()
+            .map(|k| logs[*k].source.as_str())
+            .collect();
+        return Ok(Split {
+            folds: vec![(train.clone(), test)],
+            full: train,
+            text: format!("held-out logs: {}", names.join(", ")),
+        });
+    }
+    let k = ident.holdout_blocks;
+    let mut folds = Vec::with_capacity(k);
+    for f in 0..k {
+        let mut test = Vec::with_capacity(n);
+        for l in logs {
+            let m = l.t.len();
+            test.extend((0..m).map(|i| i * k / m == f));
+        }
+        let train = test.iter().map(|t| !t).collect();
+        folds.push((train, test));
+    }
+    Ok(Split {
+        folds,
+        full: vec![true; n],
+        text: format!("{k} contiguous time blocks per log, each held out in turn"),
+    })
+}
+
+fn rms(v: impl Iterator<Item = f64>) -> f64 {
+    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
+    if n == 0 {
+        0.0
+    } else {
+        (s / n as f64).sqrt()
+    }
+}
+
+/// Noise floor of the residual: robust high-frequency spread, or quantisation when larger.
+fn noise_floor(logs: &[Prepared], resid: &[f64], ic: f64) -> f64 {
+    let mut d: Vec<f64> = Vec::new();
+    let mut start = 0;
+    for l in logs {
+        let r = &resid[start..start + l.t.len()];
+        d.extend(r.windows(2).map(|w| (w[1] - w[0]).abs()));
+        start += l.t.len();
+    }
+    d.sort_by(|a, b| a.total_cmp(b));
+    let mad = d.get(d.len() / 2).copied().unwrap_or(0.0);
+    // Median of |N(0, 2 s^2)| is 0.6745 sqrt(2) s.
+    let s_diff = mad / (0.6745 * std::f64::consts::SQRT_2);
+    let q2 = logs
+        .iter()
+        .map(|l| (l.q_out.powi(2) + (l.q_in / ic).powi(2)) / 12.0)
+        .sum::<f64>()
+        / logs.len().max(1) as f64;
+    s_diff.max(q2.sqrt())
+}
+
+fn spec_for(
+    drive: &DriveParams,
+    ident: &IdentifyParams,
+    effects: &[EffectName],
+    nonlinear_base: bool,
+) -> Spec {
+    Spec {
+        drive: drive.clone(),
+        fit_mu: nonlinear_base && ident.is_unknown("friction_coefficient"),
+        fit_pre: nonlinear_base && ident.is_unknown("preload_n"),
+        fit_g: ident.is_unknown("cable_modulus_n"),
+        fit_ratio: ident.is_unknown("ratio"),
+        effects: effects.to_vec(),
+        ident: ident.clone(),
+    }
+}
+
+fn with_base(drive: &DriveParams, spec_nl: &[(NlParam, f64, f64, f64)], x: &[f64]) -> DriveParams {
+    let mut d = drive.clone();
+    for (n, v) in spec_nl.iter().zip(x) {
+        match n.0 {
+            NlParam::Mu => d.friction_coefficient = *v,
+            NlParam::Preload => d.preload_n = *v,
+            NlParam::Effect(_) => {}
+        }
+    }
+    d
+}
+
+/// Cross-validated held-out residuals of a model with `effects` on top of per-fold base
+/// drives; returns (held-out RMSE, held-out count, fit on the final mask).
+fn cross_validate(
+    logs: &[Prepared],
+    ident: &IdentifyParams,
+    full_drive: &DriveParams,
+    fold_drives: &[DriveParams],
+    split: &Split,
+    effects: &[EffectName],
+) -> Result<(f64, usize, Fitted), IdentifyError> {
+    let mut ev = Evaluator::new(spec_for(full_drive, ident, effects, false), logs);
+    let full = ev.fit(&split.full, None, 25)?;
+    let mut held = Vec::new();
+    for ((train, test), drive) in split.folds.iter().zip(fold_drives) {
+        let mut evf = Evaluator::new(spec_for(drive, ident, effects, false), logs);
+        let f = evf.fit(train, Some(&full.x), 10)?;
+        let (r, _) = evf.residual(&f, train)?;
+        held.extend(r.iter().zip(test).filter(|(_, t)| **t).map(|(r, _)| *r));
+    }
+    Ok((rms(held.iter().copied()), held.len(), full))
+}
+
+/// Diagnose bench logs against the scenario's drive: calibrate the base model, search the
+/// effect library, score on held-out data. Typical run: a few seconds for a minute of data.
+pub fn diagnose(
+    scenario: &Scenario,
+    logs: &[BenchLog],
+    options: &DiagnoseOptions,
+) -> Result<Diagnosis, IdentifyError> {
+    if logs.is_empty() {
+        return Err(IdentifyError::NoLogs);
+    }
+    let ident = scenario.identify.clone().unwrap_or_default();
+    ident.validate().map_err(|(k, m)| IdentifyError::Config {
+        key: format!("identify.{k}"),
+        message: m,
+    })?;
+    let prepared: Vec<Prepared> = logs
+        .iter()
+        .map(|l| model::prepare(l, ident.max_rate_hz))
+        .collect::<Result<_, _>>()?;
+    let split = make_split(&prepared, &ident, options)?;
+    let drive0 = scenario.drive.clone();
+
+    // Base model: full calibration, then per fold from there.
+    let base_spec = spec_for(&drive0, &ident, &[], true);
+    let mut ev = Evaluator::new(base_spec.clone(), &prepared);
+    let base_fit = ev.fit(&split.full, None, 40)?;
+    let nl = ev.nonlinear();
+    let full_drive = with_base(&drive0, &nl, &base_fit.x);
+    let mut fold_drives = Vec::new();
+    let mut held = Vec::new();
+    for (train, test) in &split.folds {
+        let f = ev.fit(train, Some(&base_fit.x), 10)?;
+        fold_drives.push(with_base(&drive0, &nl, &f.x));
+        let (r, _) = ev.residual(&f, train)?;
+        held.extend(r.iter().zip(test).filter(|(_, t)| **t).map(|(r, _)| *r));
+    }
+    let rmse_base = rms(held.iter().copied());
+    let n_held = held.len().max(1) as f64;
+    let (base_resid, base_pred) = ev.residual(&base_fit, &split.full)?;
+    let ic_fit = fitted_ratio(&drive0, &base_fit);
+    let floor = noise_floor(&prepared, &base_resid, ic_fit).max(1e-12);
+
+    // Candidates.
+    let ratio_free = ident.is_unknown("ratio");
+    let mut pool: Vec<EffectName> = options
+        .candidates
+        .clone()
+        .unwrap_or_else(|| {
+            if ident.candidates.is_empty() {
+                EffectName::ALL.to_vec()
+            } else {
+                ident.candidates.clone()
+            }
+        })
+        .into_iter()
+        // A free ratio and an output scale error are the same column.
+        .filter(|e| !(ratio_free && *e == EffectName::EncoderScaleError))
+        .collect();
+    let mut chosen: Vec<EffectName> = Vec::new();
+    let mut current = rmse_base;
+    let mut scores: Vec<CandidateScore> = Vec::new();
+    let mut chosen_fit: Option<Fitted> = None;
+    let base_k = base_fit.coef.len() + base_fit.x.len();
+    for round in 1..=ident.max_effects {
+        if pool.is_empty() || current <= 1.05 * floor {
+            break;
+        }
+        use rayon::prelude::*;
+        let results: Vec<(EffectName, Result<(f64, usize, Fitted), IdentifyError>)> = pool
+            .par_iter()
+            .map(|e| {
+                let mut effs = chosen.clone();
+                effs.push(*e);
+                (
+                    *e,
+                    cross_validate(&prepared, &ident, &full_drive, &fold_drives, &split, &effs),
+                )
+            })
+            .collect();
+        let mut best: Option<(usize, f64)> = None;
+        let first_score = scores.len();
+        for (e, r) in results {
+            let Ok((rmse, _, fit)) = r else { continue };
+            let gain = 100.0 * (1.0 - rmse / current);
+            let excess = (current * current - floor * floor).max(1e-30);
+            let explained = (current * current - rmse * rmse) / excess;
+            let k = fit.coef.len() + fit.x.len();
+            let score = n_held * (rmse * rmse).max(1e-300).ln() + k as f64 * n_held.ln();
+            scores.push(CandidateScore {
+                name: e.to_string(),
+                rmse_heldout_mrad: rmse * 1e3,
+                gain_percent: gain,
+                explained_fraction: explained,
+                score,
+                accepted: false,
+                round,
+            });
+            let ok = gain >= ident.min_gain_percent && explained >= ident.min_explained_fraction;
+            let idx = scores.len() - 1;
+            if ok && best.is_none_or(|(_, b)| rmse < b) {
+                best = Some((idx, rmse));
+            }
+            let _ = base_k;
+            if let Some((b, _)) = best {
+                if b == idx {
+                    chosen_fit = Some(fit);
+                }
+            }
+        }
+        let _ = first_score;
+        let Some((idx, rmse)) = best else { break };
+        scores[idx].accepted = true;
+        let e: EffectName = pool
+            .iter()
+            .copied()
+            .find(|p| p.as_str() == scores[idx].name)
+            .ok_or_else(|| IdentifyError::Fit("candidate bookkeeping".into()))?;
+        chosen.push(e);
+        pool.retain(|p| *p != e);
+        current = rmse;
+    }
+
+    // Final extended model: base parameters free again together with the effects.
+    let ext_spec = spec_for(&drive0, &ident, &chosen, true);
+    let mut ev_ext = Evaluator::new(ext_spec, &prepared);
+    let nl_ext = ev_ext.nonlinear();
+    let mut x0: Vec<f64> = Vec::new();
+    for n in &nl_ext {
+        x0.push(match n.0 {
+            NlParam::Mu => full_drive.friction_coefficient,
+            NlParam::Preload => full_drive.preload_n,
+            NlParam::Effect(e) => chosen_fit
+                .as_ref()
+                .and_then(|f| {
+                    let evc =
+                        Evaluator::new(spec_for(&full_drive, &ident, &chosen, false), &prepared);
+                    evc.nonlinear()
+                        .iter()
+                        .position(|m| m.0 == NlParam::Effect(e))
+                        .and_then(|i| f.x.get(i).copied())
+                })
+                .unwrap_or(n.3),
+        });
+    }
+    let ext_fit = if chosen.is_empty() {
+        base_fit.clone()
+    } else {
+        ev_ext.fit(&split.full, Some(&x0), 30)?
+    };
+    let (_, ext_pred) = ev_ext.residual(&ext_fit, &split.full)?;
+    let cov = ev_ext.covariance(&ext_fit, &split.full)?;
+    let ext_drive = with_base(&drive0, &nl_ext, &ext_fit.x);
+    let (params, drive_out, effects_out) =
+        report::parameters(&drive0, &ext_drive, &nl_ext, &ext_fit, &cov);
+
+    let rmse_ext = current;
+    let structure_ratio = rmse_ext / floor;
+    let unexplained_structure = structure_ratio > 1.25;
+    let cause = if let Some(c) = chosen.first() {
+        c.to_string()
+    } else if rmse_base / floor > 1.25 {
+        "unexplained".to_string()
+    } else {
+        "none".to_string()
+    };
+
+    let play_operator = if options.skip_play_operator {
+        None
+    } else {
+        Some(play::cross_validate(
+            &prepared,
+            &drive0,
+            &ident,
+            &split.folds,
+        )?)
+    };
+
+    // Traces for plots, with the fitted ratio and each log's encoder zero removed.
+    let ic_ext = drive_out.ratio();
+    let ic_ref = drive0.ratio();
+    let mut traces = Vec::new();
+    let mut start = 0;
+    for (k, l) in prepared.iter().enumerate() {
+        let r = start..start + l.t.len();
+        let off = ext_fit
+            .lin
+            .iter()
+            .position(|p| *p == LinParam::Offset(k))
+            .map_or(0.0, |i| ext_fit.coef[i]);
+        let corr = |i: usize, th_in: f64| th_in * (1.0 / ic_ref - 1.0 / ic_ext) + 0.0 * i as f64;
+        let measured: Vec<f64> = r
+            .clone()
+            .enumerate()
+            .map(|(j, i)| l.th_out[j] - l.th_in[j] / ic_ext - off + 0.0 * i as f64)
+            .collect();
+        let base_rad: Vec<f64> = r
+            .clone()
+            .enumerate()
+            .map(|(j, i)| base_pred[i] - off - corr(i, l.th_in[j]))
+            .collect();
+        let extended_rad: Vec<f64> = r
+            .clone()
+            .enumerate()
+            .map(|(j, i)| ext_pred[i] - off - corr(i, l.th_in[j]))
+            .collect();
+        traces.push(Trace {
+            log: l.source.clone(),
+            t_s: l.t.clone(),
+            theta_in_rad: l.th_in.clone(),
+            theta_out_rad: l.th_out.clone(),
+            velocity_rad_s: l.vel_in.clone(),
+            measured_rad: measured,
+            base_rad,
+            extended_rad,
+            held_out: options.holdout_logs.contains(&k),
+        });
+        start = r.end;
+    }
+
+    Ok(Diagnosis {
+        cause,
+        causes: chosen.iter().map(|c| c.to_string()).collect(),
+        rmse_base_mrad: rmse_base * 1e3,
+        rmse_extended_mrad: rmse_ext * 1e3,
+        gain_percent: 100.0 * (1.0 - rmse_ext / rmse_base.max(1e-300)),
+        noise_floor_mrad: floor * 1e3,
+        structure_ratio,
+        unexplained_structure,
+        params,
+        candidates: scores,
+        play_operator,
+        holdout: split.text,
+        logs: prepared.iter().map(|l| l.source.clone()).collect(),
+        drive: drive_out,
+        effects: effects_out,
+        traces,
+    })
+}
+
+/// Ratio implied by a fit's inverse-ratio coefficient.
+fn fitted_ratio(drive: &DriveParams, f: &Fitted) -> f64 {
+    let ic = drive.ratio();
+    f.lin
+        .iter()
+        .position(|p| *p == LinParam::InverseRatio)
+        .map_or(ic, |i| 1.0 / (1.0 / ic + f.coef[i]))
+}
+
+/// Read logs and diagnose: the convenience entry for `cable-servo diagnose`.
+pub fn diagnose_files(
+    scenario: &Scenario,
+    paths: &[std::path::PathBuf],
+    options: &DiagnoseOptions,
+) -> Result<Diagnosis, IdentifyError> {
+    let logs: Vec<BenchLog> = paths
+        .iter()
+        .map(|p| read_bench_log(p))
+        .collect::<Result<_, _>>()?;
+    diagnose(scenario, &logs, options)
+}
