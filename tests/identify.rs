@@ -94,12 +94,222 @@ fn run_effect(e: EffectName, seeds: u64) -> (usize, usize, f64) {
     (named, sized, worst)
 }
 
-#[test]
-fn probe() {
-    let t = std::time::Instant::now();
-    for e in EffectName::ALL {
-        let r = run_effect(e, 2);
-        eprintln!("{e}: {r:?}");
+/// Seeds per effect in the default run; the `#[ignore]`d `*_many` tests use 50.
+const SEEDS: u64 = 10;
+
+fn check_effect(e: EffectName, seeds: u64) {
+    let (named, sized, worst) = run_effect(e, seeds);
+    let need = (0.95 * seeds as f64).ceil() as usize;
+    assert!(
+        named >= need && sized >= need,
+        "{e}: named {named}/{seeds}, size within 10 % {sized}/{seeds} (worst {:.1} %)",
+        worst * 100.0
+    );
+}
+
+macro_rules! effect_tests {
+    ($($name:ident, $many:ident => $e:expr;)*) => {$(
+        #[test]
+        fn $name() {
+            check_effect($e, SEEDS);
+        }
+        #[test]
+        #[ignore]
+        fn $many() {
+            check_effect($e, 50);
+        }
+    )*};
+}
+
+effect_tests! {
+    finds_input_pulley_runout, finds_input_pulley_runout_many => EffectName::InputPulleyRunout;
+    finds_output_drum_runout, finds_output_drum_runout_many => EffectName::OutputDrumRunout;
+    finds_encoder_delay, finds_encoder_delay_many => EffectName::EncoderDelay;
+    finds_encoder_scale_error, finds_encoder_scale_error_many => EffectName::EncoderScaleError;
+    finds_preload_relaxation, finds_preload_relaxation_many => EffectName::PreloadRelaxation;
+    finds_bearing_friction, finds_bearing_friction_many => EffectName::BearingFriction;
+    finds_cable_transport, finds_cable_transport_many => EffectName::CableTransport;
+    finds_thermal_drift, finds_thermal_drift_many => EffectName::ThermalDrift;
+}
+
+fn clean_none(seeds: u64) {
+    let mut none = 0;
+    for seed in 0..seeds {
+        let sc = scenario(seed % 2 == 1);
+        let log = synthesize(&sc, &[], 1000 + seed, &SynthOptions::default()).unwrap();
+        let d = diagnose(&sc, &[log], &opts()).unwrap();
+        if d.cause == "none" {
+            none += 1;
+        } else {
+            eprintln!("clean seed {seed}: {} {:?}", d.cause, d.candidates);
+        }
     }
-    eprintln!("elapsed {:?}", t.elapsed());
+    let need = (0.95 * seeds as f64).ceil() as usize;
+    assert!(none >= need, "clean logs called none {none}/{seeds}");
+}
+
+#[test]
+fn clean_logs_are_none() {
+    clean_none(SEEDS);
+}
+
+#[test]
+#[ignore]
+fn clean_logs_are_none_many() {
+    clean_none(50);
+}
+
+#[test]
+fn resonance_is_unexplained() {
+    for seed in 0..4u64 {
+        let sc = scenario(seed % 2 == 1);
+        let synth = SynthOptions {
+            ringing: Some(Ringing {
+                amplitude_rad: 1e-4 * (1.0 + seed as f64 * 0.5),
+                frequency_hz: 3.0 + seed as f64,
+                decay_s: 0.5,
+            }),
+            ..SynthOptions::default()
+        };
+        let log = synthesize(&sc, &[], 2000 + seed, &synth).unwrap();
+        let d = diagnose(&sc, &[log], &opts()).unwrap();
+        assert_eq!(d.cause, "unexplained", "seed {seed}: {:?}", d.candidates);
+    }
+}
+
+#[test]
+fn two_effects_are_both_named() {
+    let sc = scenario(false);
+    let effects = [
+        (EffectName::InputPulleyRunout, 1.0e-3),
+        (EffectName::ThermalDrift, 3e-6),
+    ];
+    let log = synthesize(&sc, &effects, 7, &SynthOptions::default()).unwrap();
+    let d = diagnose(&sc, &[log], &opts()).unwrap();
+    assert_eq!(d.causes, vec!["input_pulley_runout", "thermal_drift"], "{:?}", d.candidates);
+    for (e, v) in effects {
+        let est = effect_value(&d, e).unwrap();
+        assert!((est - v).abs() < 0.1 * v, "{e}: {est} vs {v}");
+    }
+}
+
+#[test]
+fn several_logs_and_held_out_log() {
+    let sc = scenario(false);
+    let logs: Vec<_> = (0..3)
+        .map(|s| synthesize(&sc, &[(EffectName::EncoderDelay, 8e-4)], 300 + s, &SynthOptions::default()).unwrap())
+        .collect();
+    let d = diagnose(
+        &sc,
+        &logs,
+        &DiagnoseOptions {
+            holdout_logs: vec![1],
+            ..DiagnoseOptions::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(d.cause, "encoder_delay");
+    let est = effect_value(&d, EffectName::EncoderDelay).unwrap();
+    assert!((est - 8e-4).abs() < 8e-5, "{est}");
+    assert!(d.play_operator.is_some());
+    assert!(d.rmse_extended_mrad < d.rmse_base_mrad);
+}
+
+#[test]
+fn calibrates_modulus_preload_and_friction_with_uncertainty() {
+    let mut sc = scenario(false);
+    let truth = sc.drive.clone();
+    // Start calibration away from the truth; three loads make the parameters separable.
+    sc.drive.cable_modulus_n = 1.0e4;
+    sc.drive.preload_n = 70.0;
+    sc.drive.friction_coefficient = 0.3;
+    sc.identify.as_mut().unwrap().unknown = vec![
+        "cable_modulus_n".into(),
+        "preload_n".into(),
+        "friction_coefficient".into(),
+    ];
+    let logs: Vec<_> = [0.3, 0.7, 1.2]
+        .iter()
+        .enumerate()
+        .map(|(k, b)| {
+            let mut s = scenario(false);
+            s.load.brake_nm = *b;
+            synthesize(&s, &[], 400 + k as u64, &SynthOptions::default()).unwrap()
+        })
+        .collect();
+    let d = diagnose(&sc, &logs, &opts()).unwrap();
+    let g = d.params.iter().find(|p| p.name == "cable_modulus_n").unwrap();
+    assert!((g.value - truth.cable_modulus_n).abs() < 0.1 * truth.cable_modulus_n, "{g:?}");
+    assert!(g.std > 0.0 && g.std.is_finite());
+    assert_eq!(d.cause, "none", "{:?}", d.candidates);
+}
+
+#[test]
+fn log_round_trip_and_errors_name_line() {
+    let sc = scenario(false);
+    let log = synthesize(&sc, &[], 5, &SynthOptions::default()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("a.csv");
+    write_bench_log(&p, &log).unwrap();
+    let back = read_bench_log(&p).unwrap();
+    assert_eq!(back.len(), log.len());
+    let text = std::fs::read_to_string(&p).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    let bad_line = lines.iter().position(|l| l.starts_with("0.020000,")).unwrap() + 1;
+    let mut v: Vec<String> = lines.iter().map(|s| s.to_string()).collect();
+    v[bad_line - 1] = "0.020000,abc,0.0,0.0".to_string();
+    std::fs::write(&p, v.join("\n")).unwrap();
+    let err = read_bench_log(&p).unwrap_err().to_string();
+    assert!(err.contains(&format!(":{bad_line}:")), "{err}");
+    let d = diagnose(&sc, &[], &opts());
+    assert!(d.is_err());
+}
+
+#[test]
+fn writes_report_and_model() {
+    let sc = scenario(false);
+    let log = synthesize(&sc, &[(EffectName::InputPulleyRunout, 1e-3)], 9, &SynthOptions::default()).unwrap();
+    let d = diagnose(&sc, &[log], &DiagnoseOptions::default()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let files = cable_servo::identify::write_diagnosis(dir.path(), &d, None).unwrap();
+    assert!(files.iter().all(|f| f.exists()));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("diagnosis.json")).unwrap()).unwrap();
+    for k in ["cause", "causes", "rmse_base_mrad", "rmse_extended_mrad", "gain_percent", "params", "candidates"] {
+        assert!(json.get(k).is_some(), "{k}");
+    }
+    let m = dir.path().join("model.toml");
+    cable_servo::identify::save_model(&m, &sc, &d).unwrap();
+    let back = Scenario::load(m.to_str().unwrap(), &[]).unwrap();
+    let eps = back.effects.unwrap().input_pulley_runout.unwrap();
+    assert!((eps - 1e-3).abs() < 1e-4);
+}
+
+#[test]
+#[ignore]
+fn probe_one() {
+    let e: EffectName = std::env::var("EFFECT").unwrap().parse().unwrap();
+    let v: f64 = std::env::var("VALUE").unwrap().parse().unwrap();
+    let sc = scenario(false);
+    let log = synthesize(&sc, &[(e, v)], 0, &SynthOptions::default()).unwrap();
+    let d = diagnose(&sc, &[log], &DiagnoseOptions::default()).unwrap();
+    eprintln!("{}", cable_servo::identify::report::summary_text(&d));
+}
+
+#[test]
+#[ignore]
+fn probe_bearing() {
+    use cable_servo::identify::model::{prepare, Evaluator, Spec};
+    let sc = scenario(false);
+    let log = synthesize(&sc, &[(EffectName::BearingFriction, 0.15)], 0, &SynthOptions::default()).unwrap();
+    let p = vec![prepare(&log, 200.0).unwrap()];
+    let spec = Spec { drive: sc.drive.clone(), fit_mu: false, fit_pre: false, fit_g: true, fit_ratio: false, effects: vec![EffectName::BearingFriction], ident: sc.identify.clone().unwrap() };
+    let mut ev = Evaluator::new(spec, &p);
+    let mask = vec![true; ev.rows()];
+    for mb in [0.0, 0.05, 0.1, 0.14, 0.15, 0.16, 0.2, 0.3] {
+        let f = ev.fit(&mask, Some(&[mb]), 0).unwrap();
+        eprintln!("mb {mb}: rms {:.3e} coef {:?}", (f.cost / f.n_fit as f64).sqrt(), f.coef);
+    }
+    let f = ev.fit(&mask, None, 30).unwrap();
+    eprintln!("free: x {:?} rms {:.3e}", f.x, (f.cost / f.n_fit as f64).sqrt());
 }

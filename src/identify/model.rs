@@ -130,7 +130,9 @@ pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyErr
     let vel_in = deriv(&th_in);
     let vel_out = deriv(&th_out);
     let vmax = vel_in.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-    let thr = 0.02 * vmax;
+    // Low threshold so the direction flips where the motion reverses (the brake and any
+    // bearing friction flip there), high enough that quantisation steps never flip it.
+    let thr = (0.002 * vmax).max(4.0 * q_in / (2.0 * w as f64 * dt));
     let first = vel_in
         .iter()
         .find(|v| v.abs() > thr)
