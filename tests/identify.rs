@@ -186,7 +186,12 @@ fn two_effects_are_both_named() {
     ];
     let log = synthesize(&sc, &effects, 7, &SynthOptions::default()).unwrap();
     let d = diagnose(&sc, &[log], &opts()).unwrap();
-    assert_eq!(d.causes, vec!["input_pulley_runout", "thermal_drift"], "{:?}", d.candidates);
+    assert_eq!(
+        d.causes,
+        vec!["input_pulley_runout", "thermal_drift"],
+        "{:?}",
+        d.candidates
+    );
     for (e, v) in effects {
         let est = effect_value(&d, e).unwrap();
         assert!((est - v).abs() < 0.1 * v, "{e}: {est} vs {v}");
@@ -197,7 +202,15 @@ fn two_effects_are_both_named() {
 fn several_logs_and_held_out_log() {
     let sc = scenario(false);
     let logs: Vec<_> = (0..3)
-        .map(|s| synthesize(&sc, &[(EffectName::EncoderDelay, 8e-4)], 300 + s, &SynthOptions::default()).unwrap())
+        .map(|s| {
+            synthesize(
+                &sc,
+                &[(EffectName::EncoderDelay, 8e-4)],
+                300 + s,
+                &SynthOptions::default(),
+            )
+            .unwrap()
+        })
         .collect();
     let d = diagnose(
         &sc,
@@ -238,8 +251,15 @@ fn calibrates_modulus_preload_and_friction_with_uncertainty() {
         })
         .collect();
     let d = diagnose(&sc, &logs, &opts()).unwrap();
-    let g = d.params.iter().find(|p| p.name == "cable_modulus_n").unwrap();
-    assert!((g.value - truth.cable_modulus_n).abs() < 0.1 * truth.cable_modulus_n, "{g:?}");
+    let g = d
+        .params
+        .iter()
+        .find(|p| p.name == "cable_modulus_n")
+        .unwrap();
+    assert!(
+        (g.value - truth.cable_modulus_n).abs() < 0.1 * truth.cable_modulus_n,
+        "{g:?}"
+    );
     assert!(g.std > 0.0 && g.std.is_finite());
     assert_eq!(d.cause, "none", "{:?}", d.candidates);
 }
@@ -255,7 +275,11 @@ fn log_round_trip_and_errors_name_line() {
     assert_eq!(back.len(), log.len());
     let text = std::fs::read_to_string(&p).unwrap();
     let lines: Vec<&str> = text.lines().collect();
-    let bad_line = lines.iter().position(|l| l.starts_with("0.020000,")).unwrap() + 1;
+    let bad_line = lines
+        .iter()
+        .position(|l| l.starts_with("0.020000,"))
+        .unwrap()
+        + 1;
     let mut v: Vec<String> = lines.iter().map(|s| s.to_string()).collect();
     v[bad_line - 1] = "0.020000,abc,0.0,0.0".to_string();
     std::fs::write(&p, v.join("\n")).unwrap();
@@ -268,14 +292,29 @@ fn log_round_trip_and_errors_name_line() {
 #[test]
 fn writes_report_and_model() {
     let sc = scenario(false);
-    let log = synthesize(&sc, &[(EffectName::InputPulleyRunout, 1e-3)], 9, &SynthOptions::default()).unwrap();
+    let log = synthesize(
+        &sc,
+        &[(EffectName::InputPulleyRunout, 1e-3)],
+        9,
+        &SynthOptions::default(),
+    )
+    .unwrap();
     let d = diagnose(&sc, &[log], &DiagnoseOptions::default()).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let files = cable_servo::identify::write_diagnosis(dir.path(), &d, None).unwrap();
     assert!(files.iter().all(|f| f.exists()));
     let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("diagnosis.json")).unwrap()).unwrap();
-    for k in ["cause", "causes", "rmse_base_mrad", "rmse_extended_mrad", "gain_percent", "params", "candidates"] {
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("diagnosis.json")).unwrap())
+            .unwrap();
+    for k in [
+        "cause",
+        "causes",
+        "rmse_base_mrad",
+        "rmse_extended_mrad",
+        "gain_percent",
+        "params",
+        "candidates",
+    ] {
         assert!(json.get(k).is_some(), "{k}");
     }
     let m = dir.path().join("model.toml");
@@ -301,15 +340,37 @@ fn probe_one() {
 fn probe_bearing() {
     use cable_servo::identify::model::{prepare, Evaluator, Spec};
     let sc = scenario(false);
-    let log = synthesize(&sc, &[(EffectName::BearingFriction, 0.15)], 0, &SynthOptions::default()).unwrap();
+    let log = synthesize(
+        &sc,
+        &[(EffectName::BearingFriction, 0.15)],
+        0,
+        &SynthOptions::default(),
+    )
+    .unwrap();
     let p = vec![prepare(&log, 200.0).unwrap()];
-    let spec = Spec { drive: sc.drive.clone(), fit_mu: false, fit_pre: false, fit_g: true, fit_ratio: false, effects: vec![EffectName::BearingFriction], ident: sc.identify.clone().unwrap() };
+    let spec = Spec {
+        drive: sc.drive.clone(),
+        fit_mu: false,
+        fit_pre: false,
+        fit_g: true,
+        fit_ratio: false,
+        effects: vec![EffectName::BearingFriction],
+        ident: sc.identify.clone().unwrap(),
+    };
     let mut ev = Evaluator::new(spec, &p);
     let mask = vec![true; ev.rows()];
     for mb in [0.0, 0.05, 0.1, 0.14, 0.15, 0.16, 0.2, 0.3] {
         let f = ev.fit(&mask, Some(&[mb]), 0).unwrap();
-        eprintln!("mb {mb}: rms {:.3e} coef {:?}", (f.cost / f.n_fit as f64).sqrt(), f.coef);
+        eprintln!(
+            "mb {mb}: rms {:.3e} coef {:?}",
+            (f.cost / f.n_fit as f64).sqrt(),
+            f.coef
+        );
     }
     let f = ev.fit(&mask, None, 30).unwrap();
-    eprintln!("free: x {:?} rms {:.3e}", f.x, (f.cost / f.n_fit as f64).sqrt());
+    eprintln!(
+        "free: x {:?} rms {:.3e}",
+        f.x,
+        (f.cost / f.n_fit as f64).sqrt()
+    );
 }

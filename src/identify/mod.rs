@@ -268,9 +268,11 @@ fn noise_floor(logs: &[Prepared], resid: &[f64], ic: f64) -> f64 {
         start += l.t.len();
     }
     d.sort_by(|a, b| a.total_cmp(b));
-    let mad = d.get(d.len() / 2).copied().unwrap_or(0.0);
-    // Median of |N(0, 2 s^2)| is 0.6745 sqrt(2) s.
-    let s_diff = mad / (0.6745 * std::f64::consts::SQRT_2);
+    // RMS of first differences (exact for white noise of any distribution, including
+    // quantisation at speed), with the largest 1 % dropped so jumps at reversals do not
+    // count as noise.
+    let keep = &d[..(d.len() * 99 / 100).max(1).min(d.len())];
+    let s_diff = rms(keep.iter().copied()) / std::f64::consts::SQRT_2;
     let q2 = logs
         .iter()
         .map(|l| (l.q_out.powi(2) + (l.q_in / ic).powi(2)) / 12.0)
