@@ -374,3 +374,30 @@ fn probe_bearing() {
         (f.cost / f.n_fit as f64).sqrt()
     );
 }
+
+/// Real data: calibrate on tool4_00 + tool4_09, score on tool4_05 (run with --ignored).
+#[test]
+#[ignore]
+fn davinci_real_logs() {
+    let dir = std::path::Path::new("/work/shared/real-data/davinci");
+    let sc = Scenario::load("scenarios/davinci_tool4.toml", &[]).unwrap();
+    let logs: Vec<_> = ["tool4_00.csv", "tool4_05.csv", "tool4_09.csv"]
+        .iter()
+        .map(|f| read_bench_log(&dir.join(f)).unwrap())
+        .collect();
+    let t = std::time::Instant::now();
+    let d = diagnose(
+        &sc,
+        &logs,
+        &DiagnoseOptions {
+            holdout_logs: vec![1],
+            ..DiagnoseOptions::default()
+        },
+    )
+    .unwrap();
+    eprintln!("{}", cable_servo::identify::report::summary_text(&d));
+    eprintln!("elapsed {:?}", t.elapsed());
+    let out = std::path::Path::new("target/davinci_diagnosis");
+    cable_servo::identify::write_diagnosis(out, &d, None).unwrap();
+    cable_servo::identify::save_model(&out.join("davinci_tool4_model.toml"), &sc, &d).unwrap();
+}

@@ -429,7 +429,9 @@ pub fn diagnose(
                 accepted: false,
                 round,
             });
-            let ok = gain >= ident.min_gain_percent && explained >= ident.min_explained_fraction;
+            let ok = gain >= ident.min_gain_percent
+                && explained >= ident.min_explained_fraction
+                && plausible(&fit, drive0.ratio());
             let idx = scores.len() - 1;
             if ok && best.is_none_or(|(_, b)| rmse < b) {
                 best = Some((idx, rmse));
@@ -568,6 +570,39 @@ pub fn diagnose(
         drive: drive_out,
         effects: effects_out,
         traces,
+    })
+}
+
+/// Whether every effect size in a fit is physically possible; a runout of half the radius
+/// or a delay of seconds is a sign that the effect is standing in for something else.
+fn plausible(f: &Fitted, ic: f64) -> bool {
+    let coef = |e: EffectName, k: usize| {
+        f.lin
+            .iter()
+            .position(|p| *p == LinParam::Effect(e, k))
+            .map(|i| f.coef[i])
+    };
+    let limit = |e: EffectName| match e {
+        EffectName::InputPulleyRunout | EffectName::OutputDrumRunout => 0.05,
+        EffectName::EncoderDelay => 0.05,
+        EffectName::EncoderScaleError => 0.02,
+        EffectName::ThermalDrift => 1e-4,
+        _ => f64::INFINITY,
+    };
+    EffectName::ALL.iter().all(|e| {
+        let v = match (coef(*e, 0), coef(*e, 1)) {
+            (Some(a), Some(b)) => {
+                let h = a.hypot(b);
+                if *e == EffectName::InputPulleyRunout {
+                    h * ic
+                } else {
+                    h
+                }
+            }
+            (Some(a), None) => a.abs(),
+            _ => 0.0,
+        };
+        v <= limit(*e)
     })
 }
 

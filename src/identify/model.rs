@@ -617,6 +617,8 @@ impl<'a> Evaluator<'a> {
                 }
             }
         }
+        // Surface why the start fails (slack, gross slip) instead of a bare fit error.
+        self.design(&start)?;
         let x = if nl.is_empty() {
             Vec::new()
         } else {
