@@ -217,7 +217,7 @@ fn make_split(
         let mut train = Vec::with_capacity(n);
         for (k, l) in logs.iter().enumerate() {
             let held = opts.holdout_logs.contains(&k);
-            train.extend(std::iter::repeat(!held).take(l.t.len()));
+            train.extend(std::iter::repeat_n(!held, l.t.len()));
         }
         let test: Vec<bool> = train.iter().map(|t| !t).collect();
         let names: Vec<&str> = opts
@@ -310,6 +310,9 @@ fn with_base(drive: &DriveParams, spec_nl: &[(NlParam, f64, f64, f64)], x: &[f64
     d
 }
 
+/// Held-out RMSE, held-out count and the fit on the final mask.
+type CvResult = Result<(f64, usize, Fitted), IdentifyError>;
+
 /// Cross-validated held-out residuals of a model with `effects` on top of per-fold base
 /// drives; returns (held-out RMSE, held-out count, fit on the final mask).
 fn cross_validate(
@@ -400,7 +403,7 @@ pub fn diagnose(
             break;
         }
         use rayon::prelude::*;
-        let results: Vec<(EffectName, Result<(f64, usize, Fitted), IdentifyError>)> = pool
+        let results: Vec<(EffectName, CvResult)> = pool
             .par_iter()
             .map(|e| {
                 let mut effs = chosen.clone();

@@ -96,7 +96,11 @@ pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyErr
             return Err(bad(format!("column {name} is not finite at row {}", i + 1)));
         }
     }
-    if let Some(i) = log.t_s.windows(2).position(|w| !(w[1] > w[0])) {
+    if let Some(i) = log
+        .t_s
+        .windows(2)
+        .position(|w| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater))
+    {
         return Err(bad(format!("t_s does not increase at row {}", i + 2)));
     }
     let span = log.t_s[n - 1] - log.t_s[0];
@@ -422,6 +426,7 @@ impl<'a> Evaluator<'a> {
     }
 
     /// Design for nonlinear parameters `x`.
+    #[allow(clippy::needless_range_loop)]
     pub fn design(&mut self, x: &[f64]) -> Result<Design, IdentifyError> {
         let base = self.base(x)?;
         let n = self.rows();

@@ -23,6 +23,7 @@ struct PlayFit {
     coef: Vec<f64>,
 }
 
+#[allow(clippy::needless_range_loop)]
 /// Columns: per-log zero, compliance `c` against torque. Target `theta_out - P_r(a theta_in)`.
 fn evaluate(logs: &[Prepared], a: f64, r: f64) -> (Vec<f64>, Vec<Vec<f64>>) {
     let n: usize = logs.iter().map(|l| l.t.len()).sum();
