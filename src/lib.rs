@@ -3,7 +3,12 @@
 
 pub mod closed_loop;
 pub mod identify;
+pub mod io;
 pub mod physics;
+pub mod plot;
+pub mod report;
+pub mod run;
 pub mod scenario;
 pub mod signal;
+pub mod study;
 pub mod sweep;

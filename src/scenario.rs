@@ -162,6 +162,14 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ),
     ("paper_bench", include_str!("../scenarios/paper_bench.toml")),
     ("paper_fig11", include_str!("../scenarios/paper_fig11.toml")),
+    (
+        "paper_tension",
+        include_str!("../scenarios/paper_tension.toml"),
+    ),
+    (
+        "memory_vs_memoryless",
+        include_str!("../scenarios/memory_vs_memoryless.toml"),
+    ),
 ];
 
 /// The scenario `cable-servo run` uses when given none.
@@ -340,6 +348,40 @@ impl Scenario {
         }
         scenario.validate(&shown_name)?;
         Ok(scenario)
+    }
+
+    /// Build from an already parsed table (sweep cases); `source_name` names it in messages.
+    pub fn from_table(
+        table: toml::Table,
+        source_name: &str,
+        default_name: &str,
+    ) -> Result<Scenario, ScenarioError> {
+        let mut scenario = Scenario::deserialize(toml::Value::Table(table)).map_err(|e| {
+            ScenarioError::Invalid {
+                source_name: source_name.to_string(),
+                key: "scenario".into(),
+                message: with_suggestion(e.message()),
+            }
+        })?;
+        if scenario.name.is_none() {
+            scenario.name = Some(default_name.to_string());
+        }
+        scenario.validate(source_name)?;
+        Ok(scenario)
+    }
+
+    /// The scenario as a TOML table (fields filled from files at run time are not included).
+    pub fn to_table(&self) -> toml::Table {
+        match toml::Value::try_from(self) {
+            Ok(toml::Value::Table(t)) => t,
+            _ => toml::Table::new(),
+        }
+    }
+
+    /// Signals other than the quasi-static motion (closed-loop references), for the I/O
+    /// layer to fill tabulated ones.
+    pub fn signals_mut(&mut self) -> Vec<&mut Signal> {
+        Vec::new()
     }
 
     /// Scenario name (file stem unless set).

@@ -247,9 +247,9 @@ impl Signal {
                 Ok(())
             }
             Signal::Sum { parts } => parts.iter().try_for_each(Signal::validate),
-            Signal::Table { samples, path, .. } => {
-                if samples.is_empty() {
-                    Err(format!("trajectory table {path} holds no samples"))
+            Signal::Table { path, column, .. } => {
+                if path.is_empty() || column.is_empty() {
+                    Err("a table signal needs a CSV `path` and a value `column`".into())
                 } else {
                     Ok(())
                 }

@@ -2,7 +2,6 @@
 //! calibrate its parameters, search the effect library for what it misses, and score every
 //! model on data its fit did not see.
 
-pub mod benchlog;
 pub mod effects;
 pub mod lm;
 pub mod model;
@@ -12,7 +11,7 @@ pub mod synth;
 
 use serde::Serialize;
 
-pub use benchlog::{read_bench_log, write_bench_log, BenchLog, LogError, Sample};
+pub use crate::io::benchlog::{read_bench_log, write_bench_log, BenchLog, LogError, Sample};
 pub use effects::{EffectName, EffectsParams, IdentifyParams};
 pub use report::{save_model, write_diagnosis};
 pub use synth::{synthesize, Ringing, SynthOptions};

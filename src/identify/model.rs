@@ -6,10 +6,10 @@ use std::collections::HashMap;
 
 use nalgebra::DMatrix;
 
-use super::benchlog::BenchLog;
 use super::effects::{EffectName, IdentifyParams};
 use super::lm::{levenberg_marquardt, linear_lsq};
 use super::IdentifyError;
+use crate::io::benchlog::BenchLog;
 use crate::physics::{CableDrive, DriveParams, HysteresisModel};
 
 /// A log made ready for fitting: decimated, with velocities and motion direction.

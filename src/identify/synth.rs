@@ -4,10 +4,10 @@
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 
-use super::benchlog::BenchLog;
 use super::effects::EffectName;
 use super::model::{replay, transport_filter};
 use super::IdentifyError;
+use crate::io::benchlog::BenchLog;
 use crate::scenario::Scenario;
 
 /// A decaying oscillation after every reversal: a resonance outside the effect library.

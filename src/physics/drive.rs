@@ -351,6 +351,13 @@ impl CableDrive {
     ///
     /// Solves `Tu - Tl = M/ro` and `elong_u(Tu) + elong_l(Tl) = 0` by safeguarded Newton.
     pub fn trial_torque(&self, torque_nm: f64) -> Result<DriveState, DriveFault> {
+        self.solve_torque(torque_nm).map(|(state, _, _)| state)
+    }
+
+    fn solve_torque(
+        &self,
+        torque_nm: f64,
+    ) -> Result<(DriveState, HalfTrial, HalfTrial), DriveFault> {
         let dt = torque_nm / self.params.drum_radius_m;
         let pre = self.params.preload_n;
         // Tl = Tu - dt > 0 and Tu > 0.
@@ -358,9 +365,11 @@ impl CableDrive {
         let guess = (self.state.tension_upper_n
             + 0.5 * (dt - (self.state.tension_upper_n - self.state.tension_lower_n)))
             .max(lower_bound + 1e-3 * pre);
+        let last = std::cell::Cell::new(None);
         let residual = |tu: f64| {
             let up = self.upper.trial(tu);
             let lo = self.lower.trial(tu - dt);
+            last.set(Some((tu, up, lo)));
             (
                 up.elongation_m + lo.elongation_m,
                 up.d_elongation_m_per_n + lo.d_elongation_m_per_n,
@@ -377,18 +386,22 @@ impl CableDrive {
             }
         };
         let tl = tu - dt;
-        let up = self.upper.trial(tu);
-        let lo = self.lower.trial(tl);
+        let (up, lo) = match last.get() {
+            Some((x, up, lo)) if x == tu => (up, lo),
+            _ => (self.upper.trial(tu), self.lower.trial(tl)),
+        };
         self.check_pulley(Half::Upper, tu, &up)?;
         self.check_pulley(Half::Lower, tl, &lo)?;
-        Ok(self.state_from(tu, tl, &up, &lo))
+        Ok((self.state_from(tu, tl, &up, &lo), up, lo))
     }
 
     /// Quasi-static step: apply transmitted torque `torque_nm` and commit the new tension
     /// profiles. On a fault nothing is committed.
     pub fn apply_torque(&mut self, torque_nm: f64) -> Result<DriveState, DriveFault> {
-        let state = self.trial_torque(torque_nm)?;
-        self.commit_state(state);
+        let (state, up, lo) = self.solve_torque(torque_nm)?;
+        self.upper.commit_trial(&up);
+        self.lower.commit_trial(&lo);
+        self.state = state;
         Ok(state)
     }
 

@@ -89,6 +89,14 @@ impl CableHalf {
         }
     }
 
+    /// Commit a trial computed on the current profiles (no-op for the memoryless model).
+    pub fn commit_trial(&mut self, trial: &HalfTrial) {
+        if self.remembers {
+            self.drum.commit_trial(&trial.drum);
+            self.pulley.commit_trial(&trial.pulley);
+        }
+    }
+
     /// Forget all history.
     pub fn reset(&mut self) {
         self.drum.reset();

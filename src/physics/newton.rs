@@ -57,8 +57,10 @@ pub fn solve_increasing(
                 (2.0 * x).max(x + scale)
             };
         }
+        // x is within the tolerance of the root here; returning it (not the unevaluated
+        // next iterate) lets callers reuse what they computed at x.
         if (next - x).abs() <= rtol * x.abs().max(scale) || hi - lo <= rtol * scale {
-            return Ok(next);
+            return Ok(x);
         }
         x = next;
     }

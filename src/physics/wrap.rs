@@ -15,6 +15,8 @@ struct Vertex {
     s: f64,
     /// Log-tension `ln T(s)`, with `T` in newtons.
     g: f64,
+    /// Tension `exp(g)`, N, kept to spare the exponential in every trial.
+    t: f64,
     /// `integral_s^wrap (T - Tpre) ds`, N rad: lets a trial profile reuse the stuck part.
     tail: f64,
 }
@@ -32,7 +34,33 @@ pub struct WrapTrial {
     /// True when the slip zone reaches the inner end of the region (anchor on the drum,
     /// neutral point on the pulley).
     pub reaches_end: bool,
+    /// Where the new branch meets the stored profile, kept so that committing this trial
+    /// needs no second search.
+    crossing: Crossing,
 }
+
+/// Meeting point of a new slip zone with the stored profile.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+struct Crossing {
+    /// Index of the first stored breakpoint beyond the meeting point (`usize::MAX`: the zone
+    /// reaches the inner end; `usize::MAX - 1`: no slip, boundary tension unchanged).
+    index: usize,
+    /// Wrap angle of the meeting point, rad.
+    s: f64,
+    /// Log-tension there.
+    g: f64,
+    /// Tension there, N.
+    t: f64,
+    /// Boundary tension, N.
+    tb: f64,
+    /// Log of the boundary tension.
+    ln_tb: f64,
+    /// Integral of `T - Tpre` over the slip zone, N rad.
+    slip_integral: f64,
+}
+
+/// `Crossing::index` value for a trial that leaves the profile unchanged.
+const NO_SLIP: usize = usize::MAX - 1;
 
 /// A wrap region with capstan memory.
 ///
@@ -50,15 +78,16 @@ pub struct WrapRegion {
     verts: Vec<Vertex>,
 }
 
-/// `integral_0^h exp(ga + (gb - ga) * x / h) dx`: exact for a log-linear segment.
+/// `integral_0^h exp(ga + (gb - ga) * x / h) dx`: exact for a log-linear segment whose
+/// end tensions are `ta = exp(ga)` and `tb = exp(gb)`.
 #[inline]
-fn segment_integral(h: f64, ga: f64, gb: f64) -> f64 {
+fn segment_integral(h: f64, ga: f64, gb: f64, ta: f64, tb: f64) -> f64 {
     let delta = gb - ga;
     if delta.abs() < 1e-9 {
         // Series of expm1(d)/d keeps full precision on nearly flat segments.
-        h * ga.exp() * (1.0 + 0.5 * delta + delta * delta / 6.0)
+        h * ta * (1.0 + 0.5 * delta + delta * delta / 6.0)
     } else {
-        h * (gb.exp() - ga.exp()) / delta
+        h * (tb - ta) / delta
     }
 }
 
@@ -82,15 +111,18 @@ impl WrapRegion {
     /// Forget all history: back to the uniform preloaded profile.
     pub fn reset(&mut self) {
         let g = self.preload_n.ln();
+        let t = self.preload_n;
         self.verts.clear();
         self.verts.push(Vertex {
             s: self.wrap_rad,
             g,
+            t,
             tail: 0.0,
         });
         self.verts.push(Vertex {
             s: 0.0,
             g,
+            t,
             tail: 0.0,
         });
     }
@@ -113,15 +145,15 @@ impl WrapRegion {
 
     /// Tension at the contact point (the boundary tension last committed), N.
     pub fn boundary_tension_n(&self) -> f64 {
-        self.verts[self.verts.len() - 1].g.exp()
+        self.verts[self.verts.len() - 1].t
     }
 
     /// Where the line `ln Tb -+ mu*s` first meets the stored profile.
     ///
-    /// Returns `(index of the first breakpoint beyond the crossing, s*, g*)`; the index is
-    /// `usize::MAX` when the new slip zone reaches the inner end.
+    /// Returns `(index of the first breakpoint beyond the crossing, s*, g*, T*)`; the index
+    /// is `usize::MAX` when the new slip zone reaches the inner end.
     #[inline]
-    fn crossing(&self, ln_tb: f64, rising: bool) -> (usize, f64, f64) {
+    fn crossing(&self, ln_tb: f64, rising: bool) -> (usize, f64, f64, f64) {
         let slope = if rising { -self.mu } else { self.mu };
         // For a rising boundary, d(s) = g_old(s) - line(s) is non-decreasing (the old profile
         // obeys the slope bound), so the first breakpoint with d >= 0 closes the crossing
@@ -141,12 +173,16 @@ impl WrapRegion {
                     1.0
                 };
                 let s_star = a.s + (b.s - a.s) * frac;
-                return (k - 1, s_star, ln_tb + slope * s_star);
+                let g_star = ln_tb + slope * s_star;
+                // On the untouched plateau the tension is known exactly.
+                let t_star = if a.g == b.g { b.t } else { g_star.exp() };
+                return (k - 1, s_star, g_star, t_star);
             }
             d_prev = d_b;
             k -= 1;
         }
-        (usize::MAX, self.wrap_rad, ln_tb + slope * self.wrap_rad)
+        let g_end = ln_tb + slope * self.wrap_rad;
+        (usize::MAX, self.wrap_rad, g_end, g_end.exp())
     }
 
     /// Elongation and its derivative if the boundary tension became `tb_n` (N > 0), the
@@ -163,11 +199,16 @@ impl WrapRegion {
                 d_elongation_m_per_n: 0.0,
                 slip_angle_rad: 0.0,
                 reaches_end: false,
+                crossing: Crossing {
+                    index: NO_SLIP,
+                    ln_tb,
+                    tb: tb_n,
+                    ..Crossing::default()
+                },
             };
         }
         let rising = ln_tb > g0;
-        let (idx, s_star, g_star) = self.crossing(ln_tb, rising);
-        let t_star = g_star.exp();
+        let (idx, s_star, g_star, t_star) = self.crossing(ln_tb, rising);
         // Slip zone: T = Tb*exp(-+mu*s); its integral and d/dTb are closed forms. The
         // crossing point moves with Tb, but the profile is continuous there, so the
         // boundary terms of the Leibniz rule cancel.
@@ -176,11 +217,12 @@ impl WrapRegion {
         } else {
             ((t_star - tb_n) / self.mu, (t_star / tb_n - 1.0) / self.mu)
         };
-        let mut tension_integral = slip_integral - self.preload_n * s_star;
+        let slip_integral = slip_integral - self.preload_n * s_star;
+        let mut tension_integral = slip_integral;
         let reaches_end = idx == usize::MAX;
         if !reaches_end {
             let b = self.verts[idx];
-            tension_integral += segment_integral(b.s - s_star, g_star, b.g)
+            tension_integral += segment_integral(b.s - s_star, g_star, b.g, t_star, b.t)
                 - self.preload_n * (b.s - s_star)
                 + b.tail;
         }
@@ -189,57 +231,68 @@ impl WrapRegion {
             d_elongation_m_per_n: scale * d_slip,
             slip_angle_rad: s_star,
             reaches_end,
+            crossing: Crossing {
+                index: idx,
+                s: s_star,
+                g: g_star,
+                t: t_star,
+                tb: tb_n,
+                ln_tb,
+                slip_integral,
+            },
         }
     }
 
     /// Commit a boundary tension `tb_n` (N > 0): the slip zone replaces the part of the
     /// profile it wipes out.
     pub fn commit(&mut self, tb_n: f64) {
-        let ln_tb = tb_n.ln();
-        let top = self.verts.len() - 1;
-        if ln_tb == self.verts[top].g {
+        let trial = self.trial(tb_n);
+        self.commit_trial(&trial);
+    }
+
+    /// Commit a trial computed on the current profile (saves searching the crossing again).
+    pub fn commit_trial(&mut self, trial: &WrapTrial) {
+        let c = trial.crossing;
+        if c.index == NO_SLIP {
             return;
         }
-        let rising = ln_tb > self.verts[top].g;
-        let (idx, s_star, g_star) = self.crossing(ln_tb, rising);
-        let slip_integral = if rising {
-            (tb_n - g_star.exp()) / self.mu
-        } else {
-            (g_star.exp() - tb_n) / self.mu
-        } - self.preload_n * s_star;
-        if idx == usize::MAX {
+        if c.index == usize::MAX {
             self.verts.clear();
             self.verts.push(Vertex {
                 s: self.wrap_rad,
-                g: g_star,
+                g: c.g,
+                t: c.t,
                 tail: 0.0,
             });
         } else {
-            self.verts.truncate(idx + 1);
-            let b = self.verts[idx];
+            self.verts.truncate(c.index + 1);
+            let b = self.verts[c.index];
             // A crossing at an existing breakpoint would leave a zero-length segment.
-            if b.s - s_star > 1e-14 * self.wrap_rad.max(1.0) {
-                let tail = segment_integral(b.s - s_star, g_star, b.g)
-                    - self.preload_n * (b.s - s_star)
+            if b.s - c.s > 1e-14 * self.wrap_rad.max(1.0) {
+                let tail = segment_integral(b.s - c.s, c.g, b.g, c.t, b.t)
+                    - self.preload_n * (b.s - c.s)
                     + b.tail;
                 self.verts.push(Vertex {
-                    s: s_star,
-                    g: g_star,
+                    s: c.s,
+                    g: c.g,
+                    t: c.t,
                     tail,
                 });
             }
         }
         let below = self.verts[self.verts.len() - 1].tail;
-        if s_star > 0.0 {
+        if c.s > 0.0 {
             self.verts.push(Vertex {
                 s: 0.0,
-                g: ln_tb,
-                tail: slip_integral + below,
+                g: c.ln_tb,
+                t: c.tb,
+                tail: c.slip_integral + below,
             });
         } else {
             // Zero-length slip zone (only when the crossing is at s = 0).
             let last = self.verts.len() - 1;
-            self.verts[last].g = ln_tb;
+            self.verts[last].g = c.ln_tb;
+            self.verts[last].t = c.tb;
         }
     }
 
@@ -264,14 +317,14 @@ impl WrapRegion {
                 return g.exp();
             }
         }
-        self.verts[0].g.exp()
+        self.verts[0].t
     }
 
     /// The committed profile's breakpoints as `(wrap angle rad, tension N)`, from the
     /// contact point inward, ending at the inner end of the region. Exact: straight lines
     /// between them in `(s, ln T)`.
     pub fn breakpoints(&self) -> Vec<(f64, f64)> {
-        let mut out: Vec<(f64, f64)> = self.verts.iter().rev().map(|v| (v.s, v.g.exp())).collect();
+        let mut out: Vec<(f64, f64)> = self.verts.iter().rev().map(|v| (v.s, v.t)).collect();
         if let Some(&(s, t)) = out.last() {
             if s < self.wrap_rad {
                 out.push((self.wrap_rad, t));

@@ -1,9 +1,12 @@
 //! Design sweeps over scenario keys.
 
+pub mod answers;
+pub mod engine;
+pub mod merge;
 pub mod spec;
 
+pub use engine::{expand, run_cases, Case, CaseRunner, Cell, Shard, SweepError};
 pub use spec::{SweepMode, SweepParameter, SweepSpec};
-
 /// Check a sweep declaration; returns `(key, message)` of the first problem.
 pub fn validate_spec(spec: &SweepSpec) -> Result<(), (String, String)> {
     if spec.parameters.is_empty() {

@@ -1,0 +1,5 @@
+//! Files at the edge: bench logs, scenario tables, staged results directories.
+
+pub mod benchlog;
+pub mod output;
+pub mod tables;

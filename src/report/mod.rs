@@ -1,0 +1,65 @@
+//! Result files and plots. CSV and JSON are written first; plots come after and can never
+//! break a run (their failures are reported as warnings).
+
+pub mod quasi_static;
+pub mod sweep;
+
+use std::path::{Path, PathBuf};
+
+/// Writing results failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// File system error.
+    #[error("cannot write {path}: {source}")]
+    Io {
+        /// File.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// CSV encoding error.
+    #[error("cannot write {path}: {message}")]
+    Csv {
+        /// File.
+        path: PathBuf,
+        /// Cause.
+        message: String,
+    },
+    /// A plot could not be drawn.
+    #[error("plot: {0}")]
+    Plot(#[from] crate::plot::PlotError),
+}
+
+impl ReportError {
+    pub(crate) fn io(path: &Path, source: std::io::Error) -> Self {
+        ReportError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+    pub(crate) fn csv(path: &Path, e: csv::Error) -> Self {
+        ReportError::Csv {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        }
+    }
+}
+
+/// A CSV writer on a new file.
+pub fn csv_writer(path: &Path) -> Result<csv::Writer<std::fs::File>, ReportError> {
+    let file = std::fs::File::create(path).map_err(|e| ReportError::io(path, e))?;
+    Ok(csv::Writer::from_writer(file))
+}
+
+/// Write pretty JSON atomically.
+pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<(), ReportError> {
+    let mut text = serde_json::to_string_pretty(value).map_err(|e| ReportError::Csv {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    text.push('\n');
+    crate::io::output::write_atomic(path, text.as_bytes()).map_err(|e| ReportError::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(e.to_string()),
+    })
+}

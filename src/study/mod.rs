@@ -1,0 +1,3 @@
+//! Studies built on the physics: quasi-static prescribed motion and the backlash protocol.
+
+pub mod quasi_static;
