@@ -95,11 +95,15 @@ fn run_effect(e: EffectName, seeds: u64) -> (usize, usize, f64) {
 }
 
 /// Seeds per effect in the default run; the `#[ignore]`d `*_many` tests use 50.
-const SEEDS: u64 = 10;
+const SEEDS: u64 = 20;
 
 fn check_effect(e: EffectName, seeds: u64) {
     let (named, sized, worst) = run_effect(e, seeds);
     let need = (0.95 * seeds as f64).ceil() as usize;
+    eprintln!(
+        "RATE {e}: named {named}/{seeds}, size within 10 % {sized}/{seeds}, worst size error {:.2} %",
+        worst * 100.0
+    );
     assert!(
         named >= need && sized >= need,
         "{e}: named {named}/{seeds}, size within 10 % {sized}/{seeds} (worst {:.1} %)",
@@ -145,6 +149,7 @@ fn clean_none(seeds: u64) {
         }
     }
     let need = (0.95 * seeds as f64).ceil() as usize;
+    eprintln!("RATE clean: none {none}/{seeds}");
     assert!(none >= need, "clean logs called none {none}/{seeds}");
 }
 

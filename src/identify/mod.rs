@@ -480,16 +480,31 @@ pub fn diagnose(
                 .unwrap_or(n.3),
         });
     }
-    let ext_fit = if chosen.is_empty() {
-        base_fit.clone()
+    let joint = if chosen.is_empty() {
+        Ok(base_fit.clone())
     } else {
-        ev_ext.fit(&split.full, Some(&x0), 30)?
+        ev_ext.fit(&split.full, Some(&x0), 30)
     };
-    let (_, ext_pred) = ev_ext.residual(&ext_fit, &split.full)?;
-    let cov = ev_ext.covariance(&ext_fit, &split.full)?;
-    let ext_drive = with_base(&drive0, &nl_ext, &ext_fit.x);
+    // When freeing the base parameters again leaves the drive's capacity (slack, gross
+    // slip), keep them at the base calibration and report the effects fitted on top.
+    let (mut ev_final, ext_fit, drive_for) = match joint {
+        Ok(f) => (ev_ext, f, drive0.clone()),
+        Err(_) => {
+            let mut evc = Evaluator::new(spec_for(&full_drive, &ident, &chosen, false), &prepared);
+            let xs = chosen_fit.as_ref().map(|f| f.x.clone());
+            let f = evc.fit(&split.full, xs.as_deref(), 30)?;
+            (evc, f, full_drive.clone())
+        }
+    };
+    let nl_final = ev_final.nonlinear();
+    let (_, ext_pred) = ev_final.residual(&ext_fit, &split.full)?;
+    let np = nl_final.len() + ext_fit.coef.len();
+    let cov = ev_final
+        .covariance(&ext_fit, &split.full)
+        .unwrap_or_else(|_| nalgebra::DMatrix::from_element(np, np, f64::NAN));
+    let ext_drive = with_base(&drive_for, &nl_final, &ext_fit.x);
     let (params, drive_out, effects_out) =
-        report::parameters(&drive0, &ext_drive, &nl_ext, &ext_fit, &cov);
+        report::parameters(&drive0, &ext_drive, &nl_final, &ext_fit, &cov);
 
     let rmse_ext = current;
     let structure_ratio = rmse_ext / floor;
@@ -525,21 +540,20 @@ pub fn diagnose(
             .iter()
             .position(|p| *p == LinParam::Offset(k))
             .map_or(0.0, |i| ext_fit.coef[i]);
-        let corr = |i: usize, th_in: f64| th_in * (1.0 / ic_ref - 1.0 / ic_ext) + 0.0 * i as f64;
-        let measured: Vec<f64> = r
-            .clone()
-            .enumerate()
-            .map(|(j, i)| l.th_out[j] - l.th_in[j] / ic_ext - off + 0.0 * i as f64)
+        // Predictions are of the error at the reference ratio; shift them to the fitted one.
+        let corr = |th_in: f64| th_in * (1.0 / ic_ref - 1.0 / ic_ext);
+        let measured: Vec<f64> = (0..l.t.len())
+            .map(|j| l.th_out[j] - l.th_in[j] / ic_ext - off)
             .collect();
         let base_rad: Vec<f64> = r
             .clone()
             .enumerate()
-            .map(|(j, i)| base_pred[i] - off - corr(i, l.th_in[j]))
+            .map(|(j, i)| base_pred[i] - off + corr(l.th_in[j]))
             .collect();
         let extended_rad: Vec<f64> = r
             .clone()
             .enumerate()
-            .map(|(j, i)| ext_pred[i] - off - corr(i, l.th_in[j]))
+            .map(|(j, i)| ext_pred[i] - off + corr(l.th_in[j]))
             .collect();
         traces.push(Trace {
             log: l.source.clone(),

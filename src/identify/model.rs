@@ -696,7 +696,14 @@ impl<'a> Evaluator<'a> {
             }
             let mut x = f.x.clone();
             x[k] += h;
-            let d = self.design(&x)?;
+            let d = match self.design(&x) {
+                Ok(d) => d,
+                Err(_) => {
+                    h = -h;
+                    x[k] = f.x[k] + h;
+                    self.design(&x)?
+                }
+            };
             let p = Self::predict(&d, &f.coef);
             for (r, i) in rows.iter().enumerate() {
                 j[(r, k)] = (p[*i] - p0[*i]) / h;

@@ -293,6 +293,127 @@ pub fn write_diagnosis(
     let cp = dir.join("traces.csv");
     wr(&cp, &csv)?;
     files.push(cp);
+    files.extend(plots(dir, diagnosis)?);
+    Ok(files)
+}
+
+/// Error traces and residual signatures: the shape of the residual against time, input
+/// angle, output angle and velocity is what names a cause.
+fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
+    use crate::plot::{save_chart, save_panels, Chart, HBand, Series};
+    let perr = |e: crate::plot::PlotError| IdentifyError::Write {
+        path: dir.display().to_string(),
+        message: e.to_string(),
+    };
+    let mut files = Vec::new();
+    let short = |s: &str| {
+        Path::new(s)
+            .file_stem()
+            .and_then(|x| x.to_str())
+            .unwrap_or(s)
+            .to_string()
+    };
+    let mut error_charts = Vec::new();
+    for t in &d.traces {
+        let mr = |v: &[f64]| v.iter().map(|x| x * 1e3).collect::<Vec<f64>>();
+        error_charts.push(Chart {
+            title: format!(
+                "{}{}: transmission error",
+                short(&t.log),
+                if t.held_out { " (held out)" } else { "" }
+            ),
+            x_label: "time (s)".into(),
+            y_label: "error (mrad)".into(),
+            series: vec![
+                Series::points("measured", t.t_s.clone(), mr(&t.measured_rad)),
+                Series::line("base model", t.t_s.clone(), mr(&t.base_rad)),
+                Series::line("extended model", t.t_s.clone(), mr(&t.extended_rad)),
+            ],
+            ..Chart::default()
+        });
+    }
+    files.extend(
+        save_panels(
+            "Measured, base and extended transmission error",
+            &error_charts,
+            &dir.join("error"),
+        )
+        .map_err(perr)?,
+    );
+    let floor = d.noise_floor_mrad;
+    let band = || HBand {
+        lo: -floor,
+        hi: floor,
+        label: "noise floor".into(),
+    };
+    let against = |label: &str, f: &dyn Fn(&super::Trace) -> Vec<f64>, base: bool| -> Chart {
+        Chart {
+            title: format!(
+                "{} residual against {label}",
+                if base { "base-model" } else { "extended-model" }
+            ),
+            x_label: label.into(),
+            y_label: "residual (mrad)".into(),
+            series: d
+                .traces
+                .iter()
+                .map(|t| {
+                    let model = if base { &t.base_rad } else { &t.extended_rad };
+                    let r: Vec<f64> = t
+                        .measured_rad
+                        .iter()
+                        .zip(model)
+                        .map(|(m, p)| (m - p) * 1e3)
+                        .collect();
+                    Series::points(short(&t.log), f(t), r)
+                })
+                .collect(),
+            bands: vec![band()],
+            ..Chart::default()
+        }
+    };
+    for base in [true, false] {
+        let charts = vec![
+            against("time (s)", &|t| t.t_s.clone(), base),
+            against("input angle (rad)", &|t| t.theta_in_rad.clone(), base),
+            against("output angle (rad)", &|t| t.theta_out_rad.clone(), base),
+            against(
+                "input velocity (rad/s)",
+                &|t| t.velocity_rad_s.clone(),
+                base,
+            ),
+        ];
+        let stem = if base {
+            "residual_base"
+        } else {
+            "residual_extended"
+        };
+        files.extend(
+            save_panels(
+                &format!("Residual signatures ({stem})"),
+                &charts,
+                &dir.join(stem),
+            )
+            .map_err(perr)?,
+        );
+    }
+    let cands = Chart {
+        title: "Held-out RMSE of candidates (round 1)".into(),
+        x_label: "candidate index".into(),
+        y_label: "held-out RMSE (mrad)".into(),
+        series: vec![Series::points(
+            "candidates",
+            (0..d.candidates.len()).map(|i| i as f64).collect(),
+            d.candidates.iter().map(|c| c.rmse_heldout_mrad).collect(),
+        )],
+        bands: vec![HBand {
+            lo: 0.0,
+            hi: d.rmse_base_mrad,
+            label: "base model".into(),
+        }],
+        ..Chart::default()
+    };
+    files.extend(save_chart(&cands, &dir.join("candidates")).map_err(perr)?);
     Ok(files)
 }
 
