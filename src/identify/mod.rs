@@ -189,7 +189,11 @@ pub struct Diagnosis {
 
 /// Training masks and held-out masks of the cross-validation, and the mask of the final fit.
 struct Split {
+    /// Folds that select effects (time blocks of the calibration data).
     folds: Vec<(Vec<bool>, Vec<bool>)>,
+    /// Held-out logs: (calibration rows, held-out rows), scored once after selection so
+    /// the reported gain is free of selection bias.
+    outer: Option<(Vec<bool>, Vec<bool>)>,
     full: Vec<bool>,
     text: String,
 }
@@ -224,28 +228,47 @@ fn make_split(
             .iter()
             .map(|k| logs[*k].source.as_str())
             .collect();
+        let folds = block_folds(logs, ident.holdout_blocks, &train);
         return Ok(Split {
-            folds: vec![(train.clone(), test)],
+            folds,
+            outer: Some((train.clone(), test)),
             full: train,
-            text: format!("held-out logs: {}", names.join(", ")),
+            text: format!(
+                "held-out logs: {} (effects selected on {} time blocks of the other logs)",
+                names.join(", "),
+                ident.holdout_blocks
+            ),
         });
     }
-    let k = ident.holdout_blocks;
-    let mut folds = Vec::with_capacity(k);
-    for f in 0..k {
-        let mut test = Vec::with_capacity(n);
-        for l in logs {
-            let m = l.t.len();
-            test.extend((0..m).map(|i| i * k / m == f));
-        }
-        let train = test.iter().map(|t| !t).collect();
-        folds.push((train, test));
-    }
+    let all = vec![true; n];
     Ok(Split {
-        folds,
-        full: vec![true; n],
-        text: format!("{k} contiguous time blocks per log, each held out in turn"),
+        folds: block_folds(logs, ident.holdout_blocks, &all),
+        outer: None,
+        full: all,
+        text: format!(
+            "{} contiguous time blocks per log, each held out in turn",
+            ident.holdout_blocks
+        ),
     })
+}
+
+/// `k` contiguous blocks per log, restricted to rows in `within`.
+fn block_folds(logs: &[Prepared], k: usize, within: &[bool]) -> Vec<(Vec<bool>, Vec<bool>)> {
+    let n = within.len();
+    (0..k)
+        .map(|f| {
+            let mut test = Vec::with_capacity(n);
+            for l in logs {
+                let m = l.t.len();
+                test.extend((0..m).map(|i| i * k / m == f));
+            }
+            for (t, w) in test.iter_mut().zip(within) {
+                *t &= *w;
+            }
+            let train = test.iter().zip(within).map(|(t, w)| !t && *w).collect();
+            (train, test)
+        })
+        .collect()
 }
 
 fn rms(v: impl Iterator<Item = f64>) -> f64 {
@@ -319,13 +342,14 @@ fn cross_validate(
     ident: &IdentifyParams,
     full_drive: &DriveParams,
     fold_drives: &[DriveParams],
-    split: &Split,
+    folds: &[(Vec<bool>, Vec<bool>)],
+    full_mask: &[bool],
     effects: &[EffectName],
-) -> Result<(f64, usize, Fitted), IdentifyError> {
+) -> CvResult {
     let mut ev = Evaluator::new(spec_for(full_drive, ident, effects, false), logs);
-    let full = ev.fit(&split.full, None, 25)?;
+    let full = ev.fit(full_mask, None, 25)?;
     let mut held = Vec::new();
-    for ((train, test), drive) in split.folds.iter().zip(fold_drives) {
+    for ((train, test), drive) in folds.iter().zip(fold_drives) {
         let mut evf = Evaluator::new(spec_for(drive, ident, effects, false), logs);
         let f = evf.fit(train, Some(&full.x), 10)?;
         let (r, _) = evf.residual(&f, train)?;
@@ -409,7 +433,15 @@ pub fn diagnose(
                 effs.push(*e);
                 (
                     *e,
-                    cross_validate(&prepared, &ident, &full_drive, &fold_drives, &split, &effs),
+                    cross_validate(
+                        &prepared,
+                        &ident,
+                        &full_drive,
+                        &fold_drives,
+                        &split.folds,
+                        &split.full,
+                        &effs,
+                    ),
                 )
             })
             .collect();
@@ -506,7 +538,20 @@ pub fn diagnose(
     let (params, drive_out, effects_out) =
         report::parameters(&drive0, &ext_drive, &nl_final, &ext_fit, &cov);
 
-    let rmse_ext = current;
+    let (rmse_base, rmse_ext) = match &split.outer {
+        None => (rmse_base, current),
+        Some(outer) => {
+            let folds = std::slice::from_ref(outer);
+            let drives = std::slice::from_ref(&full_drive);
+            let b = cross_validate(&prepared, &ident, &full_drive, drives, folds, &split.full, &[])?;
+            let e = if chosen.is_empty() {
+                b.0
+            } else {
+                cross_validate(&prepared, &ident, &full_drive, drives, folds, &split.full, &chosen)?.0
+            };
+            (b.0, e)
+        }
+    };
     let structure_ratio = rmse_ext / floor;
     let unexplained_structure = structure_ratio > 1.25;
     let cause = if let Some(c) = chosen.first() {
@@ -517,6 +562,11 @@ pub fn diagnose(
         "none".to_string()
     };
 
+    let play_folds = split
+        .outer
+        .as_ref()
+        .map(|o| vec![o.clone()])
+        .unwrap_or_else(|| split.folds.clone());
     let play_operator = if options.skip_play_operator {
         None
     } else {
@@ -524,7 +574,7 @@ pub fn diagnose(
             &prepared,
             &drive0,
             &ident,
-            &split.folds,
+            &play_folds,
         )?)
     };
 
