@@ -406,3 +406,18 @@ fn davinci_real_logs() {
     cable_servo::identify::write_diagnosis(out, &d, None).unwrap();
     cable_servo::identify::save_model(&out.join("davinci_tool4_model.toml"), &sc, &d).unwrap();
 }
+
+#[test]
+fn shipped_davinci_scenario_loads_with_effects() {
+    let sc = Scenario::load("scenarios/davinci_tool4.toml", &[]).unwrap();
+    let fx = sc.effects.unwrap();
+    assert!(fx.bearing_friction_nm.is_some() && fx.cable_transport_rad.is_some());
+    assert!(sc.identify.unwrap().is_unknown("ratio"));
+    let err = Scenario::load(
+        "scenarios/davinci_tool4.toml",
+        &["effects.bearing_frictoin_nm=1".into()],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("bearing_friction_nm"), "{err}");
+}

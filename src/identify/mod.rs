@@ -537,17 +537,44 @@ pub fn diagnose(
     let ext_drive = with_base(&drive_for, &nl_final, &ext_fit.x);
     let (params, drive_out, effects_out) =
         report::parameters(&drive0, &ext_drive, &nl_final, &ext_fit, &cov);
+    // A held-out log's encoder zero is fitted on that log only when it is scored.
+    let params: Vec<ParamEstimate> = params
+        .into_iter()
+        .filter(|p| {
+            !options
+                .holdout_logs
+                .iter()
+                .any(|k| p.name == format!("encoder_zero[{k}]"))
+        })
+        .collect();
 
     let (rmse_base, rmse_ext) = match &split.outer {
         None => (rmse_base, current),
         Some(outer) => {
             let folds = std::slice::from_ref(outer);
             let drives = std::slice::from_ref(&full_drive);
-            let b = cross_validate(&prepared, &ident, &full_drive, drives, folds, &split.full, &[])?;
+            let b = cross_validate(
+                &prepared,
+                &ident,
+                &full_drive,
+                drives,
+                folds,
+                &split.full,
+                &[],
+            )?;
             let e = if chosen.is_empty() {
                 b.0
             } else {
-                cross_validate(&prepared, &ident, &full_drive, drives, folds, &split.full, &chosen)?.0
+                cross_validate(
+                    &prepared,
+                    &ident,
+                    &full_drive,
+                    drives,
+                    folds,
+                    &split.full,
+                    &chosen,
+                )?
+                .0
             };
             (b.0, e)
         }
