@@ -44,6 +44,12 @@ fn scenario(triangle: bool) -> Scenario {
     if triangle {
         text = text.replace("kind = \"sine\"", "kind = \"triangle\"");
     }
+    if let Ok(u) = std::env::var("IDENT_UNKNOWN") {
+        text = text.replace(
+            "unknown = [\"cable_modulus_n\"]",
+            &format!("unknown = [{u}]"),
+        );
+    }
     Scenario::from_toml(&text, "gimbal", "gimbal", &[]).expect("test scenario")
 }
 

@@ -385,7 +385,7 @@ pub fn diagnose(
     let mut ev = Evaluator::new(base_spec.clone(), &prepared);
     let base_fit = ev.fit(&split.full, None, 40)?;
     let nl = ev.nonlinear();
-    let full_drive = with_base(&drive0, &nl, &base_fit.x);
+    let mut full_drive = with_base(&drive0, &nl, &base_fit.x);
     let mut fold_drives = Vec::new();
     let mut held = Vec::new();
     for (train, test) in &split.folds {
@@ -488,6 +488,28 @@ pub fn diagnose(
         chosen.push(e);
         pool.retain(|p| *p != e);
         current = rmse;
+        // The base calibration absorbed part of the accepted effect; free it again with
+        // the effect in place so the next round does not pick up the leftover bias.
+        if nl
+            .iter()
+            .any(|n| matches!(n.0, NlParam::Mu | NlParam::Preload))
+        {
+            if let Some(fit) = &chosen_fit {
+                if let Ok(r) = recalibrate(
+                    &prepared,
+                    &ident,
+                    &drive0,
+                    &full_drive,
+                    &split,
+                    &chosen,
+                    fit,
+                ) {
+                    full_drive = r.0;
+                    fold_drives = r.1;
+                    current = current.min(r.2);
+                }
+            }
+        }
     }
 
     // Final extended model: base parameters free again together with the effects.
@@ -664,6 +686,48 @@ pub fn diagnose(
         effects: effects_out,
         traces,
     })
+}
+
+/// Base calibration with effects in place: returns the drive calibrated on the final mask,
+/// per-fold drives and the cross-validated RMSE.
+fn recalibrate(
+    logs: &[Prepared],
+    ident: &IdentifyParams,
+    drive0: &DriveParams,
+    full_drive: &DriveParams,
+    split: &Split,
+    effects: &[EffectName],
+    fixed_fit: &Fitted,
+) -> Result<(DriveParams, Vec<DriveParams>, f64), IdentifyError> {
+    let fixed = Evaluator::new(spec_for(full_drive, ident, effects, false), logs).nonlinear();
+    let mut ev = Evaluator::new(spec_for(drive0, ident, effects, true), logs);
+    let nl = ev.nonlinear();
+    let x0: Vec<f64> = nl
+        .iter()
+        .map(|n| match n.0 {
+            NlParam::Mu => full_drive.friction_coefficient,
+            NlParam::Preload => full_drive.preload_n,
+            NlParam::Effect(_) => fixed
+                .iter()
+                .position(|m| m.0 == n.0)
+                .and_then(|i| fixed_fit.x.get(i).copied())
+                .unwrap_or(n.3),
+        })
+        .collect();
+    let full = ev.fit(&split.full, Some(&x0), 20)?;
+    let mut drives = Vec::new();
+    let mut held = Vec::new();
+    for (train, test) in &split.folds {
+        let f = ev.fit(train, Some(&full.x), 8)?;
+        drives.push(with_base(drive0, &nl, &f.x));
+        let (r, _) = ev.residual(&f, train)?;
+        held.extend(r.iter().zip(test).filter(|(_, t)| **t).map(|(r, _)| *r));
+    }
+    Ok((
+        with_base(drive0, &nl, &full.x),
+        drives,
+        rms(held.iter().copied()),
+    ))
 }
 
 /// Whether every effect size in a fit is physically possible; a runout of half the radius
