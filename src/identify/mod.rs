@@ -385,7 +385,8 @@ pub fn diagnose(
     let mut ev = Evaluator::new(base_spec.clone(), &prepared);
     let base_fit = ev.fit(&split.full, None, 40)?;
     let nl = ev.nonlinear();
-    let mut full_drive = with_base(&drive0, &nl, &base_fit.x);
+    let base_drive = with_base(&drive0, &nl, &base_fit.x);
+    let mut full_drive = base_drive.clone();
     let mut fold_drives = Vec::new();
     let mut held = Vec::new();
     for (train, test) in &split.folds {
@@ -574,16 +575,9 @@ pub fn diagnose(
         None => (rmse_base, current),
         Some(outer) => {
             let folds = std::slice::from_ref(outer);
+            let bd = std::slice::from_ref(&base_drive);
+            let b = cross_validate(&prepared, &ident, &base_drive, bd, folds, &split.full, &[])?;
             let drives = std::slice::from_ref(&full_drive);
-            let b = cross_validate(
-                &prepared,
-                &ident,
-                &full_drive,
-                drives,
-                folds,
-                &split.full,
-                &[],
-            )?;
             let e = if chosen.is_empty() {
                 b.0
             } else {
