@@ -14,7 +14,7 @@ use serde::Serialize;
 pub use crate::io::benchlog::{read_bench_log, write_bench_log, BenchLog, LogError, Sample};
 pub use effects::{EffectName, EffectsParams, IdentifyParams};
 pub use report::{save_model, write_diagnosis};
-pub use synth::{synthesize, Ringing, SynthOptions};
+pub use synth::{parse_effect_arg, synthesize, Ringing, SynthOptions};
 
 use crate::physics::DriveParams;
 use crate::scenario::Scenario;
@@ -111,6 +111,8 @@ pub struct CandidateScore {
     pub accepted: bool,
     /// Selection round (1 = tried on the base model).
     pub round: usize,
+    /// Why it was accepted or not.
+    pub verdict: String,
 }
 
 /// A baseline model's held-out score.
@@ -421,7 +423,6 @@ pub fn diagnose(
     let mut current = rmse_base;
     let mut scores: Vec<CandidateScore> = Vec::new();
     let mut chosen_fit: Option<Fitted> = None;
-    let base_k = base_fit.coef.len() + base_fit.x.len();
     for round in 1..=ident.max_effects {
         if pool.is_empty() || current <= 1.05 * floor {
             break;
@@ -447,14 +448,41 @@ pub fn diagnose(
             })
             .collect();
         let mut best: Option<(usize, f64)> = None;
-        let first_score = scores.len();
         for (e, r) in results {
-            let Ok((rmse, _, fit)) = r else { continue };
+            let (rmse, fit) = match r {
+                Ok((rmse, _, fit)) => (rmse, fit),
+                Err(err) => {
+                    scores.push(CandidateScore {
+                        name: e.to_string(),
+                        rmse_heldout_mrad: f64::NAN,
+                        gain_percent: f64::NAN,
+                        explained_fraction: f64::NAN,
+                        score: f64::NAN,
+                        accepted: false,
+                        round,
+                        verdict: format!("fit failed: {err}"),
+                    });
+                    continue;
+                }
+            };
             let gain = 100.0 * (1.0 - rmse / current);
             let excess = (current * current - floor * floor).max(1e-30);
             let explained = (current * current - rmse * rmse) / excess;
             let k = fit.coef.len() + fit.x.len();
             let score = n_held * (rmse * rmse).max(1e-300).ln() + k as f64 * n_held.ln();
+            let physical = plausible(&fit, drive0.ratio());
+            let ok = gain >= ident.min_gain_percent
+                && explained >= ident.min_explained_fraction
+                && physical;
+            let verdict = if !physical {
+                "size outside physical bounds (stands in for something else)"
+            } else if gain < ident.min_gain_percent {
+                "gain below threshold"
+            } else if explained < ident.min_explained_fraction {
+                "explains too little of the structure"
+            } else {
+                "qualifies"
+            };
             scores.push(CandidateScore {
                 name: e.to_string(),
                 rmse_heldout_mrad: rmse * 1e3,
@@ -463,24 +491,21 @@ pub fn diagnose(
                 score,
                 accepted: false,
                 round,
+                verdict: verdict.to_string(),
             });
-            let ok = gain >= ident.min_gain_percent
-                && explained >= ident.min_explained_fraction
-                && plausible(&fit, drive0.ratio());
             let idx = scores.len() - 1;
             if ok && best.is_none_or(|(_, b)| rmse < b) {
                 best = Some((idx, rmse));
             }
-            let _ = base_k;
             if let Some((b, _)) = best {
                 if b == idx {
                     chosen_fit = Some(fit);
                 }
             }
         }
-        let _ = first_score;
         let Some((idx, rmse)) = best else { break };
         scores[idx].accepted = true;
+        scores[idx].verdict = "accepted (best qualifying)".into();
         let e: EffectName = pool
             .iter()
             .copied()

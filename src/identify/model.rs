@@ -105,7 +105,8 @@ pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyErr
     }
     let span = log.t_s[n - 1] - log.t_s[0];
     let rate = (n - 1) as f64 / span;
-    let m = ((rate / max_rate_hz).floor() as usize).max(1);
+    // Keep at least 40 samples after averaging, whatever the rates.
+    let m = ((rate / max_rate_hz).floor() as usize).clamp(1, (n / 40).max(1));
     let q_in = quant_step(&log.theta_in_rad);
     let q_out = quant_step(&log.theta_out_rad);
     let avg = |v: &[f64]| -> Vec<f64> {

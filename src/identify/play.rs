@@ -115,11 +115,10 @@ pub fn cross_validate(
 ) -> Result<BaselineScore, IdentifyError> {
     let a0 = 1.0 / drive.ratio();
     let fit_a = ident.is_unknown("ratio");
-    let all: Vec<bool> = folds.first().map_or(vec![], |f| {
-        f.0.iter().zip(&f.1).map(|(a, b)| *a || *b).collect()
-    });
-    let full = fit(logs, &folds[0].0, a0, fit_a, ident, None)?;
-    let _ = all;
+    let first = folds
+        .first()
+        .ok_or_else(|| IdentifyError::Fit("play operator: no folds".into()))?;
+    let full = fit(logs, &first.0, a0, fit_a, ident, None)?;
     let mut held = Vec::new();
     for (train, test) in folds {
         let f = fit(logs, train, a0, fit_a, ident, Some(&full.x))?;
@@ -167,11 +166,6 @@ pub fn cross_validate(
             std: f64::NAN,
             unit: "1".into(),
         });
-    }
-    for p in &mut params {
-        if p.std.is_nan() {
-            p.std = 0.0;
-        }
     }
     Ok(BaselineScore {
         name: "play_operator".into(),

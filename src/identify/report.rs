@@ -237,13 +237,8 @@ pub fn summary_text(d: &Diagnosis) -> String {
     for c in &d.candidates {
         let _ = writeln!(
             s,
-            "  round {} {:<22} {:.4} mrad {:+6.1} % {:5.2} {}",
-            c.round,
-            c.name,
-            c.rmse_heldout_mrad,
-            c.gain_percent,
-            c.explained_fraction,
-            if c.accepted { "ACCEPTED" } else { "" }
+            "  round {} {:<22} {:.4} mrad {:+6.1} % {:5.2}  {}",
+            c.round, c.name, c.rmse_heldout_mrad, c.gain_percent, c.explained_fraction, c.verdict
         );
     }
     s

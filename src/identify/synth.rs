@@ -217,3 +217,39 @@ pub fn synthesize(
     }
     Ok(log)
 }
+
+/// Parse a command-line `NAME=VALUE` effect (`encoder_delay=0.001`), value in the unit of
+/// [`EffectName::unit`].
+pub fn parse_effect_arg(arg: &str) -> Result<(EffectName, f64), IdentifyError> {
+    let bad = |message: String| IdentifyError::Config {
+        key: format!("--effect {arg}"),
+        message,
+    };
+    let (name, value) = arg
+        .split_once('=')
+        .ok_or_else(|| bad("expected NAME=VALUE, e.g. encoder_delay=0.001".into()))?;
+    let e: EffectName = name.trim().parse().map_err(bad)?;
+    let v: f64 = value
+        .trim()
+        .parse()
+        .map_err(|_| bad(format!("`{}` is not a number ({})", value.trim(), e.unit())))?;
+    if !v.is_finite() {
+        return Err(bad("the value must be finite".into()));
+    }
+    Ok((e, v))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn effect_arguments_parse_or_explain() {
+        let (e, v) = parse_effect_arg("encoder_delay=0.002").unwrap();
+        assert_eq!((e, v), (EffectName::EncoderDelay, 0.002));
+        let err = parse_effect_arg("encoder_dealy=1").unwrap_err().to_string();
+        assert!(err.contains("encoder_delay"), "{err}");
+        assert!(parse_effect_arg("thermal_drift=abc").is_err());
+        assert!(parse_effect_arg("thermal_drift").is_err());
+    }
+}
