@@ -4,6 +4,7 @@
 pub mod closed_loop;
 pub mod identify;
 pub mod io;
+pub mod metrics;
 pub mod physics;
 pub mod plot;
 pub mod report;

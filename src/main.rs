@@ -228,9 +228,14 @@ fn report(result: Result<RunReport, RunError>) -> ExitCode {
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::from(match e {
-                RunError::Scenario(_) | RunError::Table(_) | RunError::Sweep(_) => exit::INPUT,
-                RunError::Output(_) | RunError::Report(_) => exit::OUTPUT,
-                RunError::Unsupported(_) => exit::INPUT,
+                RunError::Scenario(_)
+                | RunError::Table(_)
+                | RunError::Sweep(_)
+                | RunError::ClosedLoop(_)
+                | RunError::Unsupported(_) => exit::INPUT,
+                RunError::Output(_) | RunError::Report(_) | RunError::ClosedLoopReport(_) => {
+                    exit::OUTPUT
+                }
             })
         }
     }

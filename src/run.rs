@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::closed_loop;
 use crate::io::output::{OutputError, StagedDir};
 use crate::report::{self, ReportError};
 use crate::scenario::{Scenario, ScenarioError, Study};
@@ -30,6 +31,12 @@ pub enum RunError {
     /// The requested study cannot run here.
     #[error("{0}")]
     Unsupported(String),
+    /// The closed loop cannot start with this scenario.
+    #[error(transparent)]
+    ClosedLoop(#[from] crate::closed_loop::ClosedLoopError),
+    /// Closed-loop result files cannot be written.
+    #[error(transparent)]
+    ClosedLoopReport(#[from] crate::closed_loop::ReportError),
 }
 
 /// What a run produced.
@@ -64,11 +71,7 @@ pub fn run_scenario(scenario: &Scenario, out: &OutputOptions) -> Result<RunRepor
     let (table, failure) = match scenario.study {
         Study::QuasiStatic => run_quasi_static(scenario, &dir, &mut warnings)?,
         Study::Backlash => run_backlash(scenario, &dir, &warnings)?,
-        Study::ClosedLoop => {
-            return Err(RunError::Unsupported(
-                "closed-loop studies are not available in this build".into(),
-            ))
-        }
+        Study::ClosedLoop => run_closed_loop(scenario, &dir, &mut warnings)?,
     };
     finish(staged, table, failure, warnings)
 }
@@ -146,6 +149,27 @@ fn run_quasi_static(
         })
     });
     Ok((table, failure))
+}
+
+fn run_closed_loop(
+    scenario: &Scenario,
+    dir: &Path,
+    warnings: &mut Vec<String>,
+) -> Result<(String, Option<String>), RunError> {
+    let result = closed_loop::run_closed_loop(scenario, &closed_loop::RunOptions::default())?;
+    closed_loop::write_closed_loop_outputs(dir, scenario, &result)?;
+    let target = scenario.closed_loop.as_ref().map_or(0.1, |c| c.target_mrad);
+    if let Err(e) = closed_loop::plot_closed_loop(dir, &result, target) {
+        warnings.push(format!("plots incomplete: {e}"));
+    }
+    let failure = result.modes.iter().find_map(|m| match &m.completion {
+        closed_loop::Completion::Complete => None,
+        closed_loop::Completion::Incomplete { fault, time_s } => Some(format!(
+            "mode {} stopped at t = {time_s:.4} s: {fault}",
+            m.mode.name()
+        )),
+    });
+    Ok((closed_loop::format_table(&result), failure))
 }
 
 fn run_backlash(
@@ -245,6 +269,72 @@ impl CaseRunner for QuasiStaticRunner {
     }
 }
 
+/// Figures of one closed-loop case: per compensation mode, the pointing metrics.
+pub struct ClosedLoopRunner {
+    modes: Vec<closed_loop::CompensationMode>,
+}
+
+impl ClosedLoopRunner {
+    /// Columns for the modes the scenario lists.
+    pub fn for_scenario(scenario: &Scenario) -> Self {
+        ClosedLoopRunner {
+            modes: scenario
+                .closed_loop
+                .as_ref()
+                .map(|c| c.modes.clone())
+                .unwrap_or_default(),
+        }
+    }
+
+    const FIGURES: [&'static str; 6] = [
+        "rms_mrad",
+        "peak_mrad",
+        "p95_mrad",
+        "within_target_fraction",
+        "passes_target",
+        "complete",
+    ];
+}
+
+impl CaseRunner for ClosedLoopRunner {
+    fn columns(&self) -> Vec<String> {
+        self.modes
+            .iter()
+            .flat_map(|m| {
+                Self::FIGURES
+                    .iter()
+                    .map(move |f| format!("{}_{f}", m.name()))
+            })
+            .collect()
+    }
+
+    fn run(&self, scenario: &Scenario, _case: &Case) -> Vec<Cell> {
+        let result = match closed_loop::run_closed_loop_metrics(scenario) {
+            Ok(r) => r,
+            Err(e) => return vec![Cell::Text(format!("error: {e}"))],
+        };
+        let mut cells = Vec::new();
+        for mode in &self.modes {
+            match result.modes.iter().find(|r| r.mode == *mode) {
+                Some(r) => {
+                    let complete = matches!(r.completion, closed_loop::Completion::Complete);
+                    let m = &r.metrics;
+                    cells.extend([
+                        Cell::Num(Some(m.rms_mrad)),
+                        Cell::Num(Some(m.peak_mrad)),
+                        Cell::Num(Some(m.p95_mrad)),
+                        Cell::Num(Some(m.within_target_fraction)),
+                        Cell::Text((m.passes_target && complete).to_string()),
+                        Cell::Text(complete.to_string()),
+                    ]);
+                }
+                None => cells.extend(Self::FIGURES.iter().map(|_| Cell::Num(None))),
+            }
+        }
+        cells
+    }
+}
+
 /// How to run a sweep.
 #[derive(Debug, Clone)]
 pub struct SweepOptions {
@@ -261,9 +351,7 @@ pub fn runner_for(scenario: &Scenario) -> Result<Box<dyn CaseRunner>, RunError> 
     match scenario.study {
         Study::Backlash => Ok(Box::new(BacklashRunner)),
         Study::QuasiStatic => Ok(Box::new(QuasiStaticRunner)),
-        Study::ClosedLoop => Err(RunError::Unsupported(
-            "closed-loop sweeps are not available in this build".into(),
-        )),
+        Study::ClosedLoop => Ok(Box::new(ClosedLoopRunner::for_scenario(scenario))),
     }
 }
 

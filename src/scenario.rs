@@ -160,6 +160,12 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "eots_tracking",
         include_str!("../scenarios/eots_tracking.toml"),
     ),
+    (
+        "eots_mismatch",
+        include_str!("../scenarios/eots_mismatch.toml"),
+    ),
+    ("eots_scan", include_str!("../scenarios/eots_scan.toml")),
+    ("step_stare", include_str!("../scenarios/step_stare.toml")),
     ("paper_bench", include_str!("../scenarios/paper_bench.toml")),
     ("paper_fig11", include_str!("../scenarios/paper_fig11.toml")),
     (
@@ -381,7 +387,10 @@ impl Scenario {
     /// Signals other than the quasi-static motion (closed-loop references), for the I/O
     /// layer to fill tabulated ones.
     pub fn signals_mut(&mut self) -> Vec<&mut Signal> {
-        Vec::new()
+        self.closed_loop
+            .as_mut()
+            .map(|c| vec![&mut c.reference])
+            .unwrap_or_default()
     }
 
     /// Scenario name (file stem unless set).
@@ -481,12 +490,14 @@ impl Scenario {
                 }
             }
             Study::ClosedLoop => {
-                if self.closed_loop.is_none() {
-                    return Err(bad(
+                let cl = self.closed_loop.as_ref().ok_or_else(|| {
+                    bad(
                         "closed_loop",
-                        "study = \"closed_loop\" needs a [closed_loop] section".into(),
-                    ));
-                }
+                        "study = \"closed_loop\" needs a [closed_loop] section with duration_s, [closed_loop.reference] and [closed_loop.controller]".into(),
+                    )
+                })?;
+                cl.validate(&self.drive)
+                    .map_err(|(key, msg)| bad(&key, msg))?;
             }
         }
         if let Some(sweep) = &self.sweep {

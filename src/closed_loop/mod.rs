@@ -1,8 +1,25 @@
-//! Closed-loop gimbal axis (placeholder until the loop lands).
+//! Closed-loop gimbal axis: torque motor, hysteretic cable drive and output drum under a
+//! sampled PID loop with feedforward and backlash compensation.
+//!
+//! The pieces are readable alone: [`params`] (scenario structs and their validation),
+//! [`plant`] (the continuous-time equations and the brake's stick/slip logic),
+//! [`controller`] (the discrete-time law and the compensator copy of the cable),
+//! [`sim`] (the sample-and-hold loop that composes them) and [`report`] (files at the edge).
 
-use serde::{Deserialize, Serialize};
+pub mod controller;
+pub mod params;
+pub mod plant;
+pub mod report;
+pub mod sim;
 
-/// Closed-loop configuration.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
-#[serde(deny_unknown_fields)]
-pub struct ClosedLoopParams {}
+pub use params::{
+    Amplifier, CableModel, ClosedLoopParams, CompensationMode, ControllerParams, DriveOverride,
+    Feedback, MotorParams, OutputParams, SensorParams,
+};
+pub use report::{
+    closed_loop_charts, format_table, plot_closed_loop, write_closed_loop_outputs, ReportError,
+};
+pub use sim::{
+    run_closed_loop, run_closed_loop_metrics, ClosedLoopError, ClosedLoopResult, Completion,
+    ModeResult, RunOptions, SolverStats, TimeSeries,
+};

@@ -238,6 +238,10 @@ pub struct CableDrive {
     upper: CableHalf,
     lower: CableHalf,
     state: DriveState,
+    /// Last non-zero change of `Tu - Tl`, N (its sign tells a reversal).
+    last_change: f64,
+    /// Share of a change of `Tu - Tl` taken by the upper span at the last state.
+    upper_share: f64,
 }
 
 /// Relative tolerance on span tensions of every solve (far below any measurable effect).
@@ -272,6 +276,8 @@ impl CableDrive {
             params,
             model,
             state,
+            last_change: 0.0,
+            upper_share: 0.5,
         }
     }
 
@@ -304,6 +310,8 @@ impl CableDrive {
     pub fn reset(&mut self) {
         self.upper.reset();
         self.lower.reset();
+        self.last_change = 0.0;
+        self.upper_share = 0.5;
         self.state = DriveState {
             tension_upper_n: self.params.preload_n,
             tension_lower_n: self.params.preload_n,
@@ -322,23 +330,23 @@ impl CableDrive {
             elongation_upper_m: up.elongation_m,
             elongation_lower_m: lo.elongation_m,
             slip_angles_rad: [
-                up.drum.slip_angle_rad,
-                up.pulley.slip_angle_rad,
-                lo.drum.slip_angle_rad,
-                lo.pulley.slip_angle_rad,
+                up.drum_slip_rad,
+                up.pulley_slip_rad,
+                lo.drum_slip_rad,
+                lo.pulley_slip_rad,
             ],
-            anchor_reached: [up.drum.reaches_end, lo.drum.reaches_end],
+            anchor_reached: [up.drum_anchor_reached, lo.drum_anchor_reached],
         }
     }
 
     fn check_pulley(&self, half: Half, tension_n: f64, t: &HalfTrial) -> Result<(), DriveFault> {
-        if t.pulley.reaches_end {
+        if t.pulley_neutral_reached {
             // Where the slip zone would end on an infinitely long pulley wrap.
             let demanded =
                 (tension_n / self.params.preload_n).ln().abs() / self.params.friction_coefficient;
             return Err(DriveFault::GrossSlip {
                 half,
-                slip_angle_rad: demanded.max(t.pulley.slip_angle_rad),
+                slip_angle_rad: demanded.max(t.pulley_slip_rad),
                 available_rad: 0.5 * self.params.pulley_wrap_rad,
                 tension_n,
             });
@@ -362,9 +370,16 @@ impl CableDrive {
         let pre = self.params.preload_n;
         // Tl = Tu - dt > 0 and Tu > 0.
         let lower_bound = dt.max(0.0);
-        let guess = (self.state.tension_upper_n
-            + 0.5 * (dt - (self.state.tension_upper_n - self.state.tension_lower_n)))
-            .max(lower_bound + 1e-3 * pre);
+        // Linearised length constraint: the upper span takes the share dl/(du+dl) of a change
+        // of Tu - Tl. Right after a reversal both slip zones restart from zero length and
+        // the halves are equally stiff, so the share is one half.
+        let change = dt - (self.state.tension_upper_n - self.state.tension_lower_n);
+        let share = if change * self.last_change > 0.0 {
+            self.upper_share
+        } else {
+            0.5
+        };
+        let guess = (self.state.tension_upper_n + share * change).max(lower_bound + 1e-3 * pre);
         let last = std::cell::Cell::new(None);
         let residual = |tu: f64| {
             let up = self.upper.trial(tu);
@@ -401,6 +416,13 @@ impl CableDrive {
         let (state, up, lo) = self.solve_torque(torque_nm)?;
         self.upper.commit_trial(&up);
         self.lower.commit_trial(&lo);
+        let change = (state.tension_upper_n - state.tension_lower_n)
+            - (self.state.tension_upper_n - self.state.tension_lower_n);
+        if change != 0.0 {
+            self.last_change = change;
+        }
+        self.upper_share =
+            lo.d_elongation_m_per_n / (up.d_elongation_m_per_n + lo.d_elongation_m_per_n);
         self.state = state;
         Ok(state)
     }

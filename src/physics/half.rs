@@ -9,23 +9,34 @@ pub struct HalfTrial {
     pub elongation_m: f64,
     /// Its derivative with respect to the span tension, m/N (always > 0).
     pub d_elongation_m_per_n: f64,
-    /// Drum wrap region.
-    pub drum: WrapTrial,
-    /// Pulley wrap region (from the contact point to the neutral point).
-    pub pulley: WrapTrial,
+    /// Slip-zone length on the drum (at most the drum wrap), rad.
+    pub drum_slip_rad: f64,
+    /// Slip-zone length on the pulley (at most the half's pulley wrap), rad.
+    pub pulley_slip_rad: f64,
+    /// The drum slip zone reaches the anchor (the profile is cut there).
+    pub drum_anchor_reached: bool,
+    /// The pulley slip zone reaches the neutral point: gross slip.
+    pub pulley_neutral_reached: bool,
+    /// The wrap trial, for committing.
+    wrap: WrapTrial,
 }
 
 /// A cable half: free span of length `span_m`, a wrap on the drum and a wrap on the pulley.
+///
+/// Both wraps start at the free span and see the same boundary tension, so their tension
+/// profiles are one function of the wrap angle cut at different lengths; they are stored
+/// once ([`WrapRegion::with_regions`]).
 #[derive(Clone, Debug)]
 pub struct CableHalf {
     span_m: f64,
     modulus_n: f64,
     preload_n: f64,
+    drum_wrap_rad: f64,
+    pulley_wrap_rad: f64,
     /// Whether committed tensions are remembered (memory model) or every state is computed
     /// from the virgin preloaded cable (memoryless model).
     remembers: bool,
-    drum: WrapRegion,
-    pulley: WrapRegion,
+    wrap: WrapRegion,
 }
 
 impl CableHalf {
@@ -51,11 +62,14 @@ impl CableHalf {
             span_m,
             modulus_n,
             preload_n,
+            drum_wrap_rad,
+            pulley_wrap_rad: pulley_half_wrap_rad,
             remembers,
-            drum: WrapRegion::new(drum_radius_m, drum_wrap_rad, mu, preload_n, modulus_n),
-            pulley: WrapRegion::new(
-                pulley_radius_m,
-                pulley_half_wrap_rad,
+            wrap: WrapRegion::with_regions(
+                &[
+                    (drum_radius_m, drum_wrap_rad),
+                    (pulley_radius_m, pulley_half_wrap_rad),
+                ],
                 mu,
                 preload_n,
                 modulus_n,
@@ -66,51 +80,51 @@ impl CableHalf {
     /// Elongation if the span tension became `tension_n` (> 0), nothing committed.
     #[inline]
     pub fn trial(&self, tension_n: f64) -> HalfTrial {
-        let drum = self.drum.trial(tension_n);
-        let pulley = self.pulley.trial(tension_n);
+        let wrap = self.wrap.trial(tension_n);
         let span_per_n = self.span_m / self.modulus_n;
         HalfTrial {
-            elongation_m: span_per_n * (tension_n - self.preload_n)
-                + drum.elongation_m
-                + pulley.elongation_m,
-            d_elongation_m_per_n: span_per_n
-                + drum.d_elongation_m_per_n
-                + pulley.d_elongation_m_per_n,
-            drum,
-            pulley,
+            elongation_m: span_per_n * (tension_n - self.preload_n) + wrap.elongation_m,
+            d_elongation_m_per_n: span_per_n + wrap.d_elongation_m_per_n,
+            drum_slip_rad: wrap.slip_within(self.drum_wrap_rad),
+            pulley_slip_rad: wrap.slip_within(self.pulley_wrap_rad),
+            drum_anchor_reached: wrap.reaches(self.drum_wrap_rad),
+            pulley_neutral_reached: wrap.reaches(self.pulley_wrap_rad),
+            wrap,
         }
     }
 
     /// Commit the span tension (updates the wrap memory; no-op for the memoryless model).
     pub fn commit(&mut self, tension_n: f64) {
         if self.remembers {
-            self.drum.commit(tension_n);
-            self.pulley.commit(tension_n);
+            self.wrap.commit(tension_n);
         }
     }
 
-    /// Commit a trial computed on the current profiles (no-op for the memoryless model).
+    /// Commit a trial computed on the current profile (no-op for the memoryless model).
     pub fn commit_trial(&mut self, trial: &HalfTrial) {
         if self.remembers {
-            self.drum.commit_trial(&trial.drum);
-            self.pulley.commit_trial(&trial.pulley);
+            self.wrap.commit_trial(&trial.wrap);
         }
     }
 
     /// Forget all history.
     pub fn reset(&mut self) {
-        self.drum.reset();
-        self.pulley.reset();
+        self.wrap.reset();
     }
 
-    /// Drum wrap region (for profiles and breakpoint counts).
-    pub fn drum(&self) -> &WrapRegion {
-        &self.drum
+    /// The shared wrap profile (breakpoint counts, slope checks).
+    pub fn wrap(&self) -> &WrapRegion {
+        &self.wrap
     }
 
-    /// Pulley wrap region.
-    pub fn pulley(&self) -> &WrapRegion {
-        &self.pulley
+    /// Drum wrap profile `(s rad, T N)` from the contact point to the anchor.
+    pub fn drum_breakpoints(&self) -> Vec<(f64, f64)> {
+        self.wrap.breakpoints_within(self.drum_wrap_rad)
+    }
+
+    /// Pulley wrap profile `(s rad, T N)` from the contact point to the neutral point.
+    pub fn pulley_breakpoints(&self) -> Vec<(f64, f64)> {
+        self.wrap.breakpoints_within(self.pulley_wrap_rad)
     }
 
     /// Free-span length, m.

@@ -1,4 +1,4 @@
-//! A wrap region of cable on a pulley or drum, with exact capstan memory.
+//! Cable wrapped on a pulley or drum, with exact capstan memory.
 //!
 //! The tension profile `T(s)` along the wrap (`s` = wrap angle from the contact point
 //! inward, rad) is held in log space, `g(s) = ln T(s)`. Coulomb friction bounds the slope,
@@ -17,33 +17,45 @@ struct Vertex {
     g: f64,
     /// Tension `exp(g)`, N, kept to spare the exponential in every trial.
     t: f64,
-    /// `integral_s^wrap (T - Tpre) ds`, N rad: lets a trial profile reuse the stuck part.
+    /// `sum_regions r * integral_s^wrap (T - Tpre) ds`, N m: lets a trial profile reuse the
+    /// stuck part.
     tail: f64,
 }
 
-/// Outcome of putting a boundary tension on a wrap region, without committing it.
+/// Outcome of putting a boundary tension on a wrap, without committing it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WrapTrial {
-    /// Elongation of the region relative to the preloaded state, m.
+    /// Elongation of the wrapped cable relative to the preloaded state, m.
     pub elongation_m: f64,
     /// Derivative of the elongation with respect to the boundary tension, m/N.
     pub d_elongation_m_per_n: f64,
-    /// Length of the slip zone (wrap angle where the new branch meets the old profile), rad.
-    /// Zero when the boundary tension equals the current contact-point tension.
+    /// Length of the slip zone (wrap angle where the new branch meets the old profile), rad,
+    /// at most the longest wrap. Zero when the boundary tension is unchanged.
     pub slip_angle_rad: f64,
-    /// True when the slip zone reaches the inner end of the region (anchor on the drum,
-    /// neutral point on the pulley).
+    /// True when the slip zone reaches the inner end of the longest wrap.
     pub reaches_end: bool,
     /// Where the new branch meets the stored profile, kept so that committing this trial
     /// needs no second search.
     crossing: Crossing,
 }
 
+impl WrapTrial {
+    /// Slip-zone length within a region of wrap `wrap_rad`, rad.
+    pub fn slip_within(&self, wrap_rad: f64) -> f64 {
+        self.slip_angle_rad.min(wrap_rad)
+    }
+
+    /// Whether the slip zone reaches the inner end of a region of wrap `wrap_rad`.
+    pub fn reaches(&self, wrap_rad: f64) -> bool {
+        self.slip_angle_rad >= wrap_rad
+    }
+}
+
 /// Meeting point of a new slip zone with the stored profile.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 struct Crossing {
     /// Index of the first stored breakpoint beyond the meeting point (`usize::MAX`: the zone
-    /// reaches the inner end; `usize::MAX - 1`: no slip, boundary tension unchanged).
+    /// reaches the inner end; `NO_SLIP`: boundary tension unchanged).
     index: usize,
     /// Wrap angle of the meeting point, rad.
     s: f64,
@@ -55,26 +67,42 @@ struct Crossing {
     tb: f64,
     /// Log of the boundary tension.
     ln_tb: f64,
-    /// Integral of `T - Tpre` over the slip zone, N rad.
-    slip_integral: f64,
+    /// Whether the boundary tension rose (slip zone `Tb*exp(-mu*s)`).
+    rising: bool,
 }
 
 /// `Crossing::index` value for a trial that leaves the profile unchanged.
 const NO_SLIP: usize = usize::MAX - 1;
 
-/// A wrap region with capstan memory.
+/// Cable wrapped on one or two surfaces that see the same boundary tension history.
+///
+/// A cable half wraps the drum (up to its anchor) and the pulley (up to the neutral point),
+/// both starting at the same free-span tension. The memory rule acts pointwise in `s`, so
+/// both profiles are the same function of `s`, cut at different lengths: one profile is
+/// stored and each region integrates it up to its own wrap with its own radius. For a
+/// single region pass one `(radius, wrap)` pair.
 ///
 /// Typical values: drum wrap `pi` rad at radius 0.1025 m; pulley half-wrap `3*pi` rad at
 /// radius 0.020 m; friction coefficient 0.2; preload 100 N; cable modulus `E*A` 1.4e4 N.
 #[derive(Clone, Debug)]
 pub struct WrapRegion {
-    radius_m: f64,
-    wrap_rad: f64,
     mu: f64,
     preload_n: f64,
     modulus_n: f64,
+    /// Shorter wrap, rad (equal to `wrap_rad` for a single region).
+    cut_rad: f64,
+    /// Longest wrap, where the stored profile ends, rad.
+    wrap_rad: f64,
+    /// Sum of radii of regions covering `s < cut_rad`, m.
+    weight_inner_m: f64,
+    /// Radius of the region covering `cut_rad <= s < wrap_rad`, m.
+    weight_outer_m: f64,
+    /// `exp(-mu*cut)` and `exp(mu*cut)`, for slip zones that pass the shorter wrap's end.
+    decay_at_cut: f64,
+    growth_at_cut: f64,
     /// Breakpoints ordered from the inner end (`s = wrap`) to the contact point (`s = 0`),
-    /// so that a new slip zone pops the wiped breakpoints off the end of the vector.
+    /// so that a new slip zone pops the wiped breakpoints off the end of the vector. A
+    /// breakpoint always sits at `cut_rad`, so every segment has a single weight.
     verts: Vec<Vertex>,
 }
 
@@ -92,16 +120,39 @@ fn segment_integral(h: f64, ga: f64, gb: f64, ta: f64, tb: f64) -> f64 {
 }
 
 impl WrapRegion {
-    /// A virgin region at uniform preload.
+    /// A single virgin region at uniform preload.
     ///
     /// Parameters must be positive and finite (checked by scenario validation upstream).
     pub fn new(radius_m: f64, wrap_rad: f64, mu: f64, preload_n: f64, modulus_n: f64) -> Self {
+        Self::with_regions(&[(radius_m, wrap_rad)], mu, preload_n, modulus_n)
+    }
+
+    /// One or two regions `(radius m, wrap rad)` sharing a boundary tension. More than two
+    /// are not needed by a cable half; extra entries are ignored.
+    pub fn with_regions(regions: &[(f64, f64)], mu: f64, preload_n: f64, modulus_n: f64) -> Self {
+        let (a, b) = match regions {
+            [] => ((0.0, 0.0), None),
+            [one] => (*one, None),
+            [x, y, ..] => (*x, Some(*y)),
+        };
+        let (cut_rad, wrap_rad, weight_inner_m, weight_outer_m) = match b {
+            None => (a.1, a.1, a.0, a.0),
+            Some(b) if a.1 == b.1 => (a.1, a.1, a.0 + b.0, a.0 + b.0),
+            Some(b) => {
+                let (short, long) = if a.1 < b.1 { (a, b) } else { (b, a) };
+                (short.1, long.1, short.0 + long.0, long.0)
+            }
+        };
         let mut region = WrapRegion {
-            radius_m,
-            wrap_rad,
             mu,
             preload_n,
             modulus_n,
+            cut_rad,
+            wrap_rad,
+            weight_inner_m,
+            weight_outer_m,
+            decay_at_cut: (-mu * cut_rad).exp(),
+            growth_at_cut: (mu * cut_rad).exp(),
             verts: Vec::with_capacity(16),
         };
         region.reset();
@@ -113,32 +164,19 @@ impl WrapRegion {
         let g = self.preload_n.ln();
         let t = self.preload_n;
         self.verts.clear();
-        self.verts.push(Vertex {
-            s: self.wrap_rad,
-            g,
-            t,
-            tail: 0.0,
-        });
-        self.verts.push(Vertex {
-            s: 0.0,
-            g,
-            t,
-            tail: 0.0,
-        });
+        for s in [self.wrap_rad, self.cut_rad, 0.0] {
+            if self.verts.last().is_none_or(|v| v.s > s) {
+                self.verts.push(Vertex { s, g, t, tail: 0.0 });
+            }
+        }
     }
 
-    /// Radius of the pulley or drum the cable wraps, m.
-    pub fn radius_m(&self) -> f64 {
-        self.radius_m
-    }
-
-    /// Available wrap angle, rad.
+    /// Longest wrap angle, rad.
     pub fn wrap_rad(&self) -> f64 {
         self.wrap_rad
     }
 
-    /// Number of breakpoints currently held (2 for a virgin region; one more per un-wiped
-    /// reversal).
+    /// Number of breakpoints currently held (grows by one per un-wiped reversal).
     pub fn breakpoint_count(&self) -> usize {
         self.verts.len()
     }
@@ -146,6 +184,16 @@ impl WrapRegion {
     /// Tension at the contact point (the boundary tension last committed), N.
     pub fn boundary_tension_n(&self) -> f64 {
         self.verts[self.verts.len() - 1].t
+    }
+
+    /// Weight (sum of radii, m) of the segment ending at wrap angle `s_end`.
+    #[inline]
+    fn weight(&self, s_end: f64) -> f64 {
+        if s_end <= self.cut_rad {
+            self.weight_inner_m
+        } else {
+            self.weight_outer_m
+        }
     }
 
     /// Where the line `ln Tb -+ mu*s` first meets the stored profile.
@@ -185,6 +233,38 @@ impl WrapRegion {
         (usize::MAX, self.wrap_rad, g_end, g_end.exp())
     }
 
+    /// Weighted integral of `T - Tpre` over the slip zone `[0, s*]` and its derivative with
+    /// respect to `Tb`: closed forms of `Tb*exp(-+mu*s)`, split at the shorter wrap's end.
+    #[inline]
+    fn slip_zone(&self, c: &Crossing) -> (f64, f64) {
+        let (mu, pre) = (self.mu, self.preload_n);
+        // integral_x0^x1 T ds for T = Tb*exp(-+mu*s), given T at both ends.
+        let line = |t0: f64, t1: f64| {
+            if c.rising {
+                (t0 - t1) / mu
+            } else {
+                (t1 - t0) / mu
+            }
+        };
+        if c.s <= self.cut_rad {
+            let w = self.weight_inner_m;
+            (w * (line(c.tb, c.t) - pre * c.s), w * line(1.0, c.t / c.tb))
+        } else {
+            let e = if c.rising {
+                self.decay_at_cut
+            } else {
+                self.growth_at_cut
+            };
+            let t_cut = c.tb * e;
+            let (wi, wo) = (self.weight_inner_m, self.weight_outer_m);
+            (
+                wi * (line(c.tb, t_cut) - pre * self.cut_rad)
+                    + wo * (line(t_cut, c.t) - pre * (c.s - self.cut_rad)),
+                wi * line(1.0, e) + wo * line(e, c.t / c.tb),
+            )
+        }
+    }
+
     /// Elongation and its derivative if the boundary tension became `tb_n` (N > 0), the
     /// stored profile left unchanged.
     #[inline]
@@ -192,54 +272,46 @@ impl WrapRegion {
         let ln_tb = tb_n.ln();
         let top = self.verts.len() - 1;
         let g0 = self.verts[top].g;
-        let scale = self.radius_m / self.modulus_n;
         if ln_tb == g0 {
             return WrapTrial {
-                elongation_m: scale * self.verts[top].tail,
+                elongation_m: self.verts[top].tail / self.modulus_n,
                 d_elongation_m_per_n: 0.0,
                 slip_angle_rad: 0.0,
                 reaches_end: false,
                 crossing: Crossing {
                     index: NO_SLIP,
-                    ln_tb,
                     tb: tb_n,
+                    ln_tb,
                     ..Crossing::default()
                 },
             };
         }
         let rising = ln_tb > g0;
-        let (idx, s_star, g_star, t_star) = self.crossing(ln_tb, rising);
-        // Slip zone: T = Tb*exp(-+mu*s); its integral and d/dTb are closed forms. The
-        // crossing point moves with Tb, but the profile is continuous there, so the
-        // boundary terms of the Leibniz rule cancel.
-        let (slip_integral, d_slip) = if rising {
-            ((tb_n - t_star) / self.mu, (1.0 - t_star / tb_n) / self.mu)
-        } else {
-            ((t_star - tb_n) / self.mu, (t_star / tb_n - 1.0) / self.mu)
+        let (index, s, g, t) = self.crossing(ln_tb, rising);
+        let crossing = Crossing {
+            index,
+            s,
+            g,
+            t,
+            tb: tb_n,
+            ln_tb,
+            rising,
         };
-        let slip_integral = slip_integral - self.preload_n * s_star;
-        let mut tension_integral = slip_integral;
-        let reaches_end = idx == usize::MAX;
+        let (mut integral, d_integral) = self.slip_zone(&crossing);
+        let reaches_end = index == usize::MAX;
         if !reaches_end {
-            let b = self.verts[idx];
-            tension_integral += segment_integral(b.s - s_star, g_star, b.g, t_star, b.t)
-                - self.preload_n * (b.s - s_star)
+            let b = self.verts[index];
+            let h = b.s - s;
+            integral += self.weight(b.s)
+                * (segment_integral(h, g, b.g, t, b.t) - self.preload_n * h)
                 + b.tail;
         }
         WrapTrial {
-            elongation_m: scale * tension_integral,
-            d_elongation_m_per_n: scale * d_slip,
-            slip_angle_rad: s_star,
+            elongation_m: integral / self.modulus_n,
+            d_elongation_m_per_n: d_integral / self.modulus_n,
+            slip_angle_rad: s,
             reaches_end,
-            crossing: Crossing {
-                index: idx,
-                s: s_star,
-                g: g_star,
-                t: t_star,
-                tb: tb_n,
-                ln_tb,
-                slip_integral,
-            },
+            crossing,
         }
     }
 
@@ -256,6 +328,7 @@ impl WrapRegion {
         if c.index == NO_SLIP {
             return;
         }
+        let pre = self.preload_n;
         if c.index == usize::MAX {
             self.verts.clear();
             self.verts.push(Vertex {
@@ -269,9 +342,9 @@ impl WrapRegion {
             let b = self.verts[c.index];
             // A crossing at an existing breakpoint would leave a zero-length segment.
             if b.s - c.s > 1e-14 * self.wrap_rad.max(1.0) {
-                let tail = segment_integral(b.s - c.s, c.g, b.g, c.t, b.t)
-                    - self.preload_n * (b.s - c.s)
-                    + b.tail;
+                let h = b.s - c.s;
+                let tail =
+                    self.weight(b.s) * (segment_integral(h, c.g, b.g, c.t, b.t) - pre * h) + b.tail;
                 self.verts.push(Vertex {
                     s: c.s,
                     g: c.g,
@@ -280,28 +353,52 @@ impl WrapRegion {
                 });
             }
         }
-        let below = self.verts[self.verts.len() - 1].tail;
-        if c.s > 0.0 {
+        let slope = if c.rising { -self.mu } else { self.mu };
+        let line_integral = |t0: f64, t1: f64, h: f64| {
+            (if c.rising { t0 - t1 } else { t1 - t0 }) / self.mu - pre * h
+        };
+        let last = self.verts[self.verts.len() - 1];
+        if c.s > self.cut_rad && last.s > self.cut_rad {
+            // Keep the breakpoint at the shorter wrap's end: segments must not straddle it.
+            let g_cut = c.ln_tb + slope * self.cut_rad;
+            let t_cut = c.tb
+                * if c.rising {
+                    self.decay_at_cut
+                } else {
+                    self.growth_at_cut
+                };
+            let tail = self.weight_outer_m * line_integral(t_cut, last.t, last.s - self.cut_rad)
+                + last.tail;
+            self.verts.push(Vertex {
+                s: self.cut_rad,
+                g: g_cut,
+                t: t_cut,
+                tail,
+            });
+        }
+        let last = self.verts[self.verts.len() - 1];
+        if last.s > 0.0 {
+            let tail = self.weight(last.s) * line_integral(c.tb, last.t, last.s) + last.tail;
             self.verts.push(Vertex {
                 s: 0.0,
                 g: c.ln_tb,
                 t: c.tb,
-                tail: c.slip_integral + below,
+                tail,
             });
         } else {
             // Zero-length slip zone (only when the crossing is at s = 0).
-            let last = self.verts.len() - 1;
-            self.verts[last].g = c.ln_tb;
-            self.verts[last].t = c.tb;
+            let top = self.verts.len() - 1;
+            self.verts[top].g = c.ln_tb;
+            self.verts[top].t = c.tb;
         }
     }
 
-    /// Elongation of the region as committed, relative to the preloaded state, m.
+    /// Elongation of the wrapped cable as committed, relative to the preloaded state, m.
     pub fn elongation_m(&self) -> f64 {
-        self.radius_m / self.modulus_n * self.verts[self.verts.len() - 1].tail
+        self.verts[self.verts.len() - 1].tail / self.modulus_n
     }
 
-    /// Tension at wrap angle `s_rad` (clamped to the region), N.
+    /// Tension at wrap angle `s_rad` (clamped to the wrap), N.
     pub fn tension_at(&self, s_rad: f64) -> f64 {
         let s = s_rad.clamp(0.0, self.wrap_rad);
         for k in (1..self.verts.len()).rev() {
@@ -320,17 +417,25 @@ impl WrapRegion {
         self.verts[0].t
     }
 
-    /// The committed profile's breakpoints as `(wrap angle rad, tension N)`, from the
-    /// contact point inward, ending at the inner end of the region. Exact: straight lines
-    /// between them in `(s, ln T)`.
-    pub fn breakpoints(&self) -> Vec<(f64, f64)> {
-        let mut out: Vec<(f64, f64)> = self.verts.iter().rev().map(|v| (v.s, v.t)).collect();
-        if let Some(&(s, t)) = out.last() {
-            if s < self.wrap_rad {
-                out.push((self.wrap_rad, t));
-            }
-        }
+    /// The committed profile's breakpoints as `(wrap angle rad, tension N)` from the contact
+    /// point inward up to `wrap_rad` (a region's own wrap; clamped to the stored profile).
+    /// Exact: straight lines between them in `(s, ln T)`.
+    pub fn breakpoints_within(&self, wrap_rad: f64) -> Vec<(f64, f64)> {
+        let end = wrap_rad.min(self.wrap_rad);
+        let mut out: Vec<(f64, f64)> = self
+            .verts
+            .iter()
+            .rev()
+            .filter(|v| v.s < end)
+            .map(|v| (v.s, v.t))
+            .collect();
+        out.push((end, self.tension_at(end)));
         out
+    }
+
+    /// The whole committed profile's breakpoints, `(wrap angle rad, tension N)`.
+    pub fn breakpoints(&self) -> Vec<(f64, f64)> {
+        self.breakpoints_within(self.wrap_rad)
     }
 
     /// Largest magnitude of the log-tension slope over all segments, 1/rad. Never exceeds
@@ -444,5 +549,42 @@ mod tests {
         // Integral of the cut line minus preload.
         let expect = R / G * (200.0 * (1.0 - (-MU * 0.5f64).exp()) / MU - TPRE * 0.5);
         assert!((region.elongation_m() - expect).abs() < 1e-15);
+    }
+
+    #[test]
+    fn shared_profile_equals_two_separate_regions() {
+        let mut rng_state = 12345u64;
+        let mut next = || {
+            rng_state = rng_state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (rng_state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (rd, wd, rp, wp) = (0.1025, 0.9, 0.02, 2.5);
+        let mut shared = WrapRegion::with_regions(&[(rd, wd), (rp, wp)], MU, TPRE, G);
+        let mut drum = WrapRegion::new(rd, wd, MU, TPRE, G);
+        let mut pulley = WrapRegion::new(rp, wp, MU, TPRE, G);
+        for _ in 0..400 {
+            // Wide swings so slip zones pass the shorter wrap's end and reach the longer one.
+            let tb = TPRE * (0.35 + 1.6 * next());
+            let tr = shared.trial(tb);
+            let (a, b) = (drum.trial(tb), pulley.trial(tb));
+            let sum = a.elongation_m + b.elongation_m;
+            let dsum = a.d_elongation_m_per_n + b.d_elongation_m_per_n;
+            // Elongations are small differences of integrals of size r*T*wrap/G: the
+            // rounding floor scales with those.
+            let floor = 1e-12 * (rd * wd + rp * wp) * TPRE / G;
+            assert!(
+                (tr.elongation_m - sum).abs() < floor,
+                "{tb}: {} vs {sum}",
+                tr.elongation_m
+            );
+            assert!((tr.d_elongation_m_per_n - dsum).abs() < 1e-9 * dsum.abs());
+            assert_eq!(tr.reaches(wd), a.reaches_end);
+            shared.commit_trial(&tr);
+            drum.commit(tb);
+            pulley.commit(tb);
+            assert!(shared.max_log_slope() <= MU * (1.0 + 1e-9));
+        }
     }
 }

@@ -5,7 +5,7 @@
 
 use serde::Serialize;
 
-use crate::physics::{CableDrive, DriveFault, DriveParams, HysteresisModel, LoadParams};
+use crate::physics::{CableDrive, DriveFault, DriveParams, Half, HysteresisModel, LoadParams};
 use crate::scenario::{BacklashParams, QuasiStaticParams};
 
 /// One quasi-static sample.
@@ -62,8 +62,11 @@ pub struct QsTrace {
     pub profiles: Vec<ProfileSnapshot>,
     /// Set when the drive left its capacity; the samples end there.
     pub stop: Option<Stop>,
-    /// Largest number of breakpoints held by any wrap region (memory depth).
+    /// Largest number of breakpoints held by any half's wrap profile (memory depth).
     pub max_breakpoints: usize,
+    /// First time a drum slip zone reached its anchor (the profile is cut there; the run
+    /// goes on), s, and which half.
+    pub anchor_reached: Option<(f64, Half)>,
 }
 
 /// Key figures of a trace.
@@ -84,8 +87,12 @@ pub struct QsFigures {
     pub tension_min_n: f64,
     /// Tension range seen, N.
     pub tension_max_n: f64,
-    /// Deepest memory (breakpoints in one region).
+    /// Deepest memory (breakpoints in one wrap profile).
     pub max_breakpoints: usize,
+    /// First time a drum slip zone reached its anchor, s (`null` if never).
+    pub anchor_reached_at_s: Option<f64>,
+    /// Which half reached its anchor first.
+    pub anchor_half: Option<Half>,
     /// Whether the run reached its end.
     pub complete: bool,
 }
@@ -121,6 +128,8 @@ impl QsTrace {
             tension_min_n: if empty { 0.0 } else { tmin },
             tension_max_n: tmax,
             max_breakpoints: self.max_breakpoints,
+            anchor_reached_at_s: self.anchor_reached.map(|a| a.0),
+            anchor_half: self.anchor_reached.map(|a| a.1),
             complete: self.stop.is_none() && !empty,
         }
     }
@@ -158,6 +167,7 @@ pub fn run_model(
     let mut error = 0.0;
     let mut max_breakpoints = 0;
     let mut stop = None;
+    let mut anchor_reached = None;
     for k in 0..=n {
         let t = k as f64 * dt;
         let motion = study.motion.at(t);
@@ -175,6 +185,13 @@ pub fn run_model(
         match drive.apply_torque(torque) {
             Ok(state) => {
                 error = state.transmission_error_rad;
+                if anchor_reached.is_none() {
+                    if state.anchor_reached[0] {
+                        anchor_reached = Some((t, Half::Upper));
+                    } else if state.anchor_reached[1] {
+                        anchor_reached = Some((t, Half::Lower));
+                    }
+                }
                 samples.push(QsSample {
                     t_s: t,
                     theta_in_rad: theta_in,
@@ -187,10 +204,8 @@ pub fn run_model(
                     slip_angles_rad: state.slip_angles_rad,
                 });
                 max_breakpoints = max_breakpoints
-                    .max(drive.upper().drum().breakpoint_count())
-                    .max(drive.upper().pulley().breakpoint_count())
-                    .max(drive.lower().drum().breakpoint_count())
-                    .max(drive.lower().pulley().breakpoint_count());
+                    .max(drive.upper().wrap().breakpoint_count())
+                    .max(drive.lower().wrap().breakpoint_count());
             }
             Err(fault) => {
                 stop = Some(Stop { t_s: t, fault });
@@ -208,22 +223,23 @@ pub fn run_model(
         profiles,
         stop,
         max_breakpoints,
+        anchor_reached,
     }
 }
 
 /// Tension profiles of all four wrap regions.
 pub fn snapshot(drive: &CableDrive, t_s: f64) -> Vec<ProfileSnapshot> {
     [
-        ("upper_drum", drive.upper().drum()),
-        ("upper_pulley", drive.upper().pulley()),
-        ("lower_drum", drive.lower().drum()),
-        ("lower_pulley", drive.lower().pulley()),
+        ("upper_drum", drive.upper().drum_breakpoints()),
+        ("upper_pulley", drive.upper().pulley_breakpoints()),
+        ("lower_drum", drive.lower().drum_breakpoints()),
+        ("lower_pulley", drive.lower().pulley_breakpoints()),
     ]
     .into_iter()
-    .map(|(region, w)| ProfileSnapshot {
+    .map(|(region, breakpoints)| ProfileSnapshot {
         t_s,
         region,
-        breakpoints: w.breakpoints(),
+        breakpoints,
     })
     .collect()
 }

@@ -1,0 +1,656 @@
+//! Scenario structs of the closed loop (`[closed_loop]` and its sub-tables) and their checks.
+//!
+//! Every key carries its unit in its name; the typical values quoted are those of a small
+//! electro-optical turret on the published cable bench (ratio 5.125).
+
+use serde::{Deserialize, Serialize};
+
+use crate::physics::{CableDrive, DriveParams, HysteresisModel, Routing};
+use crate::signal::Signal;
+
+/// Which backlash compensation the controller runs. One simulation per listed mode.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CompensationMode {
+    /// No compensation: motor reference `ic * r_out`.
+    None,
+    /// Compensator copy of the cable without memory (Lu and Fan style).
+    Memoryless,
+    /// Compensator copy of the cable with capstan memory.
+    Memory,
+}
+
+impl CompensationMode {
+    /// Name used in files (`none`, `memoryless`, `memory`).
+    pub fn name(self) -> &'static str {
+        match self {
+            CompensationMode::None => "none",
+            CompensationMode::Memoryless => "memoryless",
+            CompensationMode::Memory => "memory",
+        }
+    }
+
+    /// History model of the compensator copy, if any.
+    pub fn model(self) -> Option<HysteresisModel> {
+        match self {
+            CompensationMode::None => None,
+            CompensationMode::Memoryless => Some(HysteresisModel::Memoryless),
+            CompensationMode::Memory => Some(HysteresisModel::Memory),
+        }
+    }
+}
+
+/// How the plant's cable behaves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum CableModel {
+    /// Capstan friction with memory (physics.md section 3), the real cable.
+    #[default]
+    Hysteretic,
+    /// Linear spring per half with the preloaded drive's small-signal stiffness; for
+    /// verification against linear theory and as a cost reference.
+    Linear,
+}
+
+/// What the controller's output commands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Amplifier {
+    /// Ideal current amplifier: the winding current equals the command (A), clipped to
+    /// `current_limit_a`. The usual drive for a frameless torque motor.
+    #[default]
+    Current,
+    /// Voltage amplifier: the command is the winding voltage (V), clipped to
+    /// `voltage_limit_v`; the current follows `L di/dt = u - R i - Ke omega`.
+    Voltage,
+}
+
+/// Which encoder closes the position loop.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Feedback {
+    /// Motor encoder: the loop controls the motor angle against `ic*(r_out - e_pred)`.
+    #[default]
+    Motor,
+    /// Output encoder: the loop controls the drum angle directly (error scaled by `ic` so
+    /// the same gains apply); the compensator's shift enters through the reference-rate
+    /// feedforward only.
+    Output,
+}
+
+/// Torque motor with rotor and input pulley.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotorParams {
+    /// Amplifier type (what the controller output means).
+    #[serde(default)]
+    pub amplifier: Amplifier,
+    /// Winding resistance, ohm (1 to 3 for a frameless torque motor).
+    pub resistance_ohm: f64,
+    /// Winding inductance, H (about 1e-3).
+    pub inductance_h: f64,
+    /// Torque constant `Kt`, N m/A (0.1 to 0.3).
+    pub torque_constant_nm_per_a: f64,
+    /// Back-EMF constant `Ke`, V s/rad; defaults to `Kt` (equal in SI units).
+    #[serde(default)]
+    pub back_emf_v_s_per_rad: Option<f64>,
+    /// Rotor plus input pulley inertia, kg m^2 (about 1e-4).
+    pub inertia_kg_m2: f64,
+    /// Viscous friction of the motor bearings, N m s/rad (about 1e-4).
+    #[serde(default)]
+    pub viscous_nm_s_per_rad: f64,
+    /// Coulomb friction of the motor bearings and seals, N m (0.002 to 0.02).
+    #[serde(default)]
+    pub coulomb_nm: f64,
+    /// Speed below which motor Coulomb friction is linear in speed, rad/s (0.01). Keeps the
+    /// friction Lipschitz so the fixed-step integrator cannot chatter at zero speed.
+    #[serde(default = "default_coulomb_smoothing")]
+    pub coulomb_smoothing_rad_s: f64,
+    /// Largest current the amplifier delivers, A (5 to 10); also the controller's output
+    /// limit with a current amplifier. None = unlimited.
+    #[serde(default)]
+    pub current_limit_a: Option<f64>,
+    /// Largest voltage the amplifier delivers, V (24 to 48); the controller's output limit
+    /// with a voltage amplifier. None = unlimited.
+    #[serde(default)]
+    pub voltage_limit_v: Option<f64>,
+}
+
+fn default_coulomb_smoothing() -> f64 {
+    0.01
+}
+
+impl MotorParams {
+    /// Back-EMF constant actually used, V s/rad.
+    pub fn back_emf(&self) -> f64 {
+        self.back_emf_v_s_per_rad
+            .unwrap_or(self.torque_constant_nm_per_a)
+    }
+
+    /// Output limit of the controller in command units (A or V); `f64::INFINITY` if none.
+    pub fn command_limit(&self) -> f64 {
+        match self.amplifier {
+            Amplifier::Current => self.current_limit_a,
+            Amplifier::Voltage => self.voltage_limit_v,
+        }
+        .unwrap_or(f64::INFINITY)
+    }
+}
+
+impl Default for MotorParams {
+    fn default() -> Self {
+        MotorParams {
+            amplifier: Amplifier::Current,
+            resistance_ohm: 2.0,
+            inductance_h: 1e-3,
+            torque_constant_nm_per_a: 0.2,
+            back_emf_v_s_per_rad: None,
+            inertia_kg_m2: 1e-4,
+            viscous_nm_s_per_rad: 1e-4,
+            coulomb_nm: 0.005,
+            coulomb_smoothing_rad_s: default_coulomb_smoothing(),
+            current_limit_a: Some(8.0),
+            voltage_limit_v: Some(48.0),
+        }
+    }
+}
+
+/// Output drum with payload.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputParams {
+    /// Drum plus payload inertia about the axis, kg m^2 (0.02 to 0.1).
+    pub inertia_kg_m2: f64,
+    /// Viscous friction of the output bearings, N m s/rad (about 1e-3).
+    #[serde(default)]
+    pub viscous_nm_s_per_rad: f64,
+}
+
+impl Default for OutputParams {
+    fn default() -> Self {
+        OutputParams {
+            inertia_kg_m2: 0.05,
+            viscous_nm_s_per_rad: 0.0,
+        }
+    }
+}
+
+/// Encoders.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorParams {
+    /// Motor encoder counts per revolution (2^20 = 1048576 is a common absolute encoder).
+    pub motor_counts_per_rev: u64,
+    /// Output encoder counts per revolution (2^20 or more; 0.1 mrad needs well under
+    /// 0.01 mrad per count, i.e. more than 6.3e5 counts).
+    pub output_counts_per_rev: u64,
+    /// Standard deviation of white motor-encoder noise, rad (0 to 2e-6).
+    #[serde(default)]
+    pub motor_noise_rad: f64,
+    /// Standard deviation of white output-encoder noise, rad (0 to 2e-6).
+    #[serde(default)]
+    pub output_noise_rad: f64,
+    /// Whether readings are quantised to whole counts (false gives continuous readings).
+    #[serde(default = "default_true")]
+    pub quantize: bool,
+    /// Seed of the noise generator; the same seed is used for every mode.
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+}
+
+fn default_true() -> bool {
+    true
+}
+fn default_seed() -> u64 {
+    1
+}
+
+impl Default for SensorParams {
+    fn default() -> Self {
+        SensorParams {
+            motor_counts_per_rev: 1 << 20,
+            output_counts_per_rev: 1 << 20,
+            motor_noise_rad: 0.0,
+            output_noise_rad: 0.0,
+            quantize: true,
+            seed: 1,
+        }
+    }
+}
+
+/// Sampled position controller. Gains act on the motor-angle error in rad (with output
+/// feedback the output error times `ic`), the output is a command in A or V.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControllerParams {
+    /// Sample rate with zero-order hold, Hz (10000 on the bench loop).
+    pub sample_rate_hz: f64,
+    /// Encoder that closes the loop.
+    #[serde(default)]
+    pub feedback: Feedback,
+    /// Proportional gain, command per rad (about 1000 A/rad for a 50 Hz loop).
+    pub kp: f64,
+    /// Integral gain, command per rad s (about 5e4 A/(rad s)).
+    #[serde(default)]
+    pub ki: f64,
+    /// Derivative gain, command s per rad (about 5 A s/rad); acts on the measurement.
+    #[serde(default)]
+    pub kd: f64,
+    /// Corner of the first-order derivative filter, Hz (about 1000).
+    #[serde(default = "default_derivative_filter")]
+    pub derivative_filter_hz: f64,
+    /// Velocity feedforward, command per rad/s of motor reference rate (viscous and
+    /// back-EMF terms; about 5e-4 A s/rad).
+    #[serde(default)]
+    pub velocity_feedforward: f64,
+    /// Acceleration feedforward, command per rad/s^2 of motor reference acceleration
+    /// (total reflected inertia over `Kt`, about 0.01 A s^2/rad).
+    #[serde(default)]
+    pub acceleration_feedforward: f64,
+    /// Whether the predicted transmitted torque (load model plus output inertia) is fed
+    /// forward as motor torque, in every mode.
+    #[serde(default)]
+    pub load_feedforward: bool,
+    /// Time over which the predicted brake torque reverses after the reference turns, s
+    /// (0.02). The real brake reverses only as the cable winds up; a gradual prediction
+    /// keeps the shifted reference free of steps.
+    #[serde(default = "default_brake_transition")]
+    pub brake_transition_s: f64,
+}
+
+fn default_derivative_filter() -> f64 {
+    1000.0
+}
+fn default_brake_transition() -> f64 {
+    0.02
+}
+
+impl Default for ControllerParams {
+    fn default() -> Self {
+        ControllerParams {
+            sample_rate_hz: 10_000.0,
+            feedback: Feedback::Motor,
+            kp: 1000.0,
+            ki: 5e4,
+            kd: 5.0,
+            derivative_filter_hz: default_derivative_filter(),
+            velocity_feedforward: 0.0,
+            acceleration_feedforward: 0.0,
+            load_feedforward: false,
+            brake_transition_s: default_brake_transition(),
+        }
+    }
+}
+
+/// Drive parameters of the compensator copy that differ from the plant's `[drive]` (to
+/// study model mismatch). Unset keys take the plant's value.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct DriveOverride {
+    /// Cable routing.
+    #[serde(default)]
+    pub routing: Option<Routing>,
+    /// Motor pulley radius, m.
+    #[serde(default)]
+    pub pulley_radius_m: Option<f64>,
+    /// Drum radius, m.
+    #[serde(default)]
+    pub drum_radius_m: Option<f64>,
+    /// Centre distance, m.
+    #[serde(default)]
+    pub center_distance_m: Option<f64>,
+    /// Cable tensile stiffness `E*A`, N (1.4e4 nominal).
+    #[serde(default)]
+    pub cable_modulus_n: Option<f64>,
+    /// Friction coefficient (0.2 nominal).
+    #[serde(default)]
+    pub friction_coefficient: Option<f64>,
+    /// Preload, N (100 nominal).
+    #[serde(default)]
+    pub preload_n: Option<f64>,
+    /// Drum wrap per half, rad.
+    #[serde(default)]
+    pub drum_wrap_rad: Option<f64>,
+    /// Total pulley wrap, rad.
+    #[serde(default)]
+    pub pulley_wrap_rad: Option<f64>,
+}
+
+impl DriveOverride {
+    /// The plant's parameters with these overrides applied.
+    pub fn apply(&self, base: &DriveParams) -> DriveParams {
+        DriveParams {
+            routing: self.routing.unwrap_or(base.routing),
+            pulley_radius_m: self.pulley_radius_m.unwrap_or(base.pulley_radius_m),
+            drum_radius_m: self.drum_radius_m.unwrap_or(base.drum_radius_m),
+            center_distance_m: self.center_distance_m.unwrap_or(base.center_distance_m),
+            cable_modulus_n: self.cable_modulus_n.unwrap_or(base.cable_modulus_n),
+            friction_coefficient: self
+                .friction_coefficient
+                .unwrap_or(base.friction_coefficient),
+            preload_n: self.preload_n.unwrap_or(base.preload_n),
+            drum_wrap_rad: self.drum_wrap_rad.unwrap_or(base.drum_wrap_rad),
+            pulley_wrap_rad: self.pulley_wrap_rad.unwrap_or(base.pulley_wrap_rad),
+        }
+    }
+}
+
+/// Closed-loop study (`[closed_loop]`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClosedLoopParams {
+    /// Simulated time, s (20 for two periods of a 0.1 Hz sine).
+    pub duration_s: f64,
+    /// Start of the metrics window, s; excludes start-up transients (2).
+    #[serde(default = "default_metrics_start")]
+    pub metrics_start_s: f64,
+    /// Pointing requirement on the output, mrad (0.1 for EOTS line of sight).
+    #[serde(default = "default_target")]
+    pub target_mrad: f64,
+    /// Band around the final value that counts as settled after a step, mrad; defaults to
+    /// `target_mrad`.
+    #[serde(default)]
+    pub settle_band_mrad: Option<f64>,
+    /// Compensation modes to simulate side by side.
+    #[serde(default = "default_modes")]
+    pub modes: Vec<CompensationMode>,
+    /// Desired output (drum) angle `r_out` against time, rad.
+    pub reference: Signal,
+    /// Cable law of the plant.
+    #[serde(default)]
+    pub cable: CableModel,
+    /// Damping ratio of the cable's structural damping on the first drive mode (0.02 to
+    /// 0.1); converted to a viscous term per half by
+    /// [`ClosedLoopParams::cable_damping_n_s_per_m`].
+    #[serde(default = "default_cable_damping")]
+    pub cable_damping_ratio: f64,
+    /// Fixed RK4 steps per control period (1 suffices when the fastest mode is well below
+    /// the sample rate; the validation says when more are needed).
+    #[serde(default = "default_substeps")]
+    pub rk4_substeps: u32,
+    /// Torque motor.
+    #[serde(default)]
+    pub motor: MotorParams,
+    /// Output drum and payload.
+    #[serde(default)]
+    pub output: OutputParams,
+    /// Encoders.
+    #[serde(default)]
+    pub sensors: SensorParams,
+    /// Sampled controller.
+    pub controller: ControllerParams,
+    /// Compensator cable parameters where they differ from the plant's `[drive]`.
+    #[serde(default)]
+    pub compensator_drive: Option<DriveOverride>,
+}
+
+fn default_metrics_start() -> f64 {
+    2.0
+}
+fn default_target() -> f64 {
+    0.1
+}
+fn default_modes() -> Vec<CompensationMode> {
+    vec![
+        CompensationMode::None,
+        CompensationMode::Memoryless,
+        CompensationMode::Memory,
+    ]
+}
+fn default_cable_damping() -> f64 {
+    0.05
+}
+fn default_substeps() -> u32 {
+    1
+}
+
+/// Linearised rates of the plant used for step-size and sample-rate checks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlantModes {
+    /// Small-signal stiffness of one cable half at preload, N/m (`G/Lf` plus wrap terms;
+    /// 1.8e5 on the bench).
+    pub half_stiffness_n_per_m: f64,
+    /// Drive mode with the drum free, rad/s.
+    pub free_mode_rad_s: f64,
+    /// Motor on the cable with the drum held by the brake, rad/s.
+    pub locked_mode_rad_s: f64,
+    /// Fastest rate of the plant (modes, electrical pole, friction linear zone), rad/s.
+    pub fastest_rad_s: f64,
+}
+
+impl ClosedLoopParams {
+    /// Small-signal stiffness of one half of the preloaded drive, N/m: the inverse of
+    /// `d elong / d T` at the preload (a virgin wrap adds nothing there, so this is `G/Lf`).
+    pub fn half_stiffness_n_per_m(drive: &DriveParams) -> f64 {
+        let d = CableDrive::new(drive.clone(), HysteresisModel::Memory);
+        1.0 / d.upper().trial(drive.preload_n).d_elongation_m_per_n
+    }
+
+    /// Linearised plant rates for the given drive.
+    pub fn plant_modes(&self, drive: &DriveParams) -> PlantModes {
+        let k = Self::half_stiffness_n_per_m(drive);
+        let (ri, ro) = (drive.pulley_radius_m, drive.drum_radius_m);
+        let jm = self.motor.inertia_kg_m2;
+        let jo = self.output.inertia_kg_m2;
+        // Both halves act in parallel on D = ri*theta_in - ro*theta_out.
+        let k_d = 2.0 * k;
+        let free = (k_d * (ri * ri / jm + ro * ro / jo)).sqrt();
+        let locked = (k_d * ri * ri / jm).sqrt();
+        let mut fastest = free.max(locked);
+        if self.motor.amplifier == Amplifier::Voltage {
+            fastest = fastest.max(self.motor.resistance_ohm / self.motor.inductance_h);
+        }
+        if self.motor.coulomb_nm > 0.0 {
+            fastest =
+                fastest.max(self.motor.coulomb_nm / (self.motor.coulomb_smoothing_rad_s * jm));
+        }
+        let c = self.cable_damping_n_s_per_m(drive);
+        fastest = fastest.max(2.0 * c * (ri * ri / jm + ro * ro / jo));
+        PlantModes {
+            half_stiffness_n_per_m: k,
+            free_mode_rad_s: free,
+            locked_mode_rad_s: locked,
+            fastest_rad_s: fastest,
+        }
+    }
+
+    /// Viscous coefficient of each half, N s/m (about 15 on the bench): the value that
+    /// gives the free drive mode the damping ratio `cable_damping_ratio`.
+    pub fn cable_damping_n_s_per_m(&self, drive: &DriveParams) -> f64 {
+        let k = Self::half_stiffness_n_per_m(drive);
+        let (ri, ro) = (drive.pulley_radius_m, drive.drum_radius_m);
+        let inv_m = ri * ri / self.motor.inertia_kg_m2 + ro * ro / self.output.inertia_kg_m2;
+        // Mode in D: D'' = -(2k D + 2c D') * inv_m, so 2c*inv_m = 2 zeta omega.
+        let omega = (2.0 * k * inv_m).sqrt();
+        self.cable_damping_ratio * omega / inv_m
+    }
+
+    /// Compensator drive parameters (plant's with the overrides).
+    pub fn compensator_params(&self, drive: &DriveParams) -> DriveParams {
+        match &self.compensator_drive {
+            Some(o) => o.apply(drive),
+            None => drive.clone(),
+        }
+    }
+
+    /// Number of control periods in the run.
+    pub fn periods(&self) -> u64 {
+        (self.duration_s * self.controller.sample_rate_hz).round() as u64
+    }
+
+    /// Check ranges and consistency; returns `(dotted key, message)` of the first problem.
+    pub fn validate(&self, drive: &DriveParams) -> Result<(), (String, String)> {
+        let key = |k: &str| format!("closed_loop.{k}");
+        let pos = |k: &str, v: f64| -> Result<(), (String, String)> {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err((key(k), format!("{v} must be a finite number > 0")))
+            }
+        };
+        let nonneg = |k: &str, v: f64| -> Result<(), (String, String)> {
+            if v.is_finite() && v >= 0.0 {
+                Ok(())
+            } else {
+                Err((key(k), format!("{v} must be a finite number >= 0")))
+            }
+        };
+        pos("duration_s", self.duration_s)?;
+        if self.duration_s > 1e5 {
+            return Err((
+                key("duration_s"),
+                format!("{} s is longer than 1e5 s", self.duration_s),
+            ));
+        }
+        nonneg("metrics_start_s", self.metrics_start_s)?;
+        if self.metrics_start_s >= self.duration_s {
+            return Err((
+                key("metrics_start_s"),
+                format!(
+                    "{} must be below duration_s = {} so the metrics window is not empty",
+                    self.metrics_start_s, self.duration_s
+                ),
+            ));
+        }
+        pos("target_mrad", self.target_mrad)?;
+        if let Some(b) = self.settle_band_mrad {
+            pos("settle_band_mrad", b)?;
+        }
+        if self.modes.is_empty() {
+            return Err((
+                key("modes"),
+                "list at least one of \"none\", \"memoryless\", \"memory\"".into(),
+            ));
+        }
+        for (i, m) in self.modes.iter().enumerate() {
+            if self.modes[..i].contains(m) {
+                return Err((key("modes"), format!("\"{}\" is listed twice", m.name())));
+            }
+        }
+        check_reference(&self.reference).map_err(|m| (key("reference"), m))?;
+        if !(self.cable_damping_ratio.is_finite()
+            && self.cable_damping_ratio >= 0.0
+            && self.cable_damping_ratio < 1.0)
+        {
+            return Err((
+                key("cable_damping_ratio"),
+                format!("{} must be in [0, 1)", self.cable_damping_ratio),
+            ));
+        }
+        if !(1..=1000).contains(&self.rk4_substeps) {
+            return Err((
+                key("rk4_substeps"),
+                format!("{} must be in 1..=1000", self.rk4_substeps),
+            ));
+        }
+        let m = &self.motor;
+        pos("motor.resistance_ohm", m.resistance_ohm)?;
+        pos("motor.inductance_h", m.inductance_h)?;
+        pos("motor.torque_constant_nm_per_a", m.torque_constant_nm_per_a)?;
+        pos("motor.back_emf_v_s_per_rad", m.back_emf())?;
+        pos("motor.inertia_kg_m2", m.inertia_kg_m2)?;
+        nonneg("motor.viscous_nm_s_per_rad", m.viscous_nm_s_per_rad)?;
+        nonneg("motor.coulomb_nm", m.coulomb_nm)?;
+        pos("motor.coulomb_smoothing_rad_s", m.coulomb_smoothing_rad_s)?;
+        if let Some(v) = m.current_limit_a {
+            pos("motor.current_limit_a", v)?;
+        }
+        if let Some(v) = m.voltage_limit_v {
+            pos("motor.voltage_limit_v", v)?;
+        }
+        pos("output.inertia_kg_m2", self.output.inertia_kg_m2)?;
+        nonneg(
+            "output.viscous_nm_s_per_rad",
+            self.output.viscous_nm_s_per_rad,
+        )?;
+        let s = &self.sensors;
+        if s.quantize {
+            for (k, v) in [
+                ("sensors.motor_counts_per_rev", s.motor_counts_per_rev),
+                ("sensors.output_counts_per_rev", s.output_counts_per_rev),
+            ] {
+                if v < 4 {
+                    return Err((key(k), format!("{v} must be at least 4 counts")));
+                }
+            }
+        }
+        nonneg("sensors.motor_noise_rad", s.motor_noise_rad)?;
+        nonneg("sensors.output_noise_rad", s.output_noise_rad)?;
+        let c = &self.controller;
+        pos("controller.sample_rate_hz", c.sample_rate_hz)?;
+        for (k, v) in [
+            ("controller.kp", c.kp),
+            ("controller.ki", c.ki),
+            ("controller.kd", c.kd),
+            ("controller.velocity_feedforward", c.velocity_feedforward),
+            (
+                "controller.acceleration_feedforward",
+                c.acceleration_feedforward,
+            ),
+            ("controller.brake_transition_s", c.brake_transition_s),
+        ] {
+            nonneg(k, v)?;
+        }
+        pos("controller.derivative_filter_hz", c.derivative_filter_hz)?;
+        let periods = self.duration_s * c.sample_rate_hz;
+        if periods > 1e9 {
+            return Err((
+                key("controller.sample_rate_hz"),
+                format!("{periods:.0} control periods is too many (at most 1e9); lower the rate or duration_s"),
+            ));
+        }
+        if periods < 2.0 {
+            return Err((
+                key("controller.sample_rate_hz"),
+                format!(
+                    "{periods:.1} control periods in duration_s: raise the rate or the duration"
+                ),
+            ));
+        }
+        if self.compensator_drive.is_some() {
+            self.compensator_params(drive).validate().map_err(|e| {
+                (
+                    key("compensator_drive"),
+                    e.to_string().replace("drive.", "compensator_drive."),
+                )
+            })?;
+        }
+        let modes = self.plant_modes(drive);
+        let fast_hz = modes.fastest_rad_s / std::f64::consts::TAU;
+        if c.sample_rate_hz < 10.0 * fast_hz {
+            return Err((
+                key("controller.sample_rate_hz"),
+                format!(
+                    "{} Hz is not well above the plant's fastest mode ({fast_hz:.0} Hz: drive mode {:.0} Hz, drum-held mode {:.0} Hz, electrical and friction rates included); use at least {:.0} Hz, or soften the fast element",
+                    c.sample_rate_hz,
+                    modes.free_mode_rad_s / std::f64::consts::TAU,
+                    modes.locked_mode_rad_s / std::f64::consts::TAU,
+                    10.0 * fast_hz
+                ),
+            ));
+        }
+        let h = 1.0 / (c.sample_rate_hz * f64::from(self.rk4_substeps));
+        if modes.fastest_rad_s * h > 1.0 {
+            return Err((
+                key("rk4_substeps"),
+                format!(
+                    "{} RK4 steps per period are too few for the fastest plant rate {:.0} rad/s: use at least {}",
+                    self.rk4_substeps,
+                    modes.fastest_rad_s,
+                    (modes.fastest_rad_s / c.sample_rate_hz).ceil()
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Like [`Signal::validate`], except that tables may still be empty: the I/O layer fills
+/// them after the scenario is parsed.
+fn check_reference(sig: &Signal) -> Result<(), String> {
+    match sig {
+        Signal::Table { .. } => Ok(()),
+        Signal::Sum { parts } => parts.iter().try_for_each(check_reference),
+        other => other.validate(),
+    }
+}

@@ -1,0 +1,468 @@
+//! Continuous-time plant: torque motor, cable drive as a history-dependent spring, output
+//! drum with its loads, and the brake's stick/slip state.
+//!
+//! State `x = [theta_m, omega_m, i, theta_o, omega_o]` (rad, rad/s, A, rad, rad/s).
+//! The cable's wrap memory is frozen during a control period and committed at its end, so
+//! the right-hand side is a pure function of `(t, x)` inside a period.
+
+use std::cell::Cell;
+
+use nalgebra::SVector;
+use ode_solvers::System;
+
+use super::params::{Amplifier, CableModel, ClosedLoopParams};
+use crate::physics::half::CableHalf;
+use crate::physics::newton::solve_increasing;
+use crate::physics::{
+    CableDrive, DriveFault, DriveParams, DriveState, Half, HysteresisModel, LoadParams,
+};
+
+/// Plant state vector.
+pub type State = SVector<f64, 5>;
+
+/// Index of the motor angle in [`State`].
+pub const THETA_M: usize = 0;
+/// Index of the motor speed.
+pub const OMEGA_M: usize = 1;
+/// Index of the winding current.
+pub const CURRENT: usize = 2;
+/// Index of the output angle.
+pub const THETA_O: usize = 3;
+/// Index of the output speed.
+pub const OMEGA_O: usize = 4;
+
+/// Where the last tension solve of one half ended: tension, its elongation target and
+/// the local stiffness `dT/d elong`, for a tangent-line first guess.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HalfGuess {
+    /// Span tension, N.
+    pub tension_n: f64,
+    /// Elongation target it solved, m.
+    pub elongation_m: f64,
+    /// Local stiffness, N/m.
+    pub stiffness_n_per_m: f64,
+}
+
+/// Warm start of the tension solves, carried from one evaluation to the next.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WarmStart {
+    /// Upper and lower half.
+    pub half: [HalfGuess; 2],
+    /// Evaluations of a half's elongation law so far (Newton iterations).
+    pub trials: u64,
+}
+
+impl WarmStart {
+    /// Starting from the preload with stiffness `k` (N/m).
+    pub fn new(preload_n: f64, k: f64) -> Self {
+        let g = HalfGuess {
+            tension_n: preload_n,
+            elongation_m: 0.0,
+            stiffness_n_per_m: k,
+        };
+        WarmStart {
+            half: [g, g],
+            trials: 0,
+        }
+    }
+
+    /// Re-anchor at committed tensions `(Tu, Tl)` for displacement `d`, keeping the
+    /// stiffnesses.
+    pub fn anchor(&mut self, d: f64, tensions: (f64, f64)) {
+        self.half[0].tension_n = tensions.0;
+        self.half[0].elongation_m = d;
+        self.half[1].tension_n = tensions.1;
+        self.half[1].elongation_m = -d;
+    }
+}
+
+/// Tension of one half whose elongation must equal `target` (m).
+///
+/// First guess on the tangent line through the last solution; one Newton step from
+/// there. Newton's error after a step is about `|f''/(2 f')| * step^2`, and for a cable
+/// half `|f''/f'| <= 1/(mu*T)`-ish (0.05 /N on the bench), so a step below `1e-6*T`
+/// leaves an error near 1e-12 relative: accepted without a second evaluation. Anything
+/// else goes to the safeguarded solver. `None` = no positive tension fits (slack).
+#[inline]
+fn solve_half(
+    half: &CableHalf,
+    target: f64,
+    g: &mut HalfGuess,
+    preload_n: f64,
+    trials: &mut u64,
+) -> Option<f64> {
+    let t0 = g.tension_n + (target - g.elongation_m) * g.stiffness_n_per_m;
+    if t0 > 0.0 && t0.is_finite() {
+        let tr = half.trial(t0);
+        *trials += 1;
+        let step = (tr.elongation_m - target) / tr.d_elongation_m_per_n;
+        let t1 = t0 - step;
+        if step.abs() <= 1e-6 * t1 && t1 > 0.0 {
+            *g = HalfGuess {
+                tension_n: t1,
+                elongation_m: target,
+                stiffness_n_per_m: 1.0 / tr.d_elongation_m_per_n,
+            };
+            return Some(t1);
+        }
+    }
+    let count = Cell::new(0u64);
+    let t = solve_increasing(
+        |t| {
+            count.set(count.get() + 1);
+            let tr = half.trial(t);
+            (tr.elongation_m - target, tr.d_elongation_m_per_n)
+        },
+        0.0,
+        g.tension_n,
+        preload_n,
+        1e-10,
+    )
+    .ok()?;
+    *trials += count.get();
+    let tr = half.trial(t);
+    *trials += 1;
+    *g = HalfGuess {
+        tension_n: t,
+        elongation_m: target,
+        stiffness_n_per_m: 1.0 / tr.d_elongation_m_per_n,
+    };
+    Some(t)
+}
+
+/// Whether the powder brake holds the drum.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum BrakeState {
+    /// Drum held: no output motion until the driving torque exceeds the breakaway torque.
+    Stuck,
+    /// Drum sliding in direction `+1` or `-1`; the brake opposes with the sliding torque.
+    Slipping(f64),
+}
+
+/// Cable law of the plant.
+// One instance per run, read on every RHS evaluation: kept inline rather than boxed.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug)]
+pub enum PlantCable {
+    /// Capstan model with memory.
+    Hysteretic(CableDrive),
+    /// Linear halves: `Tu = Tpre + k D`, `Tl = Tpre - k D`.
+    Linear {
+        /// Stiffness of each half, N/m.
+        k_n_per_m: f64,
+        /// Preload, N.
+        preload_n: f64,
+    },
+}
+
+impl PlantCable {
+    /// The plant cable for a scenario.
+    pub fn new(model: CableModel, drive: &DriveParams) -> Self {
+        match model {
+            CableModel::Hysteretic => {
+                PlantCable::Hysteretic(CableDrive::new(drive.clone(), HysteresisModel::Memory))
+            }
+            CableModel::Linear => PlantCable::Linear {
+                k_n_per_m: ClosedLoopParams::half_stiffness_n_per_m(drive),
+                preload_n: drive.preload_n,
+            },
+        }
+    }
+
+    /// Elastic span tensions `(Tu, Tl)` for displacement `D` (m), warm-started from
+    /// `warm` (updated); memory not committed.
+    #[inline]
+    pub fn tensions(&self, d: f64, warm: &mut WarmStart) -> Result<(f64, f64), DriveFault> {
+        match self {
+            PlantCable::Hysteretic(drive) => {
+                let pre = drive.params().preload_n;
+                let tu = solve_half(drive.upper(), d, &mut warm.half[0], pre, &mut warm.trials)
+                    .ok_or(DriveFault::Slack {
+                        half: Half::Upper,
+                        torque_nm: 0.0,
+                        needed_preload_n: pre,
+                    })?;
+                let tl = solve_half(drive.lower(), -d, &mut warm.half[1], pre, &mut warm.trials)
+                    .ok_or(DriveFault::Slack {
+                        half: Half::Lower,
+                        torque_nm: 0.0,
+                        needed_preload_n: pre,
+                    })?;
+                Ok((tu, tl))
+            }
+            PlantCable::Linear {
+                k_n_per_m,
+                preload_n,
+            } => {
+                let tu = preload_n + k_n_per_m * d;
+                let tl = preload_n - k_n_per_m * d;
+                if tu <= 0.0 || tl <= 0.0 {
+                    Err(DriveFault::Slack {
+                        half: if tu <= 0.0 { Half::Upper } else { Half::Lower },
+                        torque_nm: 0.0,
+                        needed_preload_n: k_n_per_m * d.abs(),
+                    })
+                } else {
+                    Ok((tu, tl))
+                }
+            }
+        }
+    }
+
+    /// Full check at a period boundary (slack and gross slip on the pulley) and commit of
+    /// the memory, warm-started like the right-hand side. Returns the elastic tensions.
+    pub fn commit(&mut self, d: f64, warm: &mut WarmStart) -> Result<(f64, f64), DriveFault> {
+        let (tu, tl) = self.tensions(d, warm)?;
+        if let PlantCable::Hysteretic(drive) = self {
+            let p = drive.params();
+            let (up, lo) = (drive.upper().trial(tu), drive.lower().trial(tl));
+            for (half, t, tr) in [(Half::Upper, tu, &up), (Half::Lower, tl, &lo)] {
+                if tr.pulley_neutral_reached {
+                    // Where the slip zone would end on an unlimited pulley wrap.
+                    let demanded = (t / p.preload_n).ln().abs() / p.friction_coefficient;
+                    return Err(DriveFault::GrossSlip {
+                        half,
+                        slip_angle_rad: demanded.max(tr.pulley_slip_rad),
+                        available_rad: 0.5 * p.pulley_wrap_rad,
+                        tension_n: t,
+                    });
+                }
+            }
+            let state = DriveState {
+                tension_upper_n: tu,
+                tension_lower_n: tl,
+                surface_displacement_m: d,
+                transmission_error_rad: -d / p.drum_radius_m,
+                elongation_upper_m: up.elongation_m,
+                elongation_lower_m: lo.elongation_m,
+                slip_angles_rad: [
+                    up.drum_slip_rad,
+                    up.pulley_slip_rad,
+                    lo.drum_slip_rad,
+                    lo.pulley_slip_rad,
+                ],
+                anchor_reached: [up.drum_anchor_reached, lo.drum_anchor_reached],
+            };
+            drive.commit_state(state);
+        }
+        Ok((tu, tl))
+    }
+}
+
+/// Constant coefficients of the plant equations.
+#[derive(Clone, Debug)]
+pub struct PlantCoefficients {
+    /// Pulley radius, m.
+    pub ri: f64,
+    /// Drum radius, m.
+    pub ro: f64,
+    /// Viscous coefficient per half, N s/m.
+    pub cable_damping: f64,
+    /// Motor parameters in SI units.
+    pub jm: f64,
+    /// Motor viscous friction, N m s/rad.
+    pub bm: f64,
+    /// Motor Coulomb friction, N m.
+    pub tcm: f64,
+    /// Motor friction smoothing speed, rad/s.
+    pub wcm: f64,
+    /// Torque constant, N m/A.
+    pub kt: f64,
+    /// Back-EMF constant, V s/rad.
+    pub ke: f64,
+    /// Resistance, ohm.
+    pub r: f64,
+    /// Inductance, H.
+    pub l: f64,
+    /// Whether the command is a voltage.
+    pub voltage_mode: bool,
+    /// Output inertia, kg m^2.
+    pub jo: f64,
+    /// Output viscous friction, N m s/rad.
+    pub bo: f64,
+    /// Sliding brake torque, N m.
+    pub brake: f64,
+    /// Breakaway brake torque, N m.
+    pub breakaway: f64,
+    /// Whether any smooth load (unbalance, constant, sine, series) is present; saves a
+    /// sine per evaluation when none is.
+    pub smooth_load: bool,
+}
+
+impl PlantCoefficients {
+    /// From the scenario parts.
+    pub fn new(p: &ClosedLoopParams, drive: &DriveParams, load: &LoadParams) -> Self {
+        PlantCoefficients {
+            ri: drive.pulley_radius_m,
+            ro: drive.drum_radius_m,
+            cable_damping: p.cable_damping_n_s_per_m(drive),
+            jm: p.motor.inertia_kg_m2,
+            bm: p.motor.viscous_nm_s_per_rad,
+            tcm: p.motor.coulomb_nm,
+            wcm: p.motor.coulomb_smoothing_rad_s,
+            kt: p.motor.torque_constant_nm_per_a,
+            ke: p.motor.back_emf(),
+            r: p.motor.resistance_ohm,
+            l: p.motor.inductance_h,
+            voltage_mode: p.motor.amplifier == Amplifier::Voltage,
+            jo: p.output.inertia_kg_m2,
+            bo: p.output.viscous_nm_s_per_rad,
+            brake: load.brake_nm,
+            breakaway: load.breakaway_nm(),
+            smooth_load: load.unbalance_nm != 0.0
+                || load.constant_nm != 0.0
+                || load.sine_nm != 0.0
+                || !load.disturbance.is_empty(),
+        }
+    }
+}
+
+/// Right-hand side for one control period, in scaled time: the integrator runs
+/// `tau = 0..N` with unit steps and `t = t0 + tau*h`, so exactly `N` RK4 steps land on
+/// the period's end without floating-point step counting.
+pub struct PeriodRhs<'a> {
+    /// Coefficients.
+    pub c: &'a PlantCoefficients,
+    /// Cable with memory frozen for the period.
+    pub cable: &'a PlantCable,
+    /// Loads (smooth part; the brake is handled by `brake`).
+    pub load: &'a LoadParams,
+    /// Brake state for the period.
+    pub brake: BrakeState,
+    /// Held command (V in voltage mode; ignored in current mode).
+    pub command: f64,
+    /// Period start time, s.
+    pub t0: f64,
+    /// Substep length, s.
+    pub h: f64,
+    /// Warm start of the tension solves (and their count).
+    pub warm: Cell<WarmStart>,
+    /// First fault met inside the period.
+    pub fault: Cell<Option<DriveFault>>,
+}
+
+/// Forces in the plant at one state, for records and the brake logic.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Forces {
+    /// Upper span tension including damping, N.
+    pub tension_upper_n: f64,
+    /// Lower span tension including damping, N.
+    pub tension_lower_n: f64,
+    /// Torque of the cable on the drum, `ro*(Tu - Tl)`, N m.
+    pub cable_torque_nm: f64,
+    /// Smooth load torque on the drum (unbalance, constant, sine, series), N m.
+    pub smooth_load_nm: f64,
+}
+
+/// Tensions including structural damping for elastic tensions `el` and state `x`.
+#[inline]
+pub fn damped(c: &PlantCoefficients, el: (f64, f64), x: &State) -> (f64, f64) {
+    let d_dot = c.ri * x[OMEGA_M] - c.ro * x[OMEGA_O];
+    let f = c.cable_damping * d_dot;
+    (el.0 + f, el.1 - f)
+}
+
+/// State derivative for tensions `(tu, tl)` (damping included).
+#[inline]
+pub fn derivative(
+    c: &PlantCoefficients,
+    x: &State,
+    tensions: (f64, f64),
+    smooth_load: f64,
+    brake: BrakeState,
+    command: f64,
+) -> State {
+    let f = tensions.0 - tensions.1;
+    let wm = x[OMEGA_M];
+    let friction = c.bm * wm + c.tcm * (wm / c.wcm).clamp(-1.0, 1.0);
+    let dwm = (c.kt * x[CURRENT] - friction - c.ri * f) / c.jm;
+    let di = if c.voltage_mode {
+        (command - c.r * x[CURRENT] - c.ke * wm) / c.l
+    } else {
+        0.0
+    };
+    let (dto, dwo) = match brake {
+        BrakeState::Stuck => (0.0, 0.0),
+        BrakeState::Slipping(dir) => (
+            x[OMEGA_O],
+            (c.ro * f + smooth_load - c.bo * x[OMEGA_O] - c.brake * dir) / c.jo,
+        ),
+    };
+    State::new(wm, dwm, di, dto, dwo)
+}
+
+impl System<f64, State> for &PeriodRhs<'_> {
+    #[inline]
+    fn system(&self, tau: f64, x: &State, dx: &mut State) {
+        let c = self.c;
+        let d = c.ri * x[THETA_M] - c.ro * x[THETA_O];
+        let mut warm = self.warm.get();
+        let el = match self.cable.tensions(d, &mut warm) {
+            Ok(t) => t,
+            Err(e) => {
+                if self.fault.get().is_none() {
+                    self.fault.set(Some(e));
+                }
+                *dx = State::zeros();
+                return;
+            }
+        };
+        self.warm.set(warm);
+        let t = self.t0 + tau * self.h;
+        let smooth = if c.smooth_load {
+            self.load.smooth_torque_nm(t, x[THETA_O])
+        } else {
+            0.0
+        };
+        let dxt = derivative(c, x, damped(c, el, x), smooth, self.brake, self.command);
+        *dx = dxt * self.h;
+    }
+}
+
+/// Stick/slip decision at a period boundary, given the driving torque on the drum
+/// (`cable + smooth load`, N m) and the state (output speed may be reset to 0).
+///
+/// Stuck -> slipping only when the driving torque exceeds the breakaway torque; slipping
+/// -> stuck only when the speed has reached or crossed zero and the driving torque is
+/// below it. A reversal therefore always passes through `Stuck` and needs the full
+/// breakaway torque the other way, so the drum cannot chatter between directions. The
+/// overshoot of a speed crossing inside a period (at most `brake*T/Jo` in speed) is
+/// removed by resetting the speed to zero.
+pub fn update_brake(
+    c: &PlantCoefficients,
+    state: BrakeState,
+    driving_nm: f64,
+    x: &mut State,
+) -> BrakeState {
+    if c.breakaway <= 0.0 {
+        // No brake: always free; the direction is irrelevant.
+        return BrakeState::Slipping(1.0);
+    }
+    let from_rest = |x: &mut State| {
+        x[OMEGA_O] = 0.0;
+        if driving_nm.abs() > c.breakaway {
+            BrakeState::Slipping(driving_nm.signum())
+        } else {
+            BrakeState::Stuck
+        }
+    };
+    match state {
+        BrakeState::Stuck => from_rest(x),
+        BrakeState::Slipping(dir) => {
+            if x[OMEGA_O] * dir > 0.0 {
+                state
+            } else {
+                from_rest(x)
+            }
+        }
+    }
+}
+
+/// Load torque the brake and the other loads put on the drum, N m (reaction of a held
+/// brake included), for records.
+pub fn load_torque(c: &PlantCoefficients, brake: BrakeState, f: &Forces) -> f64 {
+    match brake {
+        BrakeState::Stuck => -f.cable_torque_nm,
+        BrakeState::Slipping(dir) => f.smooth_load_nm - c.brake * dir,
+    }
+}

@@ -1,0 +1,334 @@
+//! Files of a closed-loop run: `timeseries.csv`, `summary.json`, a text table, and the
+//! chart descriptions for the plot module.
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use super::sim::{ClosedLoopResult, Completion, ModeResult, SolverStats, TimeSeries};
+use crate::metrics::Metrics;
+use crate::plot::{save_chart, Chart, HBand, PlotError, Series};
+use crate::scenario::Scenario;
+
+/// Why outputs could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// File system error.
+    #[error("cannot write {path}: {source}")]
+    Io {
+        /// File path.
+        path: PathBuf,
+        /// Underlying error.
+        source: std::io::Error,
+    },
+    /// CSV encoding error.
+    #[error("cannot write {path}: {source}")]
+    Csv {
+        /// File path.
+        path: PathBuf,
+        /// Underlying error.
+        source: csv::Error,
+    },
+    /// JSON encoding error.
+    #[error("cannot encode {path}: {source}")]
+    Json {
+        /// File path.
+        path: PathBuf,
+        /// Underlying error.
+        source: serde_json::Error,
+    },
+}
+
+/// Header of `timeseries.csv` (units in the names); the command column is
+/// `motor_command_a` with a current amplifier and `motor_command_v` with a voltage one.
+pub const TIMESERIES_HEADER: [&str; 12] = [
+    "mode",
+    "t_s",
+    "reference_rad",
+    "motor_angle_rad",
+    "output_angle_rad",
+    "pointing_error_mrad",
+    "transmission_error_mrad",
+    "tension_upper_n",
+    "tension_lower_n",
+    "motor_command_a",
+    "motor_current_a",
+    "load_torque_nm",
+];
+
+#[derive(Serialize)]
+struct ModeSummary<'a> {
+    name: &'static str,
+    rms_mrad: f64,
+    peak_mrad: f64,
+    p95_mrad: f64,
+    within_target_fraction: f64,
+    passes_target: bool,
+    metrics: &'a Metrics,
+    solver: &'a SolverStats,
+    completion: &'a Completion,
+    simulated_s: f64,
+}
+
+#[derive(Serialize)]
+struct Summary<'a> {
+    program_version: &'static str,
+    scenario_name: &'a str,
+    simulated_s: f64,
+    duration_s: f64,
+    complete: bool,
+    command_unit: &'static str,
+    modes: Vec<ModeSummary<'a>>,
+    solver: SolverStats,
+    scenario: &'a Scenario,
+}
+
+fn mode_summary(m: &ModeResult) -> ModeSummary<'_> {
+    ModeSummary {
+        name: m.mode.name(),
+        rms_mrad: m.metrics.rms_mrad,
+        peak_mrad: m.metrics.peak_mrad,
+        p95_mrad: m.metrics.p95_mrad,
+        within_target_fraction: m.metrics.within_target_fraction,
+        passes_target: m.metrics.passes_target,
+        metrics: &m.metrics,
+        solver: &m.stats,
+        completion: &m.completion,
+        simulated_s: m.simulated_s,
+    }
+}
+
+/// Write `timeseries.csv` (all modes, with a `mode` column; only modes that were
+/// recorded) and `summary.json` into `dir` (created if missing). Returns the paths.
+pub fn write_closed_loop_outputs(
+    dir: &Path,
+    scenario: &Scenario,
+    result: &ClosedLoopResult,
+) -> Result<Vec<PathBuf>, ReportError> {
+    std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let mut written = Vec::new();
+    let command_unit = match scenario.closed_loop.as_ref().map(|p| p.motor.amplifier) {
+        Some(super::Amplifier::Voltage) => "V",
+        _ => "A",
+    };
+    if result.modes.iter().any(|m| m.series.is_some()) {
+        let path = dir.join("timeseries.csv");
+        let csv_err = |source| ReportError::Csv {
+            path: path.clone(),
+            source,
+        };
+        let mut w = csv::Writer::from_path(&path).map_err(csv_err)?;
+        let mut header = TIMESERIES_HEADER;
+        if command_unit == "V" {
+            header[9] = "motor_command_v";
+        }
+        w.write_record(header).map_err(csv_err)?;
+        for m in &result.modes {
+            let Some(s) = &m.series else { continue };
+            for i in 0..s.len() {
+                let cols = [
+                    s.t_s[i],
+                    s.reference_rad[i],
+                    s.motor_angle_rad[i],
+                    s.output_angle_rad[i],
+                    s.pointing_error_mrad[i],
+                    s.transmission_error_mrad[i],
+                    s.tension_upper_n[i],
+                    s.tension_lower_n[i],
+                    s.motor_command[i],
+                    s.motor_current_a[i],
+                    s.load_torque_nm[i],
+                ];
+                let mut row = Vec::with_capacity(12);
+                row.push(m.mode.name().to_string());
+                row.extend(cols.iter().map(|v| format!("{v:.10e}")));
+                w.write_record(&row).map_err(csv_err)?;
+            }
+        }
+        w.flush().map_err(|source| ReportError::Io {
+            path: path.clone(),
+            source,
+        })?;
+        written.push(path);
+    }
+    let total = result
+        .modes
+        .iter()
+        .fold(SolverStats::default(), |a, m| SolverStats {
+            periods: a.periods + m.stats.periods,
+            steps: a.steps + m.stats.steps,
+            rhs_evaluations: a.rhs_evaluations + m.stats.rhs_evaluations,
+            newton_evaluations: a.newton_evaluations + m.stats.newton_evaluations,
+            rejected_steps: a.rejected_steps + m.stats.rejected_steps,
+            compensator_faults: a.compensator_faults + m.stats.compensator_faults,
+            wall_s: a.wall_s + m.stats.wall_s,
+        });
+    let summary = Summary {
+        program_version: env!("CARGO_PKG_VERSION"),
+        scenario_name: scenario.name(),
+        simulated_s: result
+            .modes
+            .iter()
+            .map(|m| m.simulated_s)
+            .fold(f64::INFINITY, f64::min)
+            .min(result.duration_s),
+        duration_s: result.duration_s,
+        complete: result.complete,
+        command_unit,
+        modes: result.modes.iter().map(mode_summary).collect(),
+        solver: total,
+        scenario,
+    };
+    let path = dir.join("summary.json");
+    let text = serde_json::to_string_pretty(&summary).map_err(|source| ReportError::Json {
+        path: path.clone(),
+        source,
+    })?;
+    std::fs::write(&path, text).map_err(|source| ReportError::Io {
+        path: path.clone(),
+        source,
+    })?;
+    written.push(path);
+    Ok(written)
+}
+
+/// Fixed-width table: mode, RMS, peak, p95 (mrad), whether it passes, and completion.
+pub fn format_table(result: &ClosedLoopResult) -> String {
+    let mut out = format!(
+        "{:<12} {:>10} {:>10} {:>10} {:>8}  {}\n",
+        "mode", "rms_mrad", "peak_mrad", "p95_mrad", "passes", "status"
+    );
+    for m in &result.modes {
+        let status = match &m.completion {
+            Completion::Complete => "complete".to_string(),
+            Completion::Incomplete { fault, .. } => format!("INCOMPLETE: {fault}"),
+        };
+        out.push_str(&format!(
+            "{:<12} {:>10.5} {:>10.5} {:>10.5} {:>8}  {}\n",
+            m.mode.name(),
+            m.metrics.rms_mrad,
+            m.metrics.peak_mrad,
+            m.metrics.p95_mrad,
+            if m.metrics.passes_target { "yes" } else { "no" },
+            status
+        ));
+    }
+    out
+}
+
+/// The closed-loop charts as `(file stem, chart)`: pointing error of every mode against
+/// time with the +-target band, pointing error against output angle, span tensions and
+/// motor command. Built from recorded series only (empty when nothing was recorded).
+pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(String, Chart)> {
+    let recorded: Vec<(&str, &TimeSeries)> = result
+        .modes
+        .iter()
+        .filter_map(|m| m.series.as_ref().map(|s| (m.mode.name(), s)))
+        .collect();
+    if recorded.is_empty() {
+        return Vec::new();
+    }
+    let band = || {
+        vec![HBand {
+            lo: -target_mrad,
+            hi: target_mrad,
+            label: format!("target +-{target_mrad} mrad"),
+        }]
+    };
+    let curves = |f: &Columns, suffix: &str| -> Vec<Series> {
+        recorded
+            .iter()
+            .map(|(name, s)| {
+                let (x, y) = f(s);
+                Series::line(format!("{name}{suffix}"), x, y)
+            })
+            .collect()
+    };
+    let chart = |title: &str, x_label: &str, y_label: &str, series, bands| Chart {
+        title: title.into(),
+        x_label: x_label.into(),
+        y_label: y_label.into(),
+        series,
+        bands,
+        ..Chart::default()
+    };
+    let mut tensions = curves(&|s| (s.t_s.clone(), s.tension_upper_n.clone()), " upper");
+    tensions.extend(curves(
+        &|s| (s.t_s.clone(), s.tension_lower_n.clone()),
+        " lower",
+    ));
+    // Commands are held between samples: drawn as staircases.
+    let commands = recorded
+        .iter()
+        .map(|(name, s)| Series::step(*name, s.t_s.clone(), s.motor_command.clone()))
+        .collect();
+    vec![
+        (
+            "pointing_error".into(),
+            chart(
+                "Pointing error",
+                "time [s]",
+                "pointing error [mrad]",
+                curves(&|s| (s.t_s.clone(), s.pointing_error_mrad.clone()), ""),
+                band(),
+            ),
+        ),
+        (
+            "error_vs_angle".into(),
+            chart(
+                "Pointing error against output angle",
+                "output angle [mrad]",
+                "pointing error [mrad]",
+                curves(
+                    &|s| {
+                        (
+                            s.output_angle_rad.iter().map(|v| v * 1e3).collect(),
+                            s.pointing_error_mrad.clone(),
+                        )
+                    },
+                    "",
+                ),
+                band(),
+            ),
+        ),
+        (
+            "tensions".into(),
+            chart(
+                "Span tensions",
+                "time [s]",
+                "tension [N]",
+                tensions,
+                Vec::new(),
+            ),
+        ),
+        (
+            "motor_command".into(),
+            chart(
+                "Motor command",
+                "time [s]",
+                "command [A or V]",
+                commands,
+                Vec::new(),
+            ),
+        ),
+    ]
+}
+
+/// Picks the `(x, y)` columns of a chart from a series.
+type Columns = dyn Fn(&TimeSeries) -> (Vec<f64>, Vec<f64>);
+
+/// Draw the closed-loop charts into `dir` (PNG and SVG each); returns the files.
+pub fn plot_closed_loop(
+    dir: &Path,
+    result: &ClosedLoopResult,
+    target_mrad: f64,
+) -> Result<Vec<PathBuf>, PlotError> {
+    let mut files = Vec::new();
+    for (stem, chart) in closed_loop_charts(result, target_mrad) {
+        files.extend(save_chart(&chart, &dir.join(stem))?);
+    }
+    Ok(files)
+}

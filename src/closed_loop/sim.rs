@@ -1,0 +1,559 @@
+//! The sample-and-hold loop: plant integrated over each control period with the command
+//! held, the integrator restarted at every sample, memory committed at period boundaries.
+
+use std::time::Instant;
+
+use ode_solvers::Rk4;
+use serde::{Deserialize, Serialize};
+
+use super::controller::{BrakePredictor, Compensator, Pid, Sensors};
+use super::params::{Amplifier, ClosedLoopParams, CompensationMode, Feedback};
+use super::plant::{
+    damped, load_torque, update_brake, BrakeState, Forces, PeriodRhs, PlantCable,
+    PlantCoefficients, State, WarmStart, CURRENT, OMEGA_O, THETA_M, THETA_O,
+};
+use crate::metrics::{Metrics, MetricsAccumulator, MetricsConfig, Sample, StepEvent};
+use crate::physics::{DriveFault, Half};
+use crate::scenario::{Scenario, Study};
+use crate::signal::Signal;
+
+/// What to keep from a run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunOptions {
+    /// Keep the time series (false for sweeps: metrics only, no per-sample storage).
+    pub record: bool,
+    /// Keep every n-th sample of the series (1 = all); metrics always use every sample.
+    pub decimation: usize,
+    /// Run only these modes (those of the scenario that are listed here); `None` = all.
+    pub modes: Option<Vec<CompensationMode>>,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        RunOptions {
+            record: true,
+            decimation: 1,
+            modes: None,
+        }
+    }
+}
+
+impl RunOptions {
+    /// Metrics only, every mode: what a sweep case needs.
+    pub fn metrics_only() -> Self {
+        RunOptions {
+            record: false,
+            ..RunOptions::default()
+        }
+    }
+}
+
+/// Why a closed-loop run could not start.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ClosedLoopError {
+    /// The scenario is not a closed-loop study.
+    #[error("scenario study is {study:?}: a closed-loop run needs study = \"closed_loop\" and a [closed_loop] section")]
+    NotClosedLoop {
+        /// The scenario's study.
+        study: Study,
+    },
+    /// A parameter out of range or inconsistent.
+    #[error("{key}: {message}")]
+    Invalid {
+        /// Dotted scenario key.
+        key: String,
+        /// What is wrong and what is allowed.
+        message: String,
+    },
+    /// A CSV table named in the scenario has not been loaded.
+    #[error("{key}: the table {path} holds no samples; load it with io::tables::load_tables before running")]
+    TableNotLoaded {
+        /// Dotted scenario key.
+        key: String,
+        /// File named in the scenario.
+        path: String,
+    },
+    /// The mode filter leaves nothing to run.
+    #[error("none of the requested modes {requested} is listed in closed_loop.modes")]
+    NoModes {
+        /// The filter.
+        requested: String,
+    },
+}
+
+/// How a mode's run ended.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "status", rename_all = "snake_case")]
+pub enum Completion {
+    /// Ran to the end.
+    Complete,
+    /// Stopped early by a physical fault of the plant.
+    Incomplete {
+        /// What happened and what to change.
+        fault: String,
+        /// When, s.
+        time_s: f64,
+    },
+}
+
+/// Integration statistics of one mode.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SolverStats {
+    /// Control periods simulated.
+    pub periods: u64,
+    /// RK4 steps taken.
+    pub steps: u64,
+    /// Right-hand-side evaluations (each solves both span tensions by Newton).
+    pub rhs_evaluations: u64,
+    /// Evaluations of a cable half's elongation law inside the right-hand side (Newton
+    /// iterations of the tension solves; 0 for the linear cable).
+    pub newton_evaluations: u64,
+    /// Rejected steps (always 0 with fixed-step RK4; kept for adaptive solvers).
+    pub rejected_steps: u64,
+    /// Samples at which the compensator's own model faulted and held its prediction.
+    pub compensator_faults: u64,
+    /// Wall-clock time of the mode, s.
+    pub wall_s: f64,
+}
+
+/// Sampled time series of one mode (one row per kept control sample).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TimeSeries {
+    /// Sample time, s.
+    pub t_s: Vec<f64>,
+    /// Desired output angle, rad.
+    pub reference_rad: Vec<f64>,
+    /// Motor angle, rad.
+    pub motor_angle_rad: Vec<f64>,
+    /// Output angle, rad.
+    pub output_angle_rad: Vec<f64>,
+    /// Pointing error `theta_out - r_out`, mrad.
+    pub pointing_error_mrad: Vec<f64>,
+    /// Transmission error `theta_out - theta_m/ic`, mrad.
+    pub transmission_error_mrad: Vec<f64>,
+    /// Upper span tension (damping included), N.
+    pub tension_upper_n: Vec<f64>,
+    /// Lower span tension, N.
+    pub tension_lower_n: Vec<f64>,
+    /// Held command, A or V.
+    pub motor_command: Vec<f64>,
+    /// Winding current, A.
+    pub motor_current_a: Vec<f64>,
+    /// Torque of the loads on the drum (brake reaction included), N m.
+    pub load_torque_nm: Vec<f64>,
+}
+
+impl TimeSeries {
+    fn with_capacity(n: usize) -> Self {
+        let v = || Vec::with_capacity(n);
+        TimeSeries {
+            t_s: v(),
+            reference_rad: v(),
+            motor_angle_rad: v(),
+            output_angle_rad: v(),
+            pointing_error_mrad: v(),
+            transmission_error_mrad: v(),
+            tension_upper_n: v(),
+            tension_lower_n: v(),
+            motor_command: v(),
+            motor_current_a: v(),
+            load_torque_nm: v(),
+        }
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.t_s.len()
+    }
+
+    /// Whether empty.
+    pub fn is_empty(&self) -> bool {
+        self.t_s.is_empty()
+    }
+}
+
+/// Result of one compensation mode.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ModeResult {
+    /// The mode.
+    pub mode: CompensationMode,
+    /// Metrics over the window.
+    pub metrics: Metrics,
+    /// Solver statistics.
+    pub stats: SolverStats,
+    /// Completion status.
+    pub completion: Completion,
+    /// Simulated time reached, s.
+    pub simulated_s: f64,
+    /// Time series (`None` when not recorded).
+    pub series: Option<TimeSeries>,
+}
+
+/// Result of a closed-loop run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ClosedLoopResult {
+    /// Per mode, in scenario order.
+    pub modes: Vec<ModeResult>,
+    /// Requested simulated time, s.
+    pub duration_s: f64,
+    /// Whether every mode ran to the end.
+    pub complete: bool,
+}
+
+fn closed_loop_params(scenario: &Scenario) -> Result<&ClosedLoopParams, ClosedLoopError> {
+    match (&scenario.study, &scenario.closed_loop) {
+        (Study::ClosedLoop, Some(p)) => Ok(p),
+        (study, _) => Err(ClosedLoopError::NotClosedLoop { study: *study }),
+    }
+}
+
+fn check_tables(signal: &Signal) -> Result<(), ClosedLoopError> {
+    match signal {
+        Signal::Table { path, samples, .. } if samples.is_empty() => {
+            Err(ClosedLoopError::TableNotLoaded {
+                key: "closed_loop.reference".into(),
+                path: path.clone(),
+            })
+        }
+        Signal::Sum { parts } => parts.iter().try_for_each(check_tables),
+        _ => Ok(()),
+    }
+}
+
+/// Reference steps for step metrics (plain steps and step-and-stare staircases).
+pub fn step_events(signal: &Signal, duration_s: f64) -> Vec<StepEvent> {
+    match signal {
+        Signal::Step {
+            amplitude_rad,
+            time_s,
+        } => vec![StepEvent {
+            time_s: *time_s,
+            from_rad: 0.0,
+            to_rad: *amplitude_rad,
+        }],
+        Signal::StepStare { period_s, .. } => {
+            let n = (duration_s / period_s).floor() as u64;
+            (1..=n)
+                .map(|j| {
+                    let t = j as f64 * period_s;
+                    StepEvent {
+                        time_s: t,
+                        from_rad: signal.at(t - 0.5 * period_s).value,
+                        to_rad: signal.at(t + 0.5 * period_s).value,
+                    }
+                })
+                .filter(|e| e.time_s < duration_s)
+                .collect()
+        }
+        _ => Vec::new(),
+    }
+}
+
+/// Run the closed loop of a scenario for every selected compensation mode.
+pub fn run_closed_loop(
+    scenario: &Scenario,
+    options: &RunOptions,
+) -> Result<ClosedLoopResult, ClosedLoopError> {
+    let p = closed_loop_params(scenario)?;
+    p.validate(&scenario.drive)
+        .map_err(|(key, message)| ClosedLoopError::Invalid { key, message })?;
+    scenario
+        .drive
+        .validate()
+        .map_err(|e| ClosedLoopError::Invalid {
+            key: "drive".into(),
+            message: e.to_string(),
+        })?;
+    scenario
+        .load
+        .validate()
+        .map_err(|(k, message)| ClosedLoopError::Invalid {
+            key: format!("load.{k}"),
+            message,
+        })?;
+    check_tables(&p.reference)?;
+    if let (Some(path), true) = (
+        &scenario.load.disturbance_csv,
+        scenario.load.disturbance.is_empty(),
+    ) {
+        return Err(ClosedLoopError::TableNotLoaded {
+            key: "load.disturbance_csv".into(),
+            path: path.clone(),
+        });
+    }
+    let modes: Vec<CompensationMode> = p
+        .modes
+        .iter()
+        .copied()
+        .filter(|m| options.modes.as_ref().is_none_or(|f| f.contains(m)))
+        .collect();
+    if modes.is_empty() {
+        return Err(ClosedLoopError::NoModes {
+            requested: format!("{:?}", options.modes),
+        });
+    }
+    let results: Vec<ModeResult> = modes
+        .iter()
+        .map(|&m| run_mode(scenario, p, m, options))
+        .collect();
+    Ok(ClosedLoopResult {
+        complete: results.iter().all(|r| r.completion == Completion::Complete),
+        modes: results,
+        duration_s: p.duration_s,
+    })
+}
+
+/// Metrics of every mode without time series: the cheap call for one sweep case.
+pub fn run_closed_loop_metrics(scenario: &Scenario) -> Result<ClosedLoopResult, ClosedLoopError> {
+    run_closed_loop(scenario, &RunOptions::metrics_only())
+}
+
+/// Fault message with time and mode. A slack span found while solving by displacement
+/// carries no torque; the transmitted torque at the last sample fills it in, so the
+/// message can say how much preload would carry the load.
+fn describe(
+    fault: &DriveFault,
+    t: f64,
+    mode: CompensationMode,
+    cable_torque_nm: f64,
+    drum_radius_m: f64,
+) -> String {
+    let mut hint = "";
+    let fault = match *fault {
+        DriveFault::Slack { half, .. } => {
+            // Positive torque tightens the upper span: a slack span on the tight side's
+            // opposite is expected, the other way round means the tension swung through
+            // a whole preload within one period.
+            let swung = (half == Half::Upper) == (cable_torque_nm > 0.0);
+            if swung {
+                hint = "; the tensions swung within one period, so the loop is likely unstable: lower the controller gains";
+            }
+            DriveFault::Slack {
+                half,
+                torque_nm: cable_torque_nm,
+                needed_preload_n: cable_torque_nm.abs() / (2.0 * drum_radius_m),
+            }
+        }
+        other => other,
+    };
+    format!(
+        "plant cable fault at t = {t:.4} s (mode {}): {fault}{hint}",
+        mode.name()
+    )
+}
+
+fn run_mode(
+    scenario: &Scenario,
+    p: &ClosedLoopParams,
+    mode: CompensationMode,
+    options: &RunOptions,
+) -> ModeResult {
+    let wall = Instant::now();
+    let drive = &scenario.drive;
+    let load = &scenario.load;
+    let ic = drive.ratio();
+    let ts = 1.0 / p.controller.sample_rate_hz;
+    let n = p.periods();
+    let sub = p.rk4_substeps;
+    let coeff = PlantCoefficients::new(p, drive, load);
+    let mut cable = PlantCable::new(p.cable, drive);
+    let mut sensors = Sensors::new(&p.sensors);
+    let mut pid = Pid::new(&p.controller, p.motor.command_limit());
+    let mut comp = mode
+        .model()
+        .map(|m| Compensator::new(p.compensator_params(drive), m));
+    let mut brake_pred = BrakePredictor::new(
+        load.brake_nm,
+        load.breakaway_nm(),
+        p.controller.brake_transition_s,
+        ts,
+    );
+    let voltage_mode = p.motor.amplifier == Amplifier::Voltage;
+    let c = &p.controller;
+
+    let mut metrics = MetricsAccumulator::new(MetricsConfig {
+        window_start_s: p.metrics_start_s,
+        window_end_s: f64::INFINITY,
+        target_mrad: p.target_mrad,
+        settle_band_mrad: p.settle_band_mrad.unwrap_or(p.target_mrad),
+        steps: step_events(&p.reference, p.duration_s),
+    });
+    let decimation = options.decimation.max(1) as u64;
+    let mut series = options
+        .record
+        .then(|| TimeSeries::with_capacity((n / decimation + 1) as usize));
+
+    let mut x = State::zeros();
+    let mut brake = BrakeState::Stuck;
+    let mut prev_ref = p.reference.at(0.0).value;
+    let mut prev_e_pred = 0.0;
+    let mut stats = SolverStats::default();
+    let mut completion = Completion::Complete;
+    let mut reached = 0.0;
+    let mut last_torque = 0.0;
+    let mut warm = WarmStart::new(
+        drive.preload_n,
+        ClosedLoopParams::half_stiffness_n_per_m(drive),
+    );
+
+    for k in 0..=n {
+        let t = k as f64 * ts;
+        let d = coeff.ri * x[THETA_M] - coeff.ro * x[THETA_O];
+        let el = match cable.commit(d, &mut warm) {
+            Ok(el) => el,
+            Err(f) => {
+                completion = Completion::Incomplete {
+                    fault: describe(&f, t, mode, last_torque, coeff.ro),
+                    time_s: t,
+                };
+                break;
+            }
+        };
+        let (tu, tl) = damped(&coeff, el, &x);
+        let forces = Forces {
+            tension_upper_n: tu,
+            tension_lower_n: tl,
+            cable_torque_nm: coeff.ro * (tu - tl),
+            smooth_load_nm: if coeff.smooth_load {
+                load.smooth_torque_nm(t, x[THETA_O])
+            } else {
+                0.0
+            },
+        };
+        last_torque = forces.cable_torque_nm;
+        brake = update_brake(
+            &coeff,
+            brake,
+            forces.cable_torque_nm + forces.smooth_load_nm,
+            &mut x,
+        );
+
+        // Controller at t_k.
+        let ym = sensors.motor.read(x[THETA_M], &mut sensors.rng);
+        let yo = sensors.output.read(x[THETA_O], &mut sensors.rng);
+        let r = p.reference.at(t);
+        let delta = if r.rate != 0.0 {
+            r.rate
+        } else {
+            r.value - prev_ref
+        };
+        prev_ref = r.value;
+        let m_brake = brake_pred.update(delta);
+        let m_pred =
+            m_brake - load.smooth_torque_nm(t, r.value) + coeff.jo * r.accel + coeff.bo * r.rate;
+        let e_pred = comp.as_mut().map_or(0.0, |cp| cp.predict(m_pred));
+        let r_m = ic * (r.value - e_pred);
+        let shift_rate = if k > 0 {
+            -ic * (e_pred - prev_e_pred) / ts
+        } else {
+            0.0
+        };
+        prev_e_pred = e_pred;
+        let mut u_ff = c.velocity_feedforward * (ic * r.rate + shift_rate)
+            + c.acceleration_feedforward * ic * r.accel;
+        if c.load_feedforward {
+            let i_ff = m_pred / (ic * coeff.kt);
+            u_ff += if voltage_mode { coeff.r * i_ff } else { i_ff };
+        }
+        let (rr, yy) = match c.feedback {
+            Feedback::Motor => (r_m, ym),
+            Feedback::Output => (ic * r.value, ic * yo),
+        };
+        let u = pid.update(rr, yy, u_ff);
+        if !voltage_mode {
+            x[CURRENT] = u;
+        }
+
+        let sample = Sample {
+            t_s: t,
+            reference_rad: r.value,
+            output_rad: x[THETA_O],
+            transmission_error_rad: Some(x[THETA_O] - x[THETA_M] / ic),
+            command: Some(u),
+            current_a: Some(x[CURRENT]),
+        };
+        metrics.push(&sample);
+        if let Some(s) = series.as_mut().filter(|_| k % decimation == 0) {
+            s.t_s.push(t);
+            s.reference_rad.push(r.value);
+            s.motor_angle_rad.push(x[THETA_M]);
+            s.output_angle_rad.push(x[THETA_O]);
+            s.pointing_error_mrad.push((x[THETA_O] - r.value) * 1e3);
+            s.transmission_error_mrad
+                .push((x[THETA_O] - x[THETA_M] / ic) * 1e3);
+            s.tension_upper_n.push(tu);
+            s.tension_lower_n.push(tl);
+            s.motor_command.push(u);
+            s.motor_current_a.push(x[CURRENT]);
+            s.load_torque_nm.push(load_torque(&coeff, brake, &forces));
+        }
+        reached = t;
+        if k == n {
+            break;
+        }
+
+        // Plant over [t_k, t_k+1) with u_k held; the integrator restarts here.
+        let rhs = PeriodRhs {
+            c: &coeff,
+            cable: &cable,
+            load,
+            brake,
+            command: u,
+            t0: t,
+            h: ts / f64::from(sub),
+            warm: std::cell::Cell::new(warm),
+            fault: std::cell::Cell::new(None),
+        };
+        let mut solver = Rk4::new(&rhs, 0.0, x, f64::from(sub), 1.0);
+        // Rk4 never fails; a cable fault is reported through the RHS.
+        let st = solver
+            .integrate()
+            .unwrap_or(ode_solvers::dop_shared::Stats {
+                num_eval: 0,
+                accepted_steps: 0,
+                rejected_steps: 0,
+            });
+        stats.steps += u64::from(st.accepted_steps);
+        stats.rhs_evaluations += u64::from(st.num_eval);
+        stats.rejected_steps += u64::from(st.rejected_steps);
+        stats.periods += 1;
+        if let Some(f) = rhs.fault.get() {
+            completion = Completion::Incomplete {
+                fault: describe(&f, t + ts, mode, last_torque, coeff.ro),
+                time_s: t + ts,
+            };
+            reached = t + ts;
+            break;
+        }
+        warm = rhs.warm.get();
+        if let Some(y) = solver.y_out().last() {
+            x = *y;
+        }
+        if !x.iter().all(|v| v.is_finite()) {
+            completion = Completion::Incomplete {
+                fault: format!(
+                    "the loop diverged (plant state not finite) at t = {:.4} s (mode {}); lower closed_loop.controller gains or raise sample_rate_hz",
+                    t + ts,
+                    mode.name()
+                ),
+                time_s: t + ts,
+            };
+            reached = t + ts;
+            break;
+        }
+        if let BrakeState::Stuck = brake {
+            x[OMEGA_O] = 0.0;
+        }
+    }
+    stats.newton_evaluations = warm.trials;
+    stats.compensator_faults = comp.as_ref().map_or(0, Compensator::faults);
+    stats.wall_s = wall.elapsed().as_secs_f64();
+    ModeResult {
+        mode,
+        metrics: metrics.finish(),
+        stats,
+        completion,
+        simulated_s: reached,
+        series,
+    }
+}

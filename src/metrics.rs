@@ -1,0 +1,455 @@
+//! Pointing metrics over a window, for simulated and measured records alike.
+//!
+//! One streaming routine ([`MetricsAccumulator`], or [`compute_metrics`] over an iterator)
+//! so a simulation that keeps no time series and a bench log read from disk are judged
+//! the same way. Samples are assumed uniformly spaced in time (fractions are sample
+//! fractions).
+
+use serde::{Deserialize, Serialize};
+
+/// One sample of a record.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sample {
+    /// Time, s.
+    pub t_s: f64,
+    /// Desired output angle, rad.
+    pub reference_rad: f64,
+    /// Output angle (simulated, or output encoder), rad.
+    pub output_rad: f64,
+    /// Transmission error `theta_out - theta_in/ic`, rad, when both angles are known.
+    pub transmission_error_rad: Option<f64>,
+    /// Motor command (A or V), when known.
+    pub command: Option<f64>,
+    /// Motor current, A, when known.
+    pub current_a: Option<f64>,
+}
+
+/// A step of the reference, judged for rise, overshoot and settling.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StepEvent {
+    /// Instant of the step, s.
+    pub time_s: f64,
+    /// Level before, rad.
+    pub from_rad: f64,
+    /// Level after, rad.
+    pub to_rad: f64,
+}
+
+/// What to measure.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MetricsConfig {
+    /// Samples before this time are ignored (start-up), s.
+    pub window_start_s: f64,
+    /// Samples after this time are ignored, s (`f64::INFINITY` for all).
+    pub window_end_s: f64,
+    /// Pointing requirement, mrad (0.1).
+    pub target_mrad: f64,
+    /// Settling band around the new level, mrad (usually the target).
+    pub settle_band_mrad: f64,
+    /// Reference steps to judge (those starting inside the window are used); each is
+    /// judged until the next one.
+    pub steps: Vec<StepEvent>,
+}
+
+/// Step response figures.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StepMetrics {
+    /// The step.
+    pub step: StepEvent,
+    /// Time from 10 % to 90 % of the step, s; `None` if 90 % was never reached.
+    pub rise_time_s: Option<f64>,
+    /// Largest excursion beyond the new level, percent of the step (0 if none).
+    pub overshoot_percent: f64,
+    /// Time from the step until the output enters the band for the last time (last exit
+    /// from the band); `None` = did not settle before the next step or the end.
+    pub settling_time_s: Option<f64>,
+}
+
+/// Metrics of one record.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Metrics {
+    /// Samples inside the window.
+    pub samples: u64,
+    /// First and last sample time inside the window, s (0 when empty).
+    pub window_s: [f64; 2],
+    /// RMS of the pointing error `theta_out - r_out`, mrad.
+    pub rms_mrad: f64,
+    /// Largest absolute pointing error, mrad.
+    pub peak_mrad: f64,
+    /// 95th percentile of the absolute pointing error (nearest rank, resolved to 0.12 %),
+    /// mrad.
+    pub p95_mrad: f64,
+    /// Fraction of samples with `|error| <= target_mrad`.
+    pub within_target_fraction: f64,
+    /// Requirement used, mrad.
+    pub target_mrad: f64,
+    /// Whether the peak error stays within the target (and the window is not empty).
+    pub passes_target: bool,
+    /// Largest absolute transmission error, mrad (`None` if not recorded).
+    pub peak_transmission_error_mrad: Option<f64>,
+    /// RMS motor command, A or V (`None` if not recorded).
+    pub rms_command: Option<f64>,
+    /// RMS motor current, A (`None` if not recorded).
+    pub rms_current_a: Option<f64>,
+    /// Step responses judged.
+    pub steps: Vec<StepMetrics>,
+    /// Longest settling time over the steps, s; `None` if any step did not settle or
+    /// there were none (see `all_steps_settled`).
+    pub worst_settling_time_s: Option<f64>,
+    /// Whether every judged step settled.
+    pub all_steps_settled: bool,
+}
+
+const DECADES_LO: f64 = -9.0;
+const DECADES: usize = 15;
+const BINS_PER_DECADE: usize = 2000;
+
+#[derive(Clone, Debug)]
+struct StepTrack {
+    ev: StepEvent,
+    end_s: f64,
+    t10: Option<f64>,
+    t90: Option<f64>,
+    overshoot: f64,
+    settle_at: Option<f64>,
+    seen: bool,
+}
+
+/// Streaming metrics: push samples in time order, then [`MetricsAccumulator::finish`].
+#[derive(Clone, Debug)]
+pub struct MetricsAccumulator {
+    cfg: MetricsConfig,
+    n: u64,
+    first_t: f64,
+    last_t: f64,
+    sum_sq: f64,
+    peak: f64,
+    within: u64,
+    hist: Vec<u32>,
+    zeros: u64,
+    te_peak: Option<f64>,
+    cmd_sq: Option<f64>,
+    cur_sq: Option<f64>,
+    cmd_n: u64,
+    cur_n: u64,
+    steps: Vec<StepTrack>,
+}
+
+fn bin_of(v_mrad: f64) -> Option<usize> {
+    if v_mrad < 10f64.powf(DECADES_LO) {
+        return None;
+    }
+    let b = ((v_mrad.log10() - DECADES_LO) * BINS_PER_DECADE as f64).floor();
+    Some((b.max(0.0) as usize).min(DECADES * BINS_PER_DECADE - 1))
+}
+
+fn bin_upper(b: usize) -> f64 {
+    10f64.powf(DECADES_LO + (b + 1) as f64 / BINS_PER_DECADE as f64)
+}
+
+impl MetricsAccumulator {
+    /// Empty accumulator.
+    pub fn new(cfg: MetricsConfig) -> Self {
+        let mut evs: Vec<StepEvent> = cfg
+            .steps
+            .iter()
+            .copied()
+            .filter(|e| e.time_s >= cfg.window_start_s && e.to_rad != e.from_rad)
+            .collect();
+        evs.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+        let steps = evs
+            .iter()
+            .enumerate()
+            .map(|(i, ev)| StepTrack {
+                ev: *ev,
+                end_s: evs.get(i + 1).map_or(f64::INFINITY, |n| n.time_s),
+                t10: None,
+                t90: None,
+                overshoot: 0.0,
+                settle_at: None,
+                seen: false,
+            })
+            .collect();
+        MetricsAccumulator {
+            cfg,
+            n: 0,
+            first_t: 0.0,
+            last_t: 0.0,
+            sum_sq: 0.0,
+            peak: 0.0,
+            within: 0,
+            hist: vec![0; DECADES * BINS_PER_DECADE],
+            zeros: 0,
+            te_peak: None,
+            cmd_sq: None,
+            cur_sq: None,
+            cmd_n: 0,
+            cur_n: 0,
+            steps,
+        }
+    }
+
+    /// Add one sample (in time order). Non-finite values are skipped.
+    pub fn push(&mut self, s: &Sample) {
+        if !(s.t_s >= self.cfg.window_start_s && s.t_s <= self.cfg.window_end_s) {
+            return;
+        }
+        let err = (s.output_rad - s.reference_rad) * 1e3;
+        if !err.is_finite() {
+            return;
+        }
+        if self.n == 0 {
+            self.first_t = s.t_s;
+        }
+        self.n += 1;
+        self.last_t = s.t_s;
+        let a = err.abs();
+        self.sum_sq += err * err;
+        self.peak = self.peak.max(a);
+        if a <= self.cfg.target_mrad {
+            self.within += 1;
+        }
+        match bin_of(a) {
+            Some(b) => self.hist[b] += 1,
+            None => self.zeros += 1,
+        }
+        if let Some(te) = s.transmission_error_rad.filter(|v| v.is_finite()) {
+            self.te_peak = Some(self.te_peak.unwrap_or(0.0).max(te.abs() * 1e3));
+        }
+        if let Some(c) = s.command.filter(|v| v.is_finite()) {
+            *self.cmd_sq.get_or_insert(0.0) += c * c;
+            self.cmd_n += 1;
+        }
+        if let Some(c) = s.current_a.filter(|v| v.is_finite()) {
+            *self.cur_sq.get_or_insert(0.0) += c * c;
+            self.cur_n += 1;
+        }
+        let band = self.cfg.settle_band_mrad * 1e-3;
+        for st in self
+            .steps
+            .iter_mut()
+            .filter(|st| s.t_s >= st.ev.time_s && s.t_s < st.end_s)
+        {
+            st.seen = true;
+            let span = st.ev.to_rad - st.ev.from_rad;
+            let progress = (s.output_rad - st.ev.from_rad) / span;
+            if st.t10.is_none() && progress >= 0.1 {
+                st.t10 = Some(s.t_s);
+            }
+            if st.t90.is_none() && progress >= 0.9 {
+                st.t90 = Some(s.t_s);
+            }
+            st.overshoot = st.overshoot.max((progress - 1.0) * 100.0);
+            if (s.output_rad - st.ev.to_rad).abs() <= band {
+                st.settle_at.get_or_insert(s.t_s);
+            } else {
+                st.settle_at = None;
+            }
+        }
+    }
+
+    /// The metrics. An empty window gives zeros and `passes_target = false`.
+    pub fn finish(self) -> Metrics {
+        let n = self.n;
+        let p95 = if n == 0 {
+            0.0
+        } else {
+            let rank = ((0.95 * n as f64).ceil() as u64).max(1);
+            if rank <= self.zeros {
+                0.0
+            } else {
+                let mut cum = self.zeros;
+                let mut v = self.peak;
+                for (b, &c) in self.hist.iter().enumerate() {
+                    cum += u64::from(c);
+                    if cum >= rank {
+                        v = bin_upper(b).min(self.peak);
+                        break;
+                    }
+                }
+                v
+            }
+        };
+        let steps: Vec<StepMetrics> = self
+            .steps
+            .iter()
+            .filter(|st| st.seen)
+            .map(|st| StepMetrics {
+                step: st.ev,
+                rise_time_s: match (st.t10, st.t90) {
+                    (Some(a), Some(b)) => Some(b - a),
+                    _ => None,
+                },
+                overshoot_percent: st.overshoot.max(0.0),
+                settling_time_s: st.settle_at.map(|t| t - st.ev.time_s),
+            })
+            .collect();
+        let all_settled = steps.iter().all(|s| s.settling_time_s.is_some());
+        let worst = if all_settled {
+            steps
+                .iter()
+                .filter_map(|s| s.settling_time_s)
+                .reduce(f64::max)
+        } else {
+            None
+        };
+        let rms =
+            |sq: Option<f64>, k: u64| sq.map(|s| if k > 0 { (s / k as f64).sqrt() } else { 0.0 });
+        Metrics {
+            samples: n,
+            window_s: [self.first_t, self.last_t],
+            rms_mrad: if n > 0 {
+                (self.sum_sq / n as f64).sqrt()
+            } else {
+                0.0
+            },
+            peak_mrad: self.peak,
+            p95_mrad: p95,
+            within_target_fraction: if n > 0 {
+                self.within as f64 / n as f64
+            } else {
+                0.0
+            },
+            target_mrad: self.cfg.target_mrad,
+            passes_target: n > 0 && self.peak <= self.cfg.target_mrad,
+            peak_transmission_error_mrad: self.te_peak,
+            rms_command: rms(self.cmd_sq, self.cmd_n),
+            rms_current_a: rms(self.cur_sq, self.cur_n),
+            steps,
+            worst_settling_time_s: worst,
+            all_steps_settled: all_settled,
+        }
+    }
+}
+
+/// Metrics of a whole record.
+pub fn compute_metrics<'a>(
+    samples: impl IntoIterator<Item = &'a Sample>,
+    cfg: &MetricsConfig,
+) -> Metrics {
+    let mut acc = MetricsAccumulator::new(cfg.clone());
+    for s in samples {
+        acc.push(s);
+    }
+    acc.finish()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cfg(start: f64) -> MetricsConfig {
+        MetricsConfig {
+            window_start_s: start,
+            window_end_s: f64::INFINITY,
+            target_mrad: 0.1,
+            settle_band_mrad: 0.1,
+            steps: vec![],
+        }
+    }
+
+    fn rec(errors_mrad: &[f64]) -> Vec<Sample> {
+        errors_mrad
+            .iter()
+            .enumerate()
+            .map(|(i, e)| Sample {
+                t_s: i as f64,
+                reference_rad: 1.0,
+                output_rad: 1.0 + e * 1e-3,
+                transmission_error_rad: Some(-e * 2e-3),
+                command: Some(if i % 2 == 0 { 3.0 } else { -3.0 }),
+                current_a: None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn rms_peak_fraction_by_hand() {
+        // Window from t = 1 drops the 5 mrad start-up sample.
+        let r = rec(&[5.0, 0.03, -0.04, 0.12, 0.0]);
+        let m = compute_metrics(&r, &cfg(1.0));
+        assert_eq!(m.samples, 4);
+        let rms = ((0.03f64.powi(2) + 0.04f64.powi(2) + 0.12f64.powi(2)) / 4.0).sqrt();
+        assert!((m.rms_mrad - rms).abs() < 1e-12, "{}", m.rms_mrad);
+        assert!((m.peak_mrad - 0.12).abs() < 1e-12);
+        assert!((m.within_target_fraction - 0.75).abs() < 1e-15);
+        assert!(!m.passes_target);
+        assert!((m.peak_transmission_error_mrad.unwrap() - 0.24).abs() < 1e-12);
+        assert!((m.rms_command.unwrap() - 3.0).abs() < 1e-12);
+        assert_eq!(m.rms_current_a, None);
+        assert_eq!(m.window_s, [1.0, 4.0]);
+    }
+
+    #[test]
+    fn p95_nearest_rank() {
+        // 100 samples 0.01, 0.02, ..., 1.00 mrad: nearest rank 95 is 0.95.
+        let e: Vec<f64> = (1..=100).map(|i| i as f64 * 0.01).collect();
+        let m = compute_metrics(&rec(&e), &cfg(0.0));
+        assert!((m.p95_mrad / 0.95 - 1.0).abs() < 1.2e-3, "{}", m.p95_mrad);
+        assert!((m.peak_mrad - 1.0).abs() < 1e-12);
+        // Mostly zeros: p95 is exactly zero.
+        let mut z = vec![0.0; 99];
+        z.push(0.5);
+        assert_eq!(compute_metrics(&rec(&z), &cfg(0.0)).p95_mrad, 0.0);
+    }
+
+    #[test]
+    fn empty_window_is_not_nan() {
+        let m = compute_metrics(&rec(&[0.1, 0.2]), &cfg(10.0));
+        assert_eq!(m.samples, 0);
+        assert!(!m.passes_target);
+        assert_eq!(m.rms_mrad, 0.0);
+        assert_eq!(m.p95_mrad, 0.0);
+    }
+
+    fn step_record(y: &[f64]) -> Vec<Sample> {
+        y.iter()
+            .enumerate()
+            .map(|(i, v)| Sample {
+                t_s: i as f64 * 0.1,
+                reference_rad: if i >= 1 { 1e-3 } else { 0.0 },
+                output_rad: v * 1e-3,
+                ..Sample::default()
+            })
+            .collect()
+    }
+
+    fn step_cfg() -> MetricsConfig {
+        MetricsConfig {
+            steps: vec![StepEvent {
+                time_s: 0.1,
+                from_rad: 0.0,
+                to_rad: 1e-3,
+            }],
+            ..cfg(0.0)
+        }
+    }
+
+    #[test]
+    fn step_rise_overshoot_settling_by_hand() {
+        // Step of 1 mrad at t = 0.1; band 0.1 mrad.
+        // t:   0.0  0.1  0.2  0.3  0.4  0.5  0.6  0.7  0.8
+        let y = [0.0, 0.0, 0.05, 0.5, 0.95, 1.2, 0.95, 1.05, 1.0];
+        let m = compute_metrics(&step_record(&y), &step_cfg());
+        let s = m.steps[0];
+        // 10 % first reached at t = 0.3 (0.5), 90 % at 0.4.
+        assert!((s.rise_time_s.unwrap() - 0.1).abs() < 1e-12);
+        assert!((s.overshoot_percent - 20.0).abs() < 1e-9);
+        // Last exit from the band: outside at 0.5 (1.2), inside from 0.6 on.
+        assert!((s.settling_time_s.unwrap() - 0.5).abs() < 1e-12);
+        assert!(m.all_steps_settled);
+        assert!((m.worst_settling_time_s.unwrap() - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn step_that_ends_outside_did_not_settle() {
+        let y = [0.0, 0.0, 0.5, 1.0, 1.0, 0.8];
+        let m = compute_metrics(&step_record(&y), &step_cfg());
+        assert_eq!(m.steps[0].settling_time_s, None);
+        assert!(!m.all_steps_settled);
+        assert_eq!(m.worst_settling_time_s, None);
+        // Never reached 90 %: no rise time.
+        let m = compute_metrics(&step_record(&[0.0, 0.0, 0.3, 0.5]), &step_cfg());
+        assert_eq!(m.steps[0].rise_time_s, None);
+    }
+}

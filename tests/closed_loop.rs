@@ -1,0 +1,363 @@
+//! Closed-loop gimbal axis against independent math and the quasi-static core.
+
+use cable_servo::closed_loop::*;
+use cable_servo::physics::{CableDrive, HysteresisModel};
+use cable_servo::scenario::Scenario;
+use cable_servo::signal::Signal;
+use nalgebra::{SMatrix, SVector};
+
+fn builtin(name: &str) -> Scenario {
+    Scenario::load(name, &[]).unwrap()
+}
+
+fn params(s: &mut Scenario) -> &mut ClosedLoopParams {
+    s.closed_loop.as_mut().unwrap()
+}
+
+/// Linear cable, no brake, no limits, no noise, continuous encoders, current amplifier:
+/// the sampled loop must equal the exact zero-order-hold discretisation computed here
+/// with the matrix exponential.
+#[test]
+fn linear_loop_matches_exact_discrete_time_response() {
+    let mut s = builtin("eots_tracking");
+    s.load.brake_nm = 0.0;
+    s.load.brake_breakaway_nm = Some(0.0);
+    {
+        let p = params(&mut s);
+        p.cable = CableModel::Linear;
+        p.duration_s = 0.2;
+        p.metrics_start_s = 0.0;
+        p.modes = vec![CompensationMode::None];
+        p.rk4_substeps = 20;
+        p.reference = Signal::Sine {
+            amplitude_rad: 0.005,
+            frequency_hz: 2.0,
+            phase_rad: 0.3,
+            offset_rad: 0.0,
+        };
+        p.motor.coulomb_nm = 0.0;
+        p.motor.current_limit_a = None;
+        p.sensors.quantize = false;
+        p.sensors.motor_noise_rad = 0.0;
+        p.sensors.output_noise_rad = 0.0;
+        p.controller.sample_rate_hz = 5000.0;
+        p.controller.velocity_feedforward = 2e-3;
+        p.controller.acceleration_feedforward = 0.01;
+        p.controller.load_feedforward = false;
+    }
+    let result = run_closed_loop(&s, &RunOptions::default()).unwrap();
+    let series = result.modes[0].series.as_ref().unwrap();
+
+    // Independent model. x = [theta_m, omega_m, theta_o, omega_o], input i (A).
+    let p = s.closed_loop.as_ref().unwrap();
+    let d = &s.drive;
+    let (ri, ro) = (d.pulley_radius_m, d.drum_radius_m);
+    let lf = (d.center_distance_m.powi(2) - (ro + ri).powi(2)).sqrt();
+    let k = d.cable_modulus_n / lf;
+    let c = p.cable_damping_n_s_per_m(d);
+    let (jm, bm, kt) = (
+        p.motor.inertia_kg_m2,
+        p.motor.viscous_nm_s_per_rad,
+        p.motor.torque_constant_nm_per_a,
+    );
+    let (jo, bo) = (p.output.inertia_kg_m2, p.output.viscous_nm_s_per_rad);
+    // F = Tu - Tl = 2k (ri th_m - ro th_o) + 2c (ri w_m - ro w_o)
+    let f = [2.0 * k * ri, 2.0 * c * ri, -2.0 * k * ro, -2.0 * c * ro];
+    let mut m = SMatrix::<f64, 5, 5>::zeros();
+    m[(0, 1)] = 1.0;
+    for j in 0..4 {
+        m[(1, j)] = -ri * f[j] / jm;
+        m[(3, j)] = ro * f[j] / jo;
+    }
+    m[(1, 1)] -= bm / jm;
+    m[(1, 4)] = kt / jm;
+    m[(2, 3)] = 1.0;
+    m[(3, 3)] -= bo / jo;
+    let ts = 1.0 / p.controller.sample_rate_hz;
+    let e = (m * ts).exp();
+    let ad = e.fixed_view::<4, 4>(0, 0).into_owned();
+    let bd = e.fixed_view::<4, 1>(0, 4).into_owned();
+
+    // The documented difference equations of the controller.
+    let ctl = &p.controller;
+    let ic = d.ratio();
+    let a = (-std::f64::consts::TAU * ctl.derivative_filter_hz * ts).exp();
+    let (mut integ, mut deriv, mut last_y) = (0.0, 0.0, 0.0);
+    let mut x = SVector::<f64, 4>::zeros();
+    let n = (p.duration_s * ctl.sample_rate_hz).round() as usize;
+    assert_eq!(series.len(), n + 1);
+    let mut worst = 0.0f64;
+    let mut scale = 0.0f64;
+    let (mut worst_cmd, mut max_cmd) = (0.0f64, 0.0f64);
+    for kk in 0..=n {
+        let t = kk as f64 * ts;
+        let theta_o = x[2];
+        worst = worst.max((series.output_angle_rad[kk] - theta_o).abs());
+        worst = worst.max((series.motor_angle_rad[kk] - x[0]).abs() / ic);
+        scale = scale.max(theta_o.abs());
+        let r = p.reference.at(t);
+        let y = x[0];
+        let err = ic * r.value - y;
+        let dy = if kk == 0 { 0.0 } else { y - last_y };
+        last_y = y;
+        deriv = a * deriv - (1.0 - a) * ctl.kd / ts * dy;
+        integ += ctl.ki * ts * err;
+        let u = ctl.kp * err
+            + integ
+            + deriv
+            + ctl.velocity_feedforward * ic * r.rate
+            + ctl.acceleration_feedforward * ic * r.accel;
+        worst_cmd = worst_cmd.max((series.motor_command[kk] - u).abs());
+        max_cmd = max_cmd.max(u.abs());
+        x = ad * x + bd * u;
+    }
+    assert!(scale > 1e-3, "the output must move: {scale}");
+    assert!(
+        worst_cmd <= 1e-6 * max_cmd,
+        "command {worst_cmd:e} of {max_cmd:e}"
+    );
+    assert!(
+        worst <= 1e-6 * scale,
+        "max deviation {worst:e} rad vs scale {scale:e} rad"
+    );
+}
+
+/// Slow motion against the brake: the plant's transmission error is the quasi-static
+/// core's under the torque the cable transmits, through slip and through every reversal.
+#[test]
+fn slow_motion_reproduces_quasi_static_core() {
+    let mut s = builtin("eots_tracking");
+    s.load.brake_breakaway_nm = Some(s.load.brake_nm);
+    {
+        let p = params(&mut s);
+        p.duration_s = 12.0;
+        p.modes = vec![CompensationMode::None];
+        p.sensors.quantize = false;
+        p.cable_damping_ratio = 0.02;
+    }
+    let result = run_closed_loop(&s, &RunOptions::default()).unwrap();
+    assert!(result.complete);
+    let ts = result.modes[0].series.as_ref().unwrap();
+    let ro = s.drive.drum_radius_m;
+    let mut core = CableDrive::new(s.drive.clone(), HysteresisModel::Memory);
+    let mut worst = 0.0f64;
+    for k in 0..ts.len() {
+        let m = ro * (ts.tension_upper_n[k] - ts.tension_lower_n[k]);
+        let e_core = core.apply_torque(m).unwrap().transmission_error_rad * 1e3;
+        worst = worst.max((ts.transmission_error_mrad[k] - e_core).abs());
+    }
+    // The brake reverses once per reversal of motion (at 2.5 and 7.5 s), never chatters.
+    let flips = ts
+        .load_torque_nm
+        .windows(2)
+        .filter(|w| w[0] * w[1] < 0.0)
+        .count();
+    assert!(flips <= 3, "load torque changed sign {flips} times");
+    // 0.2 % of the 0.433 mrad reversal jump (damping and drum inertia make up the rest).
+    assert!(worst < 8.7e-4, "worst deviation {worst} mrad");
+
+    // While the drum slides steadily, the error sits near the core's +-0.7 N m values; the
+    // torque peaks of the stick phases (a little above the brake torque) stay in memory,
+    // so the match is to 1 % of the jump here, the tight check being the one above.
+    let mut fresh = CableDrive::new(s.drive.clone(), HysteresisModel::Memory);
+    fresh.apply_torque(0.7).unwrap();
+    let minus = fresh.apply_torque(-0.7).unwrap().transmission_error_rad * 1e3;
+    let plus = fresh.apply_torque(0.7).unwrap().transmission_error_rad * 1e3;
+    let at = |t: f64| {
+        let k = ts.t_s.partition_point(|&x| x < t);
+        ts.transmission_error_mrad[k]
+    };
+    // Sine reference: moving down around t = 5 s, up around t = 10 s.
+    assert!(
+        (at(5.0) - minus).abs() < 0.01 * (plus - minus).abs(),
+        "{} {minus}",
+        at(5.0)
+    );
+    assert!(
+        (at(10.0) - plus).abs() < 0.01 * (plus - minus).abs(),
+        "{} {plus}",
+        at(10.0)
+    );
+}
+
+/// The EOTS case: uncompensated misses 0.1 mrad, memory compensation meets it with margin.
+#[test]
+fn eots_tracking_memory_compensation_meets_target() {
+    let s = builtin("eots_tracking");
+    let opts = RunOptions {
+        record: false,
+        decimation: 1,
+        modes: None,
+    };
+    let r = run_closed_loop(&s, &opts).unwrap();
+    assert!(r.complete);
+    let none = &r.modes[0].metrics;
+    let less = &r.modes[1].metrics;
+    let mem = &r.modes[2].metrics;
+    // The brake's breakaway peak stays in the cable's memory; only the memory model
+    // carries it into the prediction.
+    assert!(
+        mem.rms_mrad < 0.8 * less.rms_mrad,
+        "{} vs {}",
+        mem.rms_mrad,
+        less.rms_mrad
+    );
+    assert!(r.modes[0].series.is_none());
+    assert!(none.peak_mrad > 0.2 && !none.passes_target, "{none:?}");
+    assert!(mem.peak_mrad < 0.05, "{mem:?}");
+    assert!(mem.rms_mrad < 0.01, "{mem:?}");
+    assert!(mem.passes_target);
+}
+
+#[test]
+fn slack_ends_the_run_with_a_clear_message() {
+    let mut s = builtin("eots_tracking");
+    // 25 N m exceeds the slack limit 2 * 100 N * 0.1025 m = 20.5 N m.
+    s.load.constant_nm = 25.0;
+    {
+        let p = params(&mut s);
+        p.duration_s = 1.0;
+        p.metrics_start_s = 0.5;
+        p.modes = vec![CompensationMode::None];
+        p.motor.current_limit_a = None;
+    }
+    let r = run_closed_loop(&s, &RunOptions::default()).unwrap();
+    assert!(!r.complete);
+    match &r.modes[0].completion {
+        Completion::Incomplete { fault, time_s } => {
+            // Whichever capacity limit comes first, the message says what to change.
+            assert!(
+                (fault.contains("slack") || fault.contains("gross slip"))
+                    && fault.contains("preload")
+                    && fault.contains("half"),
+                "{fault}"
+            );
+            assert!(*time_s > 0.0 && *time_s < 1.0);
+        }
+        c => panic!("expected a fault, got {c:?}"),
+    }
+    // Metrics of an empty window are zeros, never NaN.
+    let m = &r.modes[0].metrics;
+    assert!(m.rms_mrad.is_finite() && m.p95_mrad.is_finite());
+}
+
+#[test]
+fn validation_names_the_key() {
+    let text = cable_servo::scenario::builtin("eots_tracking").unwrap();
+    let err = Scenario::from_toml(
+        text,
+        "x.toml",
+        "x",
+        &["closed_loop.controller.sample_rate_hz=500".into()],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("closed_loop.controller.sample_rate_hz") && err.contains("fastest mode"),
+        "{err}"
+    );
+    let err = Scenario::from_toml(
+        text,
+        "x.toml",
+        "x",
+        &["closed_loop.motor.inertia_kg=1".into()],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("did you mean `inertia_kg_m2`"), "{err}");
+    let err = Scenario::from_toml(
+        text,
+        "x.toml",
+        "x",
+        &["closed_loop.modes=[\"memory\", \"memory\"]".into()],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("closed_loop.modes"), "{err}");
+    // A non-closed-loop scenario is refused with a typed error.
+    let qs = builtin("paper_bench");
+    assert!(matches!(
+        run_closed_loop(&qs, &RunOptions::default()),
+        Err(ClosedLoopError::NotClosedLoop { .. })
+    ));
+}
+
+#[test]
+fn outputs_are_written_and_metrics_do_not_depend_on_recording() {
+    let mut s = builtin("step_stare");
+    {
+        let p = params(&mut s);
+        p.duration_s = 1.2;
+        p.modes = vec![CompensationMode::None, CompensationMode::Memory];
+    }
+    let rec = run_closed_loop(
+        &s,
+        &RunOptions {
+            decimation: 10,
+            ..RunOptions::default()
+        },
+    )
+    .unwrap();
+    let bare = run_closed_loop_metrics(&s).unwrap();
+    for (a, b) in rec.modes.iter().zip(&bare.modes) {
+        assert_eq!(a.metrics, b.metrics);
+        assert!(b.series.is_none());
+    }
+    let steps = &rec.modes[0].metrics.steps;
+    assert_eq!(steps.len(), 2, "{steps:?}");
+    assert!(steps[0].settling_time_s.is_some(), "{steps:?}");
+
+    let dir = tempfile::tempdir().unwrap();
+    let files = write_closed_loop_outputs(dir.path(), &s, &rec).unwrap();
+    assert_eq!(files.len(), 2);
+    let text = std::fs::read_to_string(dir.path().join("timeseries.csv")).unwrap();
+    let mut lines = text.lines();
+    assert!(lines.next().unwrap().starts_with(
+        "mode,t_s,reference_rad,motor_angle_rad,output_angle_rad,pointing_error_mrad"
+    ));
+    assert_eq!(
+        lines.count(),
+        2 * rec.modes[0].series.as_ref().unwrap().len()
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["complete"], true);
+    assert_eq!(json["program_version"], env!("CARGO_PKG_VERSION"));
+    assert_eq!(json["modes"][1]["name"], "memory");
+    for key in [
+        "rms_mrad",
+        "peak_mrad",
+        "p95_mrad",
+        "within_target_fraction",
+        "passes_target",
+    ] {
+        assert!(!json["modes"][0][key].is_null(), "{key}");
+    }
+    assert_eq!(json["scenario"]["study"], "closed_loop");
+    assert!(format_table(&rec).contains("memory"));
+    let charts = closed_loop_charts(&rec, 0.1);
+    assert_eq!(charts.len(), 4);
+    let pictures = plot_closed_loop(dir.path(), &rec, 0.1).unwrap();
+    assert_eq!(pictures.len(), 8);
+    assert!(pictures.iter().all(|p| p.exists()));
+}
+
+/// Partial reversals (unbalance plus brake): the memory compensator beats the memoryless.
+#[test]
+fn eots_scan_memory_beats_memoryless() {
+    let s = builtin("eots_scan");
+    let opts = RunOptions {
+        modes: Some(vec![CompensationMode::Memoryless, CompensationMode::Memory]),
+        ..RunOptions::metrics_only()
+    };
+    let r = run_closed_loop(&s, &opts).unwrap();
+    let (less, mem) = (&r.modes[0].metrics, &r.modes[1].metrics);
+    assert!(
+        mem.rms_mrad < 0.9 * less.rms_mrad,
+        "{} vs {}",
+        mem.rms_mrad,
+        less.rms_mrad
+    );
+    assert!(mem.p95_mrad < less.p95_mrad);
+}
