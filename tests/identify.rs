@@ -44,6 +44,8 @@ fn scenario(triangle: bool) -> Scenario {
     if triangle {
         text = text.replace("kind = \"sine\"", "kind = \"triangle\"");
     }
+    // IDENT_UNKNOWN='"cable_modulus_n","preload_n","friction_coefficient"' repeats the
+    // statistics with every base parameter calibrated as well.
     if let Ok(u) = std::env::var("IDENT_UNKNOWN") {
         text = text.replace(
             "unknown = [\"cable_modulus_n\"]",
@@ -333,57 +335,6 @@ fn writes_report_and_model() {
     let back = Scenario::load(m.to_str().unwrap(), &[]).unwrap();
     let eps = back.effects.unwrap().input_pulley_runout.unwrap();
     assert!((eps - 1e-3).abs() < 1e-4);
-}
-
-#[test]
-#[ignore]
-fn probe_one() {
-    let e: EffectName = std::env::var("EFFECT").unwrap().parse().unwrap();
-    let v: f64 = std::env::var("VALUE").unwrap().parse().unwrap();
-    let sc = scenario(false);
-    let log = synthesize(&sc, &[(e, v)], 0, &SynthOptions::default()).unwrap();
-    let d = diagnose(&sc, &[log], &DiagnoseOptions::default()).unwrap();
-    eprintln!("{}", cable_servo::identify::report::summary_text(&d));
-}
-
-#[test]
-#[ignore]
-fn probe_bearing() {
-    use cable_servo::identify::model::{prepare, Evaluator, Spec};
-    let sc = scenario(false);
-    let log = synthesize(
-        &sc,
-        &[(EffectName::BearingFriction, 0.15)],
-        0,
-        &SynthOptions::default(),
-    )
-    .unwrap();
-    let p = vec![prepare(&log, 200.0).unwrap()];
-    let spec = Spec {
-        drive: sc.drive.clone(),
-        fit_mu: false,
-        fit_pre: false,
-        fit_g: true,
-        fit_ratio: false,
-        effects: vec![EffectName::BearingFriction],
-        ident: sc.identify.clone().unwrap(),
-    };
-    let mut ev = Evaluator::new(spec, &p);
-    let mask = vec![true; ev.rows()];
-    for mb in [0.0, 0.05, 0.1, 0.14, 0.15, 0.16, 0.2, 0.3] {
-        let f = ev.fit(&mask, Some(&[mb]), 0).unwrap();
-        eprintln!(
-            "mb {mb}: rms {:.3e} coef {:?}",
-            (f.cost / f.n_fit as f64).sqrt(),
-            f.coef
-        );
-    }
-    let f = ev.fit(&mask, None, 30).unwrap();
-    eprintln!(
-        "free: x {:?} rms {:.3e}",
-        f.x,
-        (f.cost / f.n_fit as f64).sqrt()
-    );
 }
 
 /// Real data: calibrate on tool4_00 + tool4_09, score on tool4_05 (run with --ignored).
