@@ -7,6 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::closed_loop::ClosedLoopParams;
+use crate::identify::{EffectsParams, IdentifyParams};
 use crate::physics::{DriveParams, HysteresisModel, LoadParams};
 use crate::signal::Signal;
 use crate::sweep::SweepSpec;
@@ -92,6 +93,12 @@ pub struct Scenario {
     /// Optional sweep over scenario keys.
     #[serde(default)]
     pub sweep: Option<SweepSpec>,
+    /// How bench logs calibrate the drive and which effects are searched (`diagnose`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub identify: Option<IdentifyParams>,
+    /// Identified effects beyond the base model (written by `diagnose --save-model`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub effects: Option<EffectsParams>,
 }
 
 /// A scenario that cannot be used, with where and why.
@@ -499,6 +506,14 @@ impl Scenario {
         }
         if let Some(sweep) = &self.sweep {
             crate::sweep::validate_spec(sweep).map_err(|(key, msg)| bad(&key, msg))?;
+        }
+        if let Some(id) = &self.identify {
+            id.validate()
+                .map_err(|(key, msg)| bad(&format!("identify.{key}"), msg))?;
+        }
+        if let Some(fx) = &self.effects {
+            fx.validate()
+                .map_err(|(key, msg)| bad(&format!("effects.{key}"), msg))?;
         }
         Ok(())
     }

@@ -1,0 +1,353 @@
+//! The library of effects the base model leaves out (physics.md section 7), and the
+//! scenario sections that configure identification and store identified effects.
+
+use serde::{Deserialize, Serialize};
+
+/// An effect the quasi-static memory model does not contain.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EffectName {
+    /// Eccentric input pulley: error `(eps/ic)*(sin(theta_in+phi) - sin(phi))`; value `eps`
+    /// is the eccentricity over the pulley radius (0.001 to 0.02).
+    InputPulleyRunout,
+    /// Eccentric output drum: error `eps*(sin(theta_out+phi) - sin(phi))`; value `eps` is
+    /// the eccentricity over the drum radius (1e-4 to 2e-3).
+    OutputDrumRunout,
+    /// Output encoder reading lags the input encoder by `tau`, s (0.5 to 20 ms; negative:
+    /// the input lags).
+    EncoderDelay,
+    /// Output encoder reads `(1+s)` times the angle; value `s` (1e-4 to 5e-3).
+    EncoderScaleError,
+    /// Preload decays linearly in time at a rate given as fraction per second (1e-3 to 2e-2 /s
+    /// during settling).
+    PreloadRelaxation,
+    /// Coulomb torque at the drum bearing that the load sensor does not see, N m (0.01 to
+    /// 0.5 of the brake torque).
+    BearingFriction,
+    /// Stuck cable carried onto and off the wraps: after a reversal the error settles over
+    /// an input travel `theta_c`, rad (0.01 to 0.5), instead of jumping.
+    CableTransport,
+    /// Slow drift of the error with time, rad/s (1e-7 to 1e-5).
+    ThermalDrift,
+}
+
+impl EffectName {
+    /// Every effect in the library.
+    pub const ALL: [EffectName; 8] = [
+        EffectName::InputPulleyRunout,
+        EffectName::OutputDrumRunout,
+        EffectName::EncoderDelay,
+        EffectName::EncoderScaleError,
+        EffectName::PreloadRelaxation,
+        EffectName::BearingFriction,
+        EffectName::CableTransport,
+        EffectName::ThermalDrift,
+    ];
+
+    /// Name as used in files and on the command line.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            EffectName::InputPulleyRunout => "input_pulley_runout",
+            EffectName::OutputDrumRunout => "output_drum_runout",
+            EffectName::EncoderDelay => "encoder_delay",
+            EffectName::EncoderScaleError => "encoder_scale_error",
+            EffectName::PreloadRelaxation => "preload_relaxation",
+            EffectName::BearingFriction => "bearing_friction",
+            EffectName::CableTransport => "cable_transport",
+            EffectName::ThermalDrift => "thermal_drift",
+        }
+    }
+
+    /// Unit of the effect's size.
+    pub fn unit(self) -> &'static str {
+        match self {
+            EffectName::InputPulleyRunout | EffectName::OutputDrumRunout => {
+                "1 (eccentricity/radius)"
+            }
+            EffectName::EncoderDelay => "s",
+            EffectName::EncoderScaleError => "1",
+            EffectName::PreloadRelaxation => "1/s",
+            EffectName::BearingFriction => "N m",
+            EffectName::CableTransport => "rad (input travel)",
+            EffectName::ThermalDrift => "rad/s",
+        }
+    }
+
+    /// One line on what the effect does, for reports.
+    pub fn meaning(self) -> &'static str {
+        match self {
+            EffectName::InputPulleyRunout => "input pulley eccentric: error periodic in input angle (period 2 pi)",
+            EffectName::OutputDrumRunout => "output drum eccentric: error periodic in output angle",
+            EffectName::EncoderDelay => "one encoder lags the other: error proportional to velocity",
+            EffectName::EncoderScaleError => "output encoder scale wrong: error proportional to angle",
+            EffectName::PreloadRelaxation => "preload decays during the record: backlash grows with time",
+            EffectName::BearingFriction => "unmeasured Coulomb torque at the drum: jumps larger than the measured load explains",
+            EffectName::CableTransport => "cable creep over the wraps: error keeps evolving after a reversal instead of jumping once",
+            EffectName::ThermalDrift => "slow drift of the error with time, independent of motion",
+        }
+    }
+}
+
+impl std::fmt::Display for EffectName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for EffectName {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        EffectName::ALL
+            .iter()
+            .copied()
+            .find(|e| e.as_str() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = EffectName::ALL.iter().map(|e| e.as_str()).collect();
+                format!("unknown effect `{s}`; known: {}", names.join(", "))
+            })
+    }
+}
+
+/// Base parameters calibration may adjust, as named in `identify.unknown`.
+pub const CALIBRATABLE: [&str; 4] = [
+    "friction_coefficient",
+    "cable_modulus_n",
+    "preload_n",
+    "ratio",
+];
+
+/// `[identify]`: how bench logs are used to calibrate the drive and find missing effects.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IdentifyParams {
+    /// Base parameters to calibrate: any of `friction_coefficient`, `cable_modulus_n`,
+    /// `preload_n`, `ratio` (the radius ratio, when the geometry is unknown).
+    #[serde(default = "default_unknown")]
+    pub unknown: Vec<String>,
+    /// Bounds on the friction coefficient.
+    #[serde(default = "default_mu_bounds")]
+    pub friction_bounds: [f64; 2],
+    /// Bounds on the cable modulus as factors of `drive.cable_modulus_n`.
+    #[serde(default = "default_factor_bounds")]
+    pub modulus_factor_bounds: [f64; 2],
+    /// Bounds on the preload as factors of `drive.preload_n`.
+    #[serde(default = "default_factor_bounds")]
+    pub preload_factor_bounds: [f64; 2],
+    /// Bounds on the ratio as factors of the scenario's `drum_radius_m/pulley_radius_m`.
+    #[serde(default = "default_ratio_bounds")]
+    pub ratio_factor_bounds: [f64; 2],
+    /// Contiguous held-out blocks per log for cross-validation (4 typical).
+    #[serde(default = "default_blocks")]
+    pub holdout_blocks: usize,
+    /// Smallest relative held-out RMSE gain, percent, for an effect to count (3 typical).
+    #[serde(default = "default_min_gain")]
+    pub min_gain_percent: f64,
+    /// Fraction of the structured residual variance (above the noise floor) an effect must
+    /// explain to be named (0.5 typical); keeps unrelated structure from being forced onto
+    /// the nearest name.
+    #[serde(default = "default_explained")]
+    pub min_explained_fraction: f64,
+    /// Effects searched; empty means the whole library.
+    #[serde(default)]
+    pub candidates: Vec<EffectName>,
+    /// Most effects named at once (greedy forward selection).
+    #[serde(default = "default_max_effects")]
+    pub max_effects: usize,
+    /// Logs are block-averaged down to this rate first, Hz (200 typical).
+    #[serde(default = "default_rate")]
+    pub max_rate_hz: f64,
+}
+
+fn default_unknown() -> Vec<String> {
+    vec![
+        "friction_coefficient".into(),
+        "cable_modulus_n".into(),
+        "preload_n".into(),
+    ]
+}
+fn default_mu_bounds() -> [f64; 2] {
+    [0.02, 1.0]
+}
+fn default_factor_bounds() -> [f64; 2] {
+    [0.2, 5.0]
+}
+fn default_ratio_bounds() -> [f64; 2] {
+    [0.5, 2.0]
+}
+fn default_blocks() -> usize {
+    4
+}
+fn default_min_gain() -> f64 {
+    3.0
+}
+fn default_explained() -> f64 {
+    0.5
+}
+fn default_max_effects() -> usize {
+    2
+}
+fn default_rate() -> f64 {
+    200.0
+}
+
+impl Default for IdentifyParams {
+    fn default() -> Self {
+        IdentifyParams {
+            unknown: default_unknown(),
+            friction_bounds: default_mu_bounds(),
+            modulus_factor_bounds: default_factor_bounds(),
+            preload_factor_bounds: default_factor_bounds(),
+            ratio_factor_bounds: default_ratio_bounds(),
+            holdout_blocks: default_blocks(),
+            min_gain_percent: default_min_gain(),
+            min_explained_fraction: default_explained(),
+            candidates: Vec::new(),
+            max_effects: default_max_effects(),
+            max_rate_hz: default_rate(),
+        }
+    }
+}
+
+impl IdentifyParams {
+    /// Check ranges; returns `(key below identify, message)`.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        for u in &self.unknown {
+            if !CALIBRATABLE.contains(&u.as_str()) {
+                return Err((
+                    "unknown".into(),
+                    format!(
+                        "`{u}` cannot be calibrated; use any of {}",
+                        CALIBRATABLE.join(", ")
+                    ),
+                ));
+            }
+        }
+        let pair = |key: &str, b: [f64; 2], min: f64| {
+            if b[0].is_finite() && b[1].is_finite() && b[0] > min && b[0] < b[1] {
+                Ok(())
+            } else {
+                Err((
+                    key.to_string(),
+                    format!(
+                        "[{}, {}] must be finite with {min} < low < high",
+                        b[0], b[1]
+                    ),
+                ))
+            }
+        };
+        pair("friction_bounds", self.friction_bounds, 0.0)?;
+        if self.friction_bounds[1] > 1.0 {
+            return Err(("friction_bounds".into(), "upper bound must be <= 1".into()));
+        }
+        pair("modulus_factor_bounds", self.modulus_factor_bounds, 0.0)?;
+        pair("preload_factor_bounds", self.preload_factor_bounds, 0.0)?;
+        pair("ratio_factor_bounds", self.ratio_factor_bounds, 0.0)?;
+        if !(2..=20).contains(&self.holdout_blocks) {
+            return Err((
+                "holdout_blocks".into(),
+                format!("{} must be in 2..=20", self.holdout_blocks),
+            ));
+        }
+        if !(self.min_gain_percent.is_finite() && (0.0..100.0).contains(&self.min_gain_percent)) {
+            return Err(("min_gain_percent".into(), "must be in [0, 100)".into()));
+        }
+        if !(self.min_explained_fraction.is_finite()
+            && (0.0..=1.0).contains(&self.min_explained_fraction))
+        {
+            return Err(("min_explained_fraction".into(), "must be in [0, 1]".into()));
+        }
+        if !(1..=8).contains(&self.max_effects) {
+            return Err(("max_effects".into(), "must be in 1..=8".into()));
+        }
+        if !(self.max_rate_hz.is_finite() && self.max_rate_hz >= 10.0) {
+            return Err(("max_rate_hz".into(), "must be >= 10 Hz".into()));
+        }
+        Ok(())
+    }
+
+    /// Whether a base parameter is marked unknown.
+    pub fn is_unknown(&self, key: &str) -> bool {
+        self.unknown.iter().any(|u| u == key)
+    }
+}
+
+/// `[effects]`: identified effects the closed loop can compensate. Absent keys mean the
+/// effect is not present.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EffectsParams {
+    /// Input pulley eccentricity over radius.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub input_pulley_runout: Option<f64>,
+    /// Phase `phi` of the input runout, rad.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub input_pulley_runout_phase_rad: Option<f64>,
+    /// Output drum eccentricity over radius.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub output_drum_runout: Option<f64>,
+    /// Phase `phi` of the drum runout, rad.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub output_drum_runout_phase_rad: Option<f64>,
+    /// Output encoder lag, s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub encoder_delay_s: Option<f64>,
+    /// Output encoder scale error `s` (reading = (1+s) angle).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub encoder_scale_error: Option<f64>,
+    /// Preload loss rate, fraction per second.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preload_relaxation_per_s: Option<f64>,
+    /// Unmeasured Coulomb torque at the drum, N m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bearing_friction_nm: Option<f64>,
+    /// Input travel over which the error settles after a reversal, rad.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cable_transport_rad: Option<f64>,
+    /// Drift of the error with time, rad/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thermal_drift_rad_per_s: Option<f64>,
+}
+
+impl EffectsParams {
+    /// Check ranges; returns `(key below effects, message)`.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        let check = |key: &str, v: Option<f64>, lo: f64, hi: f64| match v {
+            Some(x) if !(x.is_finite() && x >= lo && x <= hi) => Err((
+                key.to_string(),
+                format!("{x} must be a finite number in [{lo}, {hi}]"),
+            )),
+            _ => Ok(()),
+        };
+        check("input_pulley_runout", self.input_pulley_runout, 0.0, 0.5)?;
+        check("output_drum_runout", self.output_drum_runout, 0.0, 0.5)?;
+        check(
+            "input_pulley_runout_phase_rad",
+            self.input_pulley_runout_phase_rad,
+            -10.0,
+            10.0,
+        )?;
+        check(
+            "output_drum_runout_phase_rad",
+            self.output_drum_runout_phase_rad,
+            -10.0,
+            10.0,
+        )?;
+        check("encoder_delay_s", self.encoder_delay_s, -1.0, 1.0)?;
+        check("encoder_scale_error", self.encoder_scale_error, -0.5, 0.5)?;
+        check(
+            "preload_relaxation_per_s",
+            self.preload_relaxation_per_s,
+            0.0,
+            1.0,
+        )?;
+        check("bearing_friction_nm", self.bearing_friction_nm, 0.0, 1e4)?;
+        check("cable_transport_rad", self.cable_transport_rad, 0.0, 100.0)?;
+        check(
+            "thermal_drift_rad_per_s",
+            self.thermal_drift_rad_per_s,
+            -1.0,
+            1.0,
+        )?;
+        Ok(())
+    }
+}

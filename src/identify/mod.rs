@@ -1,0 +1,805 @@
+//! Diagnosis of bench logs: replay the quasi-static memory model against measurements,
+//! calibrate its parameters, search the effect library for what it misses, and score every
+//! model on data its fit did not see.
+
+pub mod effects;
+pub mod lm;
+pub mod model;
+pub mod play;
+pub mod report;
+pub mod synth;
+
+use serde::Serialize;
+
+pub use crate::io::benchlog::{read_bench_log, write_bench_log, BenchLog, LogError, Sample};
+pub use effects::{EffectName, EffectsParams, IdentifyParams};
+pub use report::{save_model, write_diagnosis};
+pub use synth::{parse_effect_arg, synthesize, Ringing, SynthOptions};
+
+use crate::physics::DriveParams;
+use crate::scenario::Scenario;
+use model::{Evaluator, Fitted, LinParam, NlParam, Prepared, Spec};
+
+/// Why a diagnosis cannot be made.
+#[derive(Debug, thiserror::Error)]
+pub enum IdentifyError {
+    /// No logs.
+    #[error("no bench logs given; pass at least one log (--data LOG.csv)")]
+    NoLogs,
+    /// A log that cannot be used.
+    #[error("{log}: {message}")]
+    BadLog {
+        /// Log source (file).
+        log: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// Reading a log failed.
+    #[error(transparent)]
+    Log(#[from] LogError),
+    /// Settings that do not fit the data.
+    #[error("{key}: {message}")]
+    Config {
+        /// Scenario key or option.
+        key: String,
+        /// What is wrong and what is allowed.
+        message: String,
+    },
+    /// The model cannot follow the log (cable slack or gross slip at these parameters).
+    #[error("{log}: replay fails at t = {t_s:.3} s: {message}; the scenario's drive cannot carry the logged load (check drive.preload_n, the load sign, and load_nm units)")]
+    Replay {
+        /// Log source.
+        log: String,
+        /// Time of the failure, s.
+        t_s: f64,
+        /// The drive fault.
+        message: String,
+    },
+    /// A fit that failed or diverged.
+    #[error("fit failed: {0}")]
+    Fit(String),
+    /// Output cannot be written.
+    #[error("cannot write {path}: {message}")]
+    Write {
+        /// Path.
+        path: String,
+        /// Reason.
+        message: String,
+    },
+}
+
+/// Settings of a diagnosis beyond the scenario's `[identify]` section.
+#[derive(Clone, Debug, Default)]
+pub struct DiagnoseOptions {
+    /// Indices of logs held out entirely (calibrate on the others, score on these). Empty:
+    /// contiguous time blocks of every log are held out in turn.
+    pub holdout_logs: Vec<usize>,
+    /// Restrict the candidate effects (None: scenario's list, or the whole library).
+    pub candidates: Option<Vec<EffectName>>,
+    /// Skip the play-operator baseline (saves time in statistical runs).
+    pub skip_play_operator: bool,
+}
+
+/// One estimated parameter.
+#[derive(Clone, Debug, Serialize)]
+pub struct ParamEstimate {
+    /// Name (scenario key or effect name).
+    pub name: String,
+    /// Value.
+    pub value: f64,
+    /// Standard deviation from `s^2 (J^T J)^-1` (quantisation makes residuals coloured, so
+    /// treat it as a lower bound).
+    pub std: f64,
+    /// Unit.
+    pub unit: String,
+}
+
+/// Held-out score of one candidate.
+#[derive(Clone, Debug, Serialize)]
+pub struct CandidateScore {
+    /// Effect name.
+    pub name: String,
+    /// Held-out RMSE with the effect added to the model it was tried on, mrad.
+    pub rmse_heldout_mrad: f64,
+    /// Relative held-out RMSE gain, percent.
+    pub gain_percent: f64,
+    /// Fraction of the structured residual variance (above noise floor) it explains.
+    pub explained_fraction: f64,
+    /// Score used for ranking (held-out BIC-like: `n ln(mse) + k ln(n)`, lower is better).
+    pub score: f64,
+    /// Whether it was accepted.
+    pub accepted: bool,
+    /// Selection round (1 = tried on the base model).
+    pub round: usize,
+    /// Why it was accepted or not.
+    pub verdict: String,
+}
+
+/// A baseline model's held-out score.
+#[derive(Clone, Debug, Serialize)]
+pub struct BaselineScore {
+    /// Model name.
+    pub name: String,
+    /// Held-out RMSE, mrad.
+    pub rmse_heldout_mrad: f64,
+    /// Fitted parameters.
+    pub params: Vec<ParamEstimate>,
+}
+
+/// Time histories of one log for plots.
+#[derive(Clone, Debug, Default)]
+pub struct Trace {
+    /// Log source.
+    pub log: String,
+    /// Time, s.
+    pub t_s: Vec<f64>,
+    /// Input angle, rad.
+    pub theta_in_rad: Vec<f64>,
+    /// Output angle, rad.
+    pub theta_out_rad: Vec<f64>,
+    /// Input velocity, rad/s.
+    pub velocity_rad_s: Vec<f64>,
+    /// Measured transmission error (fitted ratio, encoder zero removed), rad.
+    pub measured_rad: Vec<f64>,
+    /// Base model prediction, rad.
+    pub base_rad: Vec<f64>,
+    /// Extended model prediction, rad.
+    pub extended_rad: Vec<f64>,
+    /// Whether the sample was held out in the log-level split.
+    pub held_out: bool,
+}
+
+/// Result of [`diagnose`].
+#[derive(Clone, Debug, Serialize)]
+pub struct Diagnosis {
+    /// Strongest accepted effect, `none` (nothing beats the noise) or `unexplained`
+    /// (structure remains that no candidate explains).
+    pub cause: String,
+    /// Every accepted effect, strongest first.
+    pub causes: Vec<String>,
+    /// Held-out RMSE of the calibrated base model, mrad.
+    pub rmse_base_mrad: f64,
+    /// Held-out RMSE of the extended model, mrad.
+    pub rmse_extended_mrad: f64,
+    /// `100 (1 - extended/base)`.
+    pub gain_percent: f64,
+    /// Noise floor (sensor noise and quantisation), mrad.
+    pub noise_floor_mrad: f64,
+    /// Held-out RMSE of the extended model over the noise floor (about 1 when nothing is
+    /// left).
+    pub structure_ratio: f64,
+    /// Whether structure above the noise remains after the extension.
+    pub unexplained_structure: bool,
+    /// Calibrated base and effect parameters.
+    pub params: Vec<ParamEstimate>,
+    /// Every candidate tried.
+    pub candidates: Vec<CandidateScore>,
+    /// Play-operator (deadband) model for comparison.
+    pub play_operator: Option<BaselineScore>,
+    /// How data was held out.
+    pub holdout: String,
+    /// Logs used.
+    pub logs: Vec<String>,
+    /// Calibrated drive.
+    pub drive: DriveParams,
+    /// Identified effects, as stored in a scenario.
+    pub effects: EffectsParams,
+    /// Plot data.
+    #[serde(skip)]
+    pub traces: Vec<Trace>,
+}
+
+/// Training masks and held-out masks of the cross-validation, and the mask of the final fit.
+struct Split {
+    /// Folds that select effects (time blocks of the calibration data).
+    folds: Vec<(Vec<bool>, Vec<bool>)>,
+    /// Held-out logs: (calibration rows, held-out rows), scored once after selection so
+    /// the reported gain is free of selection bias.
+    outer: Option<(Vec<bool>, Vec<bool>)>,
+    full: Vec<bool>,
+    text: String,
+}
+
+fn make_split(
+    logs: &[Prepared],
+    ident: &IdentifyParams,
+    opts: &DiagnoseOptions,
+) -> Result<Split, IdentifyError> {
+    let n: usize = logs.iter().map(|l| l.t.len()).sum();
+    if !opts.holdout_logs.is_empty() {
+        if let Some(bad) = opts.holdout_logs.iter().find(|i| **i >= logs.len()) {
+            return Err(IdentifyError::Config {
+                key: "holdout_logs".into(),
+                message: format!("log index {bad} does not exist ({} logs given)", logs.len()),
+            });
+        }
+        if opts.holdout_logs.len() >= logs.len() {
+            return Err(IdentifyError::Config {
+                key: "holdout_logs".into(),
+                message: "every log is held out; keep at least one for calibration".into(),
+            });
+        }
+        let mut train = Vec::with_capacity(n);
+        for (k, l) in logs.iter().enumerate() {
+            let held = opts.holdout_logs.contains(&k);
+            train.extend(std::iter::repeat_n(!held, l.t.len()));
+        }
+        let test: Vec<bool> = train.iter().map(|t| !t).collect();
+        let names: Vec<&str> = opts
+            .holdout_logs
+            .iter()
+            .map(|k| logs[*k].source.as_str())
+            .collect();
+        let folds = block_folds(logs, ident.holdout_blocks, &train);
+        return Ok(Split {
+            folds,
+            outer: Some((train.clone(), test)),
+            full: train,
+            text: format!(
+                "held-out logs: {} (effects selected on {} time blocks of the other logs)",
+                names.join(", "),
+                ident.holdout_blocks
+            ),
+        });
+    }
+    let all = vec![true; n];
+    Ok(Split {
+        folds: block_folds(logs, ident.holdout_blocks, &all),
+        outer: None,
+        full: all,
+        text: format!(
+            "{} contiguous time blocks per log, each held out in turn",
+            ident.holdout_blocks
+        ),
+    })
+}
+
+/// `k` contiguous blocks per log, restricted to rows in `within`.
+fn block_folds(logs: &[Prepared], k: usize, within: &[bool]) -> Vec<(Vec<bool>, Vec<bool>)> {
+    let n = within.len();
+    (0..k)
+        .map(|f| {
+            let mut test = Vec::with_capacity(n);
+            for l in logs {
+                let m = l.t.len();
+                test.extend((0..m).map(|i| i * k / m == f));
+            }
+            for (t, w) in test.iter_mut().zip(within) {
+                *t &= *w;
+            }
+            let train = test.iter().zip(within).map(|(t, w)| !t && *w).collect();
+            (train, test)
+        })
+        .collect()
+}
+
+fn rms(v: impl Iterator<Item = f64>) -> f64 {
+    let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
+    if n == 0 {
+        0.0
+    } else {
+        (s / n as f64).sqrt()
+    }
+}
+
+/// Noise floor of the residual: robust high-frequency spread, or quantisation when larger.
+fn noise_floor(logs: &[Prepared], resid: &[f64], ic: f64) -> f64 {
+    let mut d: Vec<f64> = Vec::new();
+    let mut start = 0;
+    for l in logs {
+        let r = &resid[start..start + l.t.len()];
+        d.extend(r.windows(2).map(|w| (w[1] - w[0]).abs()));
+        start += l.t.len();
+    }
+    d.sort_by(|a, b| a.total_cmp(b));
+    // RMS of first differences (exact for white noise of any distribution, including
+    // quantisation at speed), with the largest 1 % dropped so jumps at reversals do not
+    // count as noise.
+    let keep = &d[..(d.len() * 99 / 100).max(1).min(d.len())];
+    let s_diff = rms(keep.iter().copied()) / std::f64::consts::SQRT_2;
+    let q2 = logs
+        .iter()
+        .map(|l| (l.q_out.powi(2) + (l.q_in / ic).powi(2)) / 12.0)
+        .sum::<f64>()
+        / logs.len().max(1) as f64;
+    s_diff.max(q2.sqrt())
+}
+
+fn spec_for(
+    drive: &DriveParams,
+    ident: &IdentifyParams,
+    effects: &[EffectName],
+    nonlinear_base: bool,
+) -> Spec {
+    Spec {
+        drive: drive.clone(),
+        fit_mu: nonlinear_base && ident.is_unknown("friction_coefficient"),
+        fit_pre: nonlinear_base && ident.is_unknown("preload_n"),
+        fit_g: ident.is_unknown("cable_modulus_n"),
+        fit_ratio: ident.is_unknown("ratio"),
+        effects: effects.to_vec(),
+        ident: ident.clone(),
+    }
+}
+
+fn with_base(drive: &DriveParams, spec_nl: &[(NlParam, f64, f64, f64)], x: &[f64]) -> DriveParams {
+    let mut d = drive.clone();
+    for (n, v) in spec_nl.iter().zip(x) {
+        match n.0 {
+            NlParam::Mu => d.friction_coefficient = *v,
+            NlParam::Preload => d.preload_n = *v,
+            NlParam::Effect(_) => {}
+        }
+    }
+    d
+}
+
+/// Held-out RMSE, held-out count and the fit on the final mask.
+type CvResult = Result<(f64, usize, Fitted), IdentifyError>;
+
+/// Cross-validated held-out residuals of a model with `effects` on top of per-fold base
+/// drives; returns (held-out RMSE, held-out count, fit on the final mask).
+fn cross_validate(
+    logs: &[Prepared],
+    ident: &IdentifyParams,
+    full_drive: &DriveParams,
+    fold_drives: &[DriveParams],
+    folds: &[(Vec<bool>, Vec<bool>)],
+    full_mask: &[bool],
+    effects: &[EffectName],
+) -> CvResult {
+    let mut ev = Evaluator::new(spec_for(full_drive, ident, effects, false), logs);
+    let full = ev.fit(full_mask, None, 25)?;
+    let mut held = Vec::new();
+    for ((train, test), drive) in folds.iter().zip(fold_drives) {
+        let mut evf = Evaluator::new(spec_for(drive, ident, effects, false), logs);
+        let f = evf.fit(train, Some(&full.x), 10)?;
+        let (r, _) = evf.residual(&f, train)?;
+        held.extend(r.iter().zip(test).filter(|(_, t)| **t).map(|(r, _)| *r));
+    }
+    Ok((rms(held.iter().copied()), held.len(), full))
+}
+
+/// Diagnose bench logs against the scenario's drive: calibrate the base model, search the
+/// effect library, score on held-out data. Typical run: a few seconds for a minute of data.
+pub fn diagnose(
+    scenario: &Scenario,
+    logs: &[BenchLog],
+    options: &DiagnoseOptions,
+) -> Result<Diagnosis, IdentifyError> {
+    if logs.is_empty() {
+        return Err(IdentifyError::NoLogs);
+    }
+    let ident = scenario.identify.clone().unwrap_or_default();
+    ident.validate().map_err(|(k, m)| IdentifyError::Config {
+        key: format!("identify.{k}"),
+        message: m,
+    })?;
+    let prepared: Vec<Prepared> = logs
+        .iter()
+        .map(|l| model::prepare(l, ident.max_rate_hz))
+        .collect::<Result<_, _>>()?;
+    let split = make_split(&prepared, &ident, options)?;
+    let drive0 = scenario.drive.clone();
+
+    // Base model: full calibration, then per fold from there.
+    let base_spec = spec_for(&drive0, &ident, &[], true);
+    let mut ev = Evaluator::new(base_spec.clone(), &prepared);
+    let base_fit = ev.fit(&split.full, None, 40)?;
+    let nl = ev.nonlinear();
+    let base_drive = with_base(&drive0, &nl, &base_fit.x);
+    let mut full_drive = base_drive.clone();
+    let mut fold_drives = Vec::new();
+    let mut held = Vec::new();
+    for (train, test) in &split.folds {
+        let f = ev.fit(train, Some(&base_fit.x), 10)?;
+        fold_drives.push(with_base(&drive0, &nl, &f.x));
+        let (r, _) = ev.residual(&f, train)?;
+        held.extend(r.iter().zip(test).filter(|(_, t)| **t).map(|(r, _)| *r));
+    }
+    let rmse_base = rms(held.iter().copied());
+    let n_held = held.len().max(1) as f64;
+    let (base_resid, base_pred) = ev.residual(&base_fit, &split.full)?;
+    let ic_fit = fitted_ratio(&drive0, &base_fit);
+    let floor = noise_floor(&prepared, &base_resid, ic_fit).max(1e-12);
+
+    // Candidates.
+    let ratio_free = ident.is_unknown("ratio");
+    let mut pool: Vec<EffectName> = options
+        .candidates
+        .clone()
+        .unwrap_or_else(|| {
+            if ident.candidates.is_empty() {
+                EffectName::ALL.to_vec()
+            } else {
+                ident.candidates.clone()
+            }
+        })
+        .into_iter()
+        // A free ratio and an output scale error are the same column.
+        .filter(|e| !(ratio_free && *e == EffectName::EncoderScaleError))
+        .collect();
+    let mut chosen: Vec<EffectName> = Vec::new();
+    let mut current = rmse_base;
+    let mut scores: Vec<CandidateScore> = Vec::new();
+    let mut chosen_fit: Option<Fitted> = None;
+    for round in 1..=ident.max_effects {
+        if pool.is_empty() || current <= 1.05 * floor {
+            break;
+        }
+        use rayon::prelude::*;
+        let results: Vec<(EffectName, CvResult)> = pool
+            .par_iter()
+            .map(|e| {
+                let mut effs = chosen.clone();
+                effs.push(*e);
+                (
+                    *e,
+                    cross_validate(
+                        &prepared,
+                        &ident,
+                        &full_drive,
+                        &fold_drives,
+                        &split.folds,
+                        &split.full,
+                        &effs,
+                    ),
+                )
+            })
+            .collect();
+        let mut best: Option<(usize, f64)> = None;
+        for (e, r) in results {
+            let (rmse, fit) = match r {
+                Ok((rmse, _, fit)) => (rmse, fit),
+                Err(err) => {
+                    scores.push(CandidateScore {
+                        name: e.to_string(),
+                        rmse_heldout_mrad: f64::NAN,
+                        gain_percent: f64::NAN,
+                        explained_fraction: f64::NAN,
+                        score: f64::NAN,
+                        accepted: false,
+                        round,
+                        verdict: format!("fit failed: {err}"),
+                    });
+                    continue;
+                }
+            };
+            let gain = 100.0 * (1.0 - rmse / current);
+            let excess = (current * current - floor * floor).max(1e-30);
+            let explained = (current * current - rmse * rmse) / excess;
+            let k = fit.coef.len() + fit.x.len();
+            let score = n_held * (rmse * rmse).max(1e-300).ln() + k as f64 * n_held.ln();
+            let physical = plausible(&fit, drive0.ratio());
+            let ok = gain >= ident.min_gain_percent
+                && explained >= ident.min_explained_fraction
+                && physical;
+            let verdict = if !physical {
+                "size outside physical bounds (stands in for something else)"
+            } else if gain < ident.min_gain_percent {
+                "gain below threshold"
+            } else if explained < ident.min_explained_fraction {
+                "explains too little of the structure"
+            } else {
+                "qualifies"
+            };
+            scores.push(CandidateScore {
+                name: e.to_string(),
+                rmse_heldout_mrad: rmse * 1e3,
+                gain_percent: gain,
+                explained_fraction: explained,
+                score,
+                accepted: false,
+                round,
+                verdict: verdict.to_string(),
+            });
+            let idx = scores.len() - 1;
+            if ok && best.is_none_or(|(_, b)| rmse < b) {
+                best = Some((idx, rmse));
+            }
+            if let Some((b, _)) = best {
+                if b == idx {
+                    chosen_fit = Some(fit);
+                }
+            }
+        }
+        let Some((idx, rmse)) = best else { break };
+        scores[idx].accepted = true;
+        scores[idx].verdict = "accepted (best qualifying)".into();
+        let e: EffectName = pool
+            .iter()
+            .copied()
+            .find(|p| p.as_str() == scores[idx].name)
+            .ok_or_else(|| IdentifyError::Fit("candidate bookkeeping".into()))?;
+        chosen.push(e);
+        pool.retain(|p| *p != e);
+        current = rmse;
+        // The base calibration absorbed part of the accepted effect; free it again with
+        // the effect in place so the next round does not pick up the leftover bias.
+        if nl
+            .iter()
+            .any(|n| matches!(n.0, NlParam::Mu | NlParam::Preload))
+        {
+            if let Some(fit) = &chosen_fit {
+                if let Ok(r) = recalibrate(
+                    &prepared,
+                    &ident,
+                    &drive0,
+                    &full_drive,
+                    &split,
+                    &chosen,
+                    fit,
+                ) {
+                    full_drive = r.0;
+                    fold_drives = r.1;
+                    current = current.min(r.2);
+                }
+            }
+        }
+    }
+
+    // Final extended model: base parameters free again together with the effects.
+    let ext_spec = spec_for(&drive0, &ident, &chosen, true);
+    let mut ev_ext = Evaluator::new(ext_spec, &prepared);
+    let nl_ext = ev_ext.nonlinear();
+    let mut x0: Vec<f64> = Vec::new();
+    for n in &nl_ext {
+        x0.push(match n.0 {
+            NlParam::Mu => full_drive.friction_coefficient,
+            NlParam::Preload => full_drive.preload_n,
+            NlParam::Effect(e) => chosen_fit
+                .as_ref()
+                .and_then(|f| {
+                    let evc =
+                        Evaluator::new(spec_for(&full_drive, &ident, &chosen, false), &prepared);
+                    evc.nonlinear()
+                        .iter()
+                        .position(|m| m.0 == NlParam::Effect(e))
+                        .and_then(|i| f.x.get(i).copied())
+                })
+                .unwrap_or(n.3),
+        });
+    }
+    let joint = if chosen.is_empty() {
+        Ok(base_fit.clone())
+    } else {
+        ev_ext.fit(&split.full, Some(&x0), 30)
+    };
+    // When freeing the base parameters again leaves the drive's capacity (slack, gross
+    // slip), keep them at the base calibration and report the effects fitted on top.
+    let (mut ev_final, ext_fit, drive_for) = match joint {
+        Ok(f) => (ev_ext, f, drive0.clone()),
+        Err(_) => {
+            let mut evc = Evaluator::new(spec_for(&full_drive, &ident, &chosen, false), &prepared);
+            let xs = chosen_fit.as_ref().map(|f| f.x.clone());
+            let f = evc.fit(&split.full, xs.as_deref(), 30)?;
+            (evc, f, full_drive.clone())
+        }
+    };
+    let nl_final = ev_final.nonlinear();
+    let (_, ext_pred) = ev_final.residual(&ext_fit, &split.full)?;
+    let np = nl_final.len() + ext_fit.coef.len();
+    let cov = ev_final
+        .covariance(&ext_fit, &split.full)
+        .unwrap_or_else(|_| nalgebra::DMatrix::from_element(np, np, f64::NAN));
+    let ext_drive = with_base(&drive_for, &nl_final, &ext_fit.x);
+    let (params, drive_out, effects_out) =
+        report::parameters(&drive0, &ext_drive, &nl_final, &ext_fit, &cov);
+    // A held-out log's encoder zero is fitted on that log only when it is scored.
+    let params: Vec<ParamEstimate> = params
+        .into_iter()
+        .filter(|p| {
+            !options
+                .holdout_logs
+                .iter()
+                .any(|k| p.name == format!("encoder_zero[{k}]"))
+        })
+        .collect();
+
+    let (rmse_base, rmse_ext) = match &split.outer {
+        None => (rmse_base, current),
+        Some(outer) => {
+            let folds = std::slice::from_ref(outer);
+            let bd = std::slice::from_ref(&base_drive);
+            let b = cross_validate(&prepared, &ident, &base_drive, bd, folds, &split.full, &[])?;
+            let drives = std::slice::from_ref(&full_drive);
+            let e = if chosen.is_empty() {
+                b.0
+            } else {
+                cross_validate(
+                    &prepared,
+                    &ident,
+                    &full_drive,
+                    drives,
+                    folds,
+                    &split.full,
+                    &chosen,
+                )?
+                .0
+            };
+            (b.0, e)
+        }
+    };
+    let structure_ratio = rmse_ext / floor;
+    let unexplained_structure = structure_ratio > 1.25;
+    let cause = if let Some(c) = chosen.first() {
+        c.to_string()
+    } else if rmse_base / floor > 1.25 {
+        "unexplained".to_string()
+    } else {
+        "none".to_string()
+    };
+
+    let play_folds = split
+        .outer
+        .as_ref()
+        .map(|o| vec![o.clone()])
+        .unwrap_or_else(|| split.folds.clone());
+    let play_operator = if options.skip_play_operator {
+        None
+    } else {
+        Some(play::cross_validate(
+            &prepared,
+            &drive0,
+            &ident,
+            &play_folds,
+        )?)
+    };
+
+    // Traces for plots, with the fitted ratio and each log's encoder zero removed.
+    let ic_ext = drive_out.ratio();
+    let ic_ref = drive0.ratio();
+    let mut traces = Vec::new();
+    let mut start = 0;
+    for (k, l) in prepared.iter().enumerate() {
+        let r = start..start + l.t.len();
+        let off = ext_fit
+            .lin
+            .iter()
+            .position(|p| *p == LinParam::Offset(k))
+            .map_or(0.0, |i| ext_fit.coef[i]);
+        // Predictions are of the error at the reference ratio; shift them to the fitted one.
+        let corr = |th_in: f64| th_in * (1.0 / ic_ref - 1.0 / ic_ext);
+        let measured: Vec<f64> = (0..l.t.len())
+            .map(|j| l.th_out[j] - l.th_in[j] / ic_ext - off)
+            .collect();
+        let base_rad: Vec<f64> = r
+            .clone()
+            .enumerate()
+            .map(|(j, i)| base_pred[i] - off + corr(l.th_in[j]))
+            .collect();
+        let extended_rad: Vec<f64> = r
+            .clone()
+            .enumerate()
+            .map(|(j, i)| ext_pred[i] - off + corr(l.th_in[j]))
+            .collect();
+        traces.push(Trace {
+            log: l.source.clone(),
+            t_s: l.t.clone(),
+            theta_in_rad: l.th_in.clone(),
+            theta_out_rad: l.th_out.clone(),
+            velocity_rad_s: l.vel_in.clone(),
+            measured_rad: measured,
+            base_rad,
+            extended_rad,
+            held_out: options.holdout_logs.contains(&k),
+        });
+        start = r.end;
+    }
+
+    Ok(Diagnosis {
+        cause,
+        causes: chosen.iter().map(|c| c.to_string()).collect(),
+        rmse_base_mrad: rmse_base * 1e3,
+        rmse_extended_mrad: rmse_ext * 1e3,
+        gain_percent: 100.0 * (1.0 - rmse_ext / rmse_base.max(1e-300)),
+        noise_floor_mrad: floor * 1e3,
+        structure_ratio,
+        unexplained_structure,
+        params,
+        candidates: scores,
+        play_operator,
+        holdout: split.text,
+        logs: prepared.iter().map(|l| l.source.clone()).collect(),
+        drive: drive_out,
+        effects: effects_out,
+        traces,
+    })
+}
+
+/// Base calibration with effects in place: returns the drive calibrated on the final mask,
+/// per-fold drives and the cross-validated RMSE.
+fn recalibrate(
+    logs: &[Prepared],
+    ident: &IdentifyParams,
+    drive0: &DriveParams,
+    full_drive: &DriveParams,
+    split: &Split,
+    effects: &[EffectName],
+    fixed_fit: &Fitted,
+) -> Result<(DriveParams, Vec<DriveParams>, f64), IdentifyError> {
+    let fixed = Evaluator::new(spec_for(full_drive, ident, effects, false), logs).nonlinear();
+    let mut ev = Evaluator::new(spec_for(drive0, ident, effects, true), logs);
+    let nl = ev.nonlinear();
+    let x0: Vec<f64> = nl
+        .iter()
+        .map(|n| match n.0 {
+            NlParam::Mu => full_drive.friction_coefficient,
+            NlParam::Preload => full_drive.preload_n,
+            NlParam::Effect(_) => fixed
+                .iter()
+                .position(|m| m.0 == n.0)
+                .and_then(|i| fixed_fit.x.get(i).copied())
+                .unwrap_or(n.3),
+        })
+        .collect();
+    let full = ev.fit(&split.full, Some(&x0), 20)?;
+    let mut drives = Vec::new();
+    let mut held = Vec::new();
+    for (train, test) in &split.folds {
+        let f = ev.fit(train, Some(&full.x), 8)?;
+        drives.push(with_base(drive0, &nl, &f.x));
+        let (r, _) = ev.residual(&f, train)?;
+        held.extend(r.iter().zip(test).filter(|(_, t)| **t).map(|(r, _)| *r));
+    }
+    Ok((
+        with_base(drive0, &nl, &full.x),
+        drives,
+        rms(held.iter().copied()),
+    ))
+}
+
+/// Whether every effect size in a fit is physically possible; a runout of half the radius
+/// or a delay of seconds is a sign that the effect is standing in for something else.
+fn plausible(f: &Fitted, ic: f64) -> bool {
+    let coef = |e: EffectName, k: usize| {
+        f.lin
+            .iter()
+            .position(|p| *p == LinParam::Effect(e, k))
+            .map(|i| f.coef[i])
+    };
+    let limit = |e: EffectName| match e {
+        EffectName::InputPulleyRunout | EffectName::OutputDrumRunout => 0.05,
+        EffectName::EncoderDelay => 0.05,
+        EffectName::EncoderScaleError => 0.02,
+        EffectName::ThermalDrift => 1e-4,
+        _ => f64::INFINITY,
+    };
+    EffectName::ALL.iter().all(|e| {
+        let v = match (coef(*e, 0), coef(*e, 1)) {
+            (Some(a), Some(b)) => {
+                let h = a.hypot(b);
+                if *e == EffectName::InputPulleyRunout {
+                    h * ic
+                } else {
+                    h
+                }
+            }
+            (Some(a), None) => a.abs(),
+            _ => 0.0,
+        };
+        v <= limit(*e)
+    })
+}
+
+/// Ratio implied by a fit's inverse-ratio coefficient.
+fn fitted_ratio(drive: &DriveParams, f: &Fitted) -> f64 {
+    let ic = drive.ratio();
+    f.lin
+        .iter()
+        .position(|p| *p == LinParam::InverseRatio)
+        .map_or(ic, |i| 1.0 / (1.0 / ic + f.coef[i]))
+}
+
+/// Read logs and diagnose: the convenience entry for `cable-servo diagnose`.
+pub fn diagnose_files(
+    scenario: &Scenario,
+    paths: &[std::path::PathBuf],
+    options: &DiagnoseOptions,
+) -> Result<Diagnosis, IdentifyError> {
+    let logs: Vec<BenchLog> = paths
+        .iter()
+        .map(|p| read_bench_log(p))
+        .collect::<Result<_, _>>()?;
+    diagnose(scenario, &logs, options)
+}

@@ -1,0 +1,728 @@
+//! Replay of the quasi-static memory model against measured logs, the extended models built
+//! from the effect library, and their fits (nonlinear parameters by Levenberg-Marquardt,
+//! linear ones projected out by least squares).
+
+use std::collections::HashMap;
+
+use nalgebra::DMatrix;
+
+use super::effects::{EffectName, IdentifyParams};
+use super::lm::{levenberg_marquardt, linear_lsq};
+use super::IdentifyError;
+use crate::io::benchlog::BenchLog;
+use crate::physics::{CableDrive, DriveParams, HysteresisModel};
+
+/// A log made ready for fitting: decimated, with velocities and motion direction.
+#[derive(Clone, Debug)]
+pub struct Prepared {
+    /// Where it came from.
+    pub source: String,
+    /// Time from the log start, s.
+    pub t: Vec<f64>,
+    /// Input angle, rad.
+    pub th_in: Vec<f64>,
+    /// Output angle, rad.
+    pub th_out: Vec<f64>,
+    /// Transmitted torque `M = -load_nm`, N m.
+    pub torque: Vec<f64>,
+    /// Input velocity, rad/s (smoothed central difference).
+    pub vel_in: Vec<f64>,
+    /// Output velocity, rad/s.
+    pub vel_out: Vec<f64>,
+    /// Direction of motion (+1/-1, held through stops).
+    pub dir: Vec<f64>,
+    /// Input travel since the previous sample, rad.
+    pub travel: Vec<f64>,
+    /// Record length, s.
+    pub duration: f64,
+    /// Quantisation step of the input angle, rad (0 when not visible).
+    pub q_in: f64,
+    /// Quantisation step of the output angle, rad.
+    pub q_out: f64,
+}
+
+fn quant_step(v: &[f64]) -> f64 {
+    // Smallest clearly non-zero step; for noisy unquantised data this is tiny and the noise
+    // estimate from differences takes over.
+    let mut steps: Vec<f64> = v
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|d| *d > 1e-12)
+        .collect();
+    if steps.len() < 10 {
+        return 0.0;
+    }
+    steps.sort_by(|a, b| a.total_cmp(b));
+    let q = steps[steps.len() / 100];
+    // Only accept it as a grid if most steps are near multiples of it.
+    let on_grid = steps
+        .iter()
+        .filter(|d| {
+            let k = (**d / q).round();
+            (*d - k * q).abs() < 0.05 * q
+        })
+        .count();
+    if on_grid as f64 > 0.9 * steps.len() as f64 {
+        q
+    } else {
+        0.0
+    }
+}
+
+/// Decimate by block averaging to at most `max_rate_hz` and derive velocities.
+pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyError> {
+    let bad = |message: String| IdentifyError::BadLog {
+        log: log.source.clone(),
+        message,
+    };
+    let n = log.len();
+    if n < 40 {
+        return Err(bad(format!(
+            "{n} samples is too few; at least 40 are needed (a few periods of motion)"
+        )));
+    }
+    for (name, col) in [
+        ("theta_in_rad", &log.theta_in_rad),
+        ("theta_out_rad", &log.theta_out_rad),
+        ("load_nm", &log.load_nm),
+    ] {
+        if col.len() != n {
+            return Err(bad(format!(
+                "column {name} has {} rows, t_s has {n}",
+                col.len()
+            )));
+        }
+        if let Some(i) = col.iter().position(|v| !v.is_finite()) {
+            return Err(bad(format!("column {name} is not finite at row {}", i + 1)));
+        }
+    }
+    if let Some(i) = log
+        .t_s
+        .windows(2)
+        .position(|w| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater))
+    {
+        return Err(bad(format!("t_s does not increase at row {}", i + 2)));
+    }
+    let span = log.t_s[n - 1] - log.t_s[0];
+    let rate = (n - 1) as f64 / span;
+    // Keep at least 40 samples after averaging, whatever the rates.
+    let m = ((rate / max_rate_hz).floor() as usize).clamp(1, (n / 40).max(1));
+    let q_in = quant_step(&log.theta_in_rad);
+    let q_out = quant_step(&log.theta_out_rad);
+    let avg = |v: &[f64]| -> Vec<f64> {
+        v.chunks(m)
+            .filter(|c| c.len() == m)
+            .map(|c| c.iter().sum::<f64>() / m as f64)
+            .collect()
+    };
+    let t0 = log.t_s[0];
+    let t: Vec<f64> = avg(&log.t_s).into_iter().map(|t| t - t0).collect();
+    let th_in = avg(&log.theta_in_rad);
+    let th_out = avg(&log.theta_out_rad);
+    let torque: Vec<f64> = avg(&log.load_nm).into_iter().map(|l| -l).collect();
+    let k = t.len();
+    let dt = span / (n - 1) as f64 * m as f64;
+    let w = ((0.025 / dt).round() as usize).max(1);
+    let deriv = |v: &[f64]| -> Vec<f64> {
+        (0..k)
+            .map(|i| {
+                let a = i.saturating_sub(w);
+                let b = (i + w).min(k - 1);
+                (v[b] - v[a]) / (t[b] - t[a])
+            })
+            .collect()
+    };
+    let vel_in = deriv(&th_in);
+    let vel_out = deriv(&th_out);
+    let vmax = vel_in.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    // Low threshold so the direction flips where the motion reverses (the brake and any
+    // bearing friction flip there), high enough that quantisation steps never flip it.
+    let thr = (0.002 * vmax).max(4.0 * q_in / (2.0 * w as f64 * dt));
+    let first = vel_in
+        .iter()
+        .find(|v| v.abs() > thr)
+        .map_or(1.0, |v| v.signum());
+    let mut cur = first;
+    let dir: Vec<f64> = vel_in
+        .iter()
+        .map(|v| {
+            if v.abs() > thr {
+                cur = v.signum();
+            }
+            cur
+        })
+        .collect();
+    let mut travel = vec![0.0; k];
+    for i in 1..k {
+        travel[i] = (th_in[i] - th_in[i - 1]).abs();
+    }
+    Ok(Prepared {
+        source: log.source.clone(),
+        duration: t[k - 1].max(dt),
+        t,
+        th_in,
+        th_out,
+        torque,
+        vel_in,
+        vel_out,
+        dir,
+        travel,
+        q_in,
+        q_out,
+    })
+}
+
+/// Transmission error of the memory model along a torque history, rad.
+pub fn replay(drive: &DriveParams, torque: &[f64]) -> Result<Vec<f64>, (usize, String)> {
+    let mut d = CableDrive::new(drive.clone(), HysteresisModel::Memory);
+    let mut out = Vec::with_capacity(torque.len());
+    for (i, m) in torque.iter().enumerate() {
+        match d.apply_torque(*m) {
+            Ok(s) => out.push(s.transmission_error_rad),
+            Err(f) => return Err((i, f.to_string())),
+        }
+    }
+    Ok(out)
+}
+
+/// Low-pass in input-travel domain: what stuck cable carried over the wraps does to a jump.
+pub fn transport_filter(e: &[f64], travel: &[f64], theta_c: f64) -> Vec<f64> {
+    let mut out = Vec::with_capacity(e.len());
+    let mut y = e.first().copied().unwrap_or(0.0);
+    for (i, v) in e.iter().enumerate() {
+        let a = if theta_c > 0.0 {
+            1.0 - (-travel[i] / theta_c).exp()
+        } else {
+            1.0
+        };
+        y += a * (v - y);
+        out.push(y);
+    }
+    out
+}
+
+/// A nonlinear parameter of a model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NlParam {
+    /// Friction coefficient.
+    Mu,
+    /// Preload, N.
+    Preload,
+    /// The effect's own nonlinear parameter.
+    Effect(EffectName),
+}
+
+/// A coefficient fitted linearly.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LinParam {
+    /// Encoder zero of log `k`, rad.
+    Offset(usize),
+    /// `G_ref / G`.
+    ModulusScale,
+    /// `1/ic - 1/ic_ref`.
+    InverseRatio,
+    /// Coefficient `k` of an effect's column.
+    Effect(EffectName, usize),
+}
+
+/// Effects whose signature is linear in their size given the measured signals.
+pub fn is_linear(e: EffectName) -> bool {
+    !matches!(
+        e,
+        EffectName::PreloadRelaxation | EffectName::BearingFriction | EffectName::CableTransport
+    )
+}
+
+/// A model: the base drive (reference values), what is calibrated and which effects.
+#[derive(Clone, Debug)]
+pub struct Spec {
+    /// Drive with reference values (start of calibration; `G_ref`, `ic_ref`).
+    pub drive: DriveParams,
+    /// Calibrate friction.
+    pub fit_mu: bool,
+    /// Calibrate preload.
+    pub fit_pre: bool,
+    /// Calibrate cable modulus.
+    pub fit_g: bool,
+    /// Calibrate the ratio.
+    pub fit_ratio: bool,
+    /// Effects included.
+    pub effects: Vec<EffectName>,
+    /// Bounds and settings.
+    pub ident: IdentifyParams,
+}
+
+/// Parameters of a fitted model.
+#[derive(Clone, Debug)]
+pub struct Fitted {
+    /// Nonlinear parameters (layout of [`Spec::nonlinear`]).
+    pub x: Vec<f64>,
+    /// Linear coefficients.
+    pub coef: Vec<f64>,
+    /// Names of the linear coefficients.
+    pub lin: Vec<LinParam>,
+    /// Residual sum of squares on the fitted rows.
+    pub cost: f64,
+    /// Rows fitted.
+    pub n_fit: usize,
+}
+
+type ReplayKey = [u64; 4];
+
+/// Evaluates a model on a set of logs, caching base replays.
+pub struct Evaluator<'a> {
+    /// The model.
+    pub spec: Spec,
+    /// The logs.
+    pub logs: &'a [Prepared],
+    /// Measured error relative to the reference ratio, per log, rad.
+    y: Vec<Vec<f64>>,
+    cache: HashMap<ReplayKey, Vec<Vec<f64>>>,
+}
+
+/// One model evaluation: fixed part and linear columns, stacked over logs.
+pub struct Design {
+    /// Target minus fixed part.
+    pub target: Vec<f64>,
+    /// Fixed part of the prediction.
+    pub fixed: Vec<f64>,
+    /// Linear columns.
+    pub cols: Vec<Vec<f64>>,
+    /// Their names.
+    pub names: Vec<LinParam>,
+}
+
+impl<'a> Evaluator<'a> {
+    /// Set up; the measured error uses the reference ratio of `spec.drive`.
+    pub fn new(spec: Spec, logs: &'a [Prepared]) -> Self {
+        let ic = spec.drive.ratio();
+        let y = logs
+            .iter()
+            .map(|l| {
+                l.th_out
+                    .iter()
+                    .zip(&l.th_in)
+                    .map(|(o, i)| o - i / ic)
+                    .collect()
+            })
+            .collect();
+        Evaluator {
+            spec,
+            logs,
+            y,
+            cache: HashMap::new(),
+        }
+    }
+
+    /// Total rows.
+    pub fn rows(&self) -> usize {
+        self.logs.iter().map(|l| l.t.len()).sum()
+    }
+
+    /// Nonlinear parameters with bounds and start values.
+    pub fn nonlinear(&self) -> Vec<(NlParam, f64, f64, f64)> {
+        let s = &self.spec;
+        let id = &s.ident;
+        let mut v = Vec::new();
+        if s.fit_mu {
+            let mu = s.drive.friction_coefficient;
+            v.push((
+                NlParam::Mu,
+                id.friction_bounds[0],
+                id.friction_bounds[1],
+                mu,
+            ));
+        }
+        if s.fit_pre {
+            let p = s.drive.preload_n;
+            v.push((
+                NlParam::Preload,
+                p * id.preload_factor_bounds[0],
+                p * id.preload_factor_bounds[1],
+                p,
+            ));
+        }
+        let tmax = self.logs.iter().fold(1e-3f64, |a, l| a.max(l.duration));
+        let cap = 2.0 * s.drive.preload_n * s.drive.drum_radius_m;
+        for e in &s.effects {
+            match e {
+                EffectName::PreloadRelaxation => {
+                    v.push((NlParam::Effect(*e), 0.0, 0.6 / tmax, 0.05 / tmax))
+                }
+                EffectName::BearingFriction => {
+                    v.push((NlParam::Effect(*e), 0.0, 0.4 * cap, 0.02 * cap))
+                }
+                EffectName::CableTransport => v.push((NlParam::Effect(*e), 1e-4, 3.0, 0.05)),
+                _ => {}
+            }
+        }
+        v
+    }
+
+    fn value(&self, x: &[f64], p: NlParam) -> Option<f64> {
+        self.nonlinear()
+            .iter()
+            .position(|n| n.0 == p)
+            .and_then(|i| x.get(i).copied())
+    }
+
+    /// Base error (with nonlinear effects) per log for nonlinear parameters `x`.
+    fn base(&mut self, x: &[f64]) -> Result<Vec<Vec<f64>>, IdentifyError> {
+        let mut drive = self.spec.drive.clone();
+        if let Some(mu) = self.value(x, NlParam::Mu) {
+            drive.friction_coefficient = mu;
+        }
+        if let Some(p) = self.value(x, NlParam::Preload) {
+            drive.preload_n = p;
+        }
+        let mb = self
+            .value(x, NlParam::Effect(EffectName::BearingFriction))
+            .unwrap_or(0.0);
+        let rel = self
+            .value(x, NlParam::Effect(EffectName::PreloadRelaxation))
+            .unwrap_or(0.0);
+        let key = [
+            drive.friction_coefficient.to_bits(),
+            drive.preload_n.to_bits(),
+            mb.to_bits(),
+            rel.to_bits(),
+        ];
+        if !self.cache.contains_key(&key) {
+            let mut all = Vec::with_capacity(self.logs.len());
+            for l in self.logs {
+                let torque: Vec<f64> = l
+                    .torque
+                    .iter()
+                    .zip(&l.dir)
+                    .map(|(m, d)| m + mb * d)
+                    .collect();
+                let fail = |(i, msg): (usize, String)| IdentifyError::Replay {
+                    log: l.source.clone(),
+                    t_s: l.t.get(i).copied().unwrap_or(0.0),
+                    message: msg,
+                };
+                let mut e = replay(&drive, &torque).map_err(fail)?;
+                if rel > 0.0 {
+                    let mut d2 = drive.clone();
+                    d2.preload_n *= 1.0 - rel * l.duration;
+                    let e1 = replay(&d2, &torque).map_err(fail)?;
+                    for (i, v) in e.iter_mut().enumerate() {
+                        *v += l.t[i] / l.duration * (e1[i] - *v);
+                    }
+                }
+                all.push(e);
+            }
+            if self.cache.len() > 64 {
+                self.cache.clear();
+            }
+            self.cache.insert(key, all);
+        }
+        let mut out = self.cache[&key].clone();
+        if let Some(tc) = self.value(x, NlParam::Effect(EffectName::CableTransport)) {
+            for (e, l) in out.iter_mut().zip(self.logs) {
+                *e = transport_filter(e, &l.travel, tc);
+            }
+        }
+        Ok(out)
+    }
+
+    /// Design for nonlinear parameters `x`.
+    #[allow(clippy::needless_range_loop)]
+    pub fn design(&mut self, x: &[f64]) -> Result<Design, IdentifyError> {
+        let base = self.base(x)?;
+        let n = self.rows();
+        let nlogs = self.logs.len();
+        let mut names: Vec<LinParam> = (0..nlogs).map(LinParam::Offset).collect();
+        if self.spec.fit_g {
+            names.push(LinParam::ModulusScale);
+        }
+        if self.spec.fit_ratio {
+            names.push(LinParam::InverseRatio);
+        }
+        for e in &self.spec.effects {
+            let k = match e {
+                EffectName::InputPulleyRunout | EffectName::OutputDrumRunout => 2,
+                EffectName::EncoderDelay
+                | EffectName::EncoderScaleError
+                | EffectName::ThermalDrift => 1,
+                _ => 0,
+            };
+            for j in 0..k {
+                names.push(LinParam::Effect(*e, j));
+            }
+        }
+        let mut cols = vec![Vec::with_capacity(n); names.len()];
+        let mut fixed = Vec::with_capacity(n);
+        let mut target = Vec::with_capacity(n);
+        for (li, l) in self.logs.iter().enumerate() {
+            for i in 0..l.t.len() {
+                let b = base[li][i];
+                let f = if self.spec.fit_g { 0.0 } else { b };
+                fixed.push(f);
+                target.push(self.y[li][i] - f);
+                for (c, name) in cols.iter_mut().zip(&names) {
+                    c.push(match name {
+                        LinParam::Offset(k) => {
+                            if *k == li {
+                                1.0
+                            } else {
+                                0.0
+                            }
+                        }
+                        LinParam::ModulusScale => b,
+                        LinParam::InverseRatio => l.th_in[i],
+                        LinParam::Effect(e, j) => match (e, j) {
+                            (EffectName::InputPulleyRunout, 0) => l.th_in[i].sin(),
+                            (EffectName::InputPulleyRunout, _) => l.th_in[i].cos(),
+                            (EffectName::OutputDrumRunout, 0) => l.th_out[i].sin(),
+                            (EffectName::OutputDrumRunout, _) => l.th_out[i].cos(),
+                            (EffectName::EncoderDelay, _) => -l.vel_out[i],
+                            (EffectName::EncoderScaleError, _) => l.th_out[i],
+                            (EffectName::ThermalDrift, _) => l.t[i],
+                            _ => 0.0,
+                        },
+                    });
+                }
+            }
+        }
+        Ok(Design {
+            target,
+            fixed,
+            cols,
+            names,
+        })
+    }
+
+    /// Bounds of the linear coefficients that have physical limits.
+    fn lin_bounds(&self, name: LinParam) -> Option<(f64, f64)> {
+        let id = &self.spec.ident;
+        match name {
+            LinParam::ModulusScale => Some((
+                1.0 / id.modulus_factor_bounds[1],
+                1.0 / id.modulus_factor_bounds[0],
+            )),
+            LinParam::InverseRatio => {
+                let ic = self.spec.drive.ratio();
+                Some((
+                    1.0 / (ic * id.ratio_factor_bounds[1]) - 1.0 / ic,
+                    1.0 / (ic * id.ratio_factor_bounds[0]) - 1.0 / ic,
+                ))
+            }
+            _ => None,
+        }
+    }
+
+    /// Linear coefficients on rows `mask` (bounded ones clamped and the rest refitted).
+    pub fn solve_linear(&self, d: &Design, mask: &[bool]) -> Option<Vec<f64>> {
+        let mut pinned: Vec<Option<f64>> = vec![None; d.names.len()];
+        for _ in 0..3 {
+            let free: Vec<usize> = (0..d.names.len())
+                .filter(|j| pinned[*j].is_none())
+                .collect();
+            let mut t = d.target.clone();
+            for (j, v) in pinned.iter().enumerate() {
+                if let Some(v) = v {
+                    for (ti, c) in t.iter_mut().zip(&d.cols[j]) {
+                        *ti -= v * c;
+                    }
+                }
+            }
+            let cols: Vec<&[f64]> = free.iter().map(|j| d.cols[*j].as_slice()).collect();
+            let fit = linear_lsq(&cols, &t, mask)?;
+            let mut coef = vec![0.0; d.names.len()];
+            for (k, j) in free.iter().enumerate() {
+                coef[*j] = fit.coef[k];
+            }
+            for (j, v) in pinned.iter().enumerate() {
+                if let Some(v) = v {
+                    coef[j] = *v;
+                }
+            }
+            let mut again = false;
+            for j in free {
+                if let Some((lo, hi)) = self.lin_bounds(d.names[j]) {
+                    if coef[j] < lo || coef[j] > hi {
+                        pinned[j] = Some(coef[j].clamp(lo, hi));
+                        again = true;
+                    }
+                }
+            }
+            if !again {
+                return Some(coef);
+            }
+        }
+        None
+    }
+
+    /// Prediction of the measured error (relative to the reference ratio), stacked.
+    pub fn predict(d: &Design, coef: &[f64]) -> Vec<f64> {
+        let mut p = d.fixed.clone();
+        for (c, v) in d.cols.iter().zip(coef) {
+            for (pi, ci) in p.iter_mut().zip(c) {
+                *pi += v * ci;
+            }
+        }
+        p
+    }
+
+    /// Stacked measured error relative to the reference ratio.
+    pub fn measured(&self) -> Vec<f64> {
+        self.y.iter().flatten().copied().collect()
+    }
+
+    /// Fit on rows `mask`, starting from `x0` (nonlinear layout), at most `iters` LM steps.
+    pub fn fit(
+        &mut self,
+        mask: &[bool],
+        x0: Option<&[f64]>,
+        iters: usize,
+    ) -> Result<Fitted, IdentifyError> {
+        let nl = self.nonlinear();
+        let lo: Vec<f64> = nl.iter().map(|n| n.1).collect();
+        let hi: Vec<f64> = nl.iter().map(|n| n.2).collect();
+        let mut start: Vec<f64> = match x0 {
+            Some(x) if x.len() == nl.len() => x.to_vec(),
+            _ => nl.iter().map(|n| n.3).collect(),
+        };
+        let n_fit = mask.iter().filter(|m| **m).count();
+        let resid = |x: &[f64], me: &mut Self| -> Option<Vec<f64>> {
+            let d = me.design(x).ok()?;
+            let coef = me.solve_linear(&d, mask)?;
+            let p = Self::predict(&d, &coef);
+            let y = me.measured();
+            Some(
+                (0..y.len())
+                    .filter(|i| mask[*i])
+                    .map(|i| y[i] - p[i])
+                    .collect(),
+            )
+        };
+        // Coarse scan of a single effect parameter first: their costs are often multimodal
+        // (transport length, friction torque hidden behind a stiffer cable).
+        if x0.is_none() {
+            for (k, n) in nl.iter().enumerate() {
+                if let NlParam::Effect(_) = n.0 {
+                    let mut best = (f64::INFINITY, start[k]);
+                    for g in 0..7 {
+                        let f = g as f64 / 6.0;
+                        let v = if n.1 > 0.0 {
+                            n.1 * (n.2 / n.1).powf(f)
+                        } else {
+                            n.2 * f * f
+                        };
+                        let mut xs = start.clone();
+                        xs[k] = v;
+                        if let Some(r) = resid(&xs, self) {
+                            let c: f64 = r.iter().map(|e| e * e).sum();
+                            if c < best.0 {
+                                best = (c, v);
+                            }
+                        }
+                    }
+                    start[k] = best.1;
+                }
+            }
+        }
+        // Surface why the start fails (slack, gross slip) instead of a bare fit error.
+        self.design(&start)?;
+        let x = if nl.is_empty() {
+            Vec::new()
+        } else {
+            let lm = levenberg_marquardt(|x| resid(x, self), &start, &lo, &hi, iters)
+                .map_err(|e| IdentifyError::Fit(e.to_string()))?;
+            lm.x
+        };
+        let d = self.design(&x)?;
+        let coef = self
+            .solve_linear(&d, mask)
+            .ok_or_else(|| IdentifyError::Fit("linear least squares is singular".into()))?;
+        let p = Self::predict(&d, &coef);
+        let y = self.measured();
+        let cost: f64 = (0..y.len())
+            .filter(|i| mask[*i])
+            .map(|i| (y[i] - p[i]).powi(2))
+            .sum();
+        if !cost.is_finite() || x.iter().any(|v| !v.is_finite()) {
+            return Err(IdentifyError::Fit(
+                "the fit diverged (non-finite cost); check units of the logs".into(),
+            ));
+        }
+        Ok(Fitted {
+            x,
+            coef,
+            lin: d.names,
+            cost,
+            n_fit,
+        })
+    }
+
+    /// Residual (measured minus predicted) on all rows for a fit; logs without any fitted
+    /// row get their encoder zero from their own data (it is a nuisance, not a prediction).
+    pub fn residual(
+        &mut self,
+        f: &Fitted,
+        mask: &[bool],
+    ) -> Result<(Vec<f64>, Vec<f64>), IdentifyError> {
+        let d = self.design(&f.x)?;
+        let mut p = Self::predict(&d, &f.coef);
+        let y = self.measured();
+        let mut start = 0;
+        for l in self.logs {
+            let r = start..start + l.t.len();
+            if !mask[r.clone()].iter().any(|m| *m) {
+                let off = r.clone().map(|i| y[i] - p[i]).sum::<f64>() / l.t.len() as f64;
+                for i in r.clone() {
+                    p[i] += off;
+                }
+            }
+            start = r.end;
+        }
+        let res = y.iter().zip(&p).map(|(a, b)| a - b).collect();
+        Ok((res, p))
+    }
+
+    /// Covariance of (nonlinear, linear) parameters at a fit: `s^2 (J^T J)^-1` with the
+    /// nonlinear columns by finite differences at fixed linear coefficients.
+    pub fn covariance(&mut self, f: &Fitted, mask: &[bool]) -> Result<DMatrix<f64>, IdentifyError> {
+        let nl = self.nonlinear();
+        let d0 = self.design(&f.x)?;
+        let p0 = Self::predict(&d0, &f.coef);
+        let rows: Vec<usize> = (0..p0.len()).filter(|i| mask[*i]).collect();
+        let np = nl.len() + f.coef.len();
+        let mut j = DMatrix::<f64>::zeros(rows.len(), np);
+        for (k, n) in nl.iter().enumerate() {
+            let mut h = 1e-4 * (n.2 - n.1);
+            if f.x[k] + h > n.2 {
+                h = -h;
+            }
+            let mut x = f.x.clone();
+            x[k] += h;
+            let d = match self.design(&x) {
+                Ok(d) => d,
+                Err(_) => {
+                    h = -h;
+                    x[k] = f.x[k] + h;
+                    self.design(&x)?
+                }
+            };
+            let p = Self::predict(&d, &f.coef);
+            for (r, i) in rows.iter().enumerate() {
+                j[(r, k)] = (p[*i] - p0[*i]) / h;
+            }
+        }
+        for (c, col) in d0.cols.iter().enumerate() {
+            for (r, i) in rows.iter().enumerate() {
+                j[(r, nl.len() + c)] = col[*i];
+            }
+        }
+        let dof = (rows.len() as f64 - np as f64).max(1.0);
+        let s2 = f.cost / dof;
+        let jtj = j.transpose() * &j;
+        // Pseudo-inverse so an unidentifiable direction shows as a huge std, not a crash.
+        let tol = 1e-14 * jtj.norm();
+        let inv = jtj
+            .pseudo_inverse(tol)
+            .map_err(|e| IdentifyError::Fit(e.to_string()))?;
+        Ok(inv * s2)
+    }
+}

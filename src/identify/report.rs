@@ -1,0 +1,437 @@
+//! Diagnosis output: parameter table, JSON, a one-minute text report, plots, and the
+//! extended model as a scenario file.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use nalgebra::DMatrix;
+
+use super::effects::{EffectName, EffectsParams};
+use super::model::{Fitted, LinParam, NlParam};
+use super::{Diagnosis, IdentifyError, ParamEstimate};
+use crate::physics::DriveParams;
+use crate::scenario::Scenario;
+
+fn std_of(cov: &DMatrix<f64>, grad: &[(usize, f64)]) -> f64 {
+    let mut v = 0.0;
+    for (i, gi) in grad {
+        for (j, gj) in grad {
+            v += gi * gj * cov[(*i, *j)];
+        }
+    }
+    v.max(0.0).sqrt()
+}
+
+/// Physical parameters from a fit: calibrated drive, effects, and the table with stds.
+pub(crate) fn parameters(
+    drive0: &DriveParams,
+    drive_nl: &DriveParams,
+    nl: &[(NlParam, f64, f64, f64)],
+    fit: &Fitted,
+    cov: &DMatrix<f64>,
+) -> (Vec<ParamEstimate>, DriveParams, EffectsParams) {
+    let mut out = Vec::new();
+    let mut drive = drive_nl.clone();
+    let mut eff = EffectsParams::default();
+    let nn = nl.len();
+    let lin = |p: LinParam| {
+        fit.lin
+            .iter()
+            .position(|q| *q == p)
+            .map(|i| (nn + i, fit.coef[i]))
+    };
+    for (k, n) in nl.iter().enumerate() {
+        let v = fit.x[k];
+        let s = std_of(cov, &[(k, 1.0)]);
+        let (name, unit) = match n.0 {
+            NlParam::Mu => ("friction_coefficient", "1"),
+            NlParam::Preload => ("preload_n", "N"),
+            NlParam::Effect(EffectName::BearingFriction) => {
+                eff.bearing_friction_nm = Some(v);
+                ("bearing_friction", "N m")
+            }
+            NlParam::Effect(EffectName::PreloadRelaxation) => {
+                eff.preload_relaxation_per_s = Some(v);
+                ("preload_relaxation", "1/s")
+            }
+            NlParam::Effect(EffectName::CableTransport) => {
+                eff.cable_transport_rad = Some(v);
+                ("cable_transport", "rad (input travel)")
+            }
+            NlParam::Effect(_) => continue,
+        };
+        out.push(ParamEstimate {
+            name: name.into(),
+            value: v,
+            std: s,
+            unit: unit.into(),
+        });
+    }
+    if let Some((i, c)) = lin(LinParam::ModulusScale) {
+        let g = drive0.cable_modulus_n / c.max(1e-12);
+        drive.cable_modulus_n = g;
+        out.push(ParamEstimate {
+            name: "cable_modulus_n".into(),
+            value: g,
+            std: std_of(cov, &[(i, g / c.max(1e-12))]),
+            unit: "N".into(),
+        });
+    }
+    let mut ic = drive0.ratio();
+    if let Some((i, d)) = lin(LinParam::InverseRatio) {
+        ic = 1.0 / (1.0 / ic + d);
+        drive.pulley_radius_m = drive.drum_radius_m / ic;
+        out.push(ParamEstimate {
+            name: "ratio".into(),
+            value: ic,
+            std: std_of(cov, &[(i, ic * ic)]),
+            unit: "1".into(),
+        });
+    }
+    let pair = |e: EffectName, scale: f64| -> Option<(f64, f64, f64, f64)> {
+        let (i, a) = lin(LinParam::Effect(e, 0))?;
+        let (j, b) = lin(LinParam::Effect(e, 1))?;
+        let h = a.hypot(b).max(1e-300);
+        let amp = scale * h;
+        let s = std_of(cov, &[(i, scale * a / h), (j, scale * b / h)]);
+        let ph = b.atan2(a);
+        let sp = std_of(cov, &[(i, -b / (h * h)), (j, a / (h * h))]);
+        Some((amp, s, ph, sp))
+    };
+    if let Some((v, s, ph, sp)) = pair(EffectName::InputPulleyRunout, ic) {
+        eff.input_pulley_runout = Some(v);
+        eff.input_pulley_runout_phase_rad = Some(ph);
+        out.push(ParamEstimate {
+            name: "input_pulley_runout".into(),
+            value: v,
+            std: s,
+            unit: "1 (eccentricity/radius)".into(),
+        });
+        out.push(ParamEstimate {
+            name: "input_pulley_runout_phase".into(),
+            value: ph,
+            std: sp,
+            unit: "rad".into(),
+        });
+    }
+    if let Some((v, s, ph, sp)) = pair(EffectName::OutputDrumRunout, 1.0) {
+        eff.output_drum_runout = Some(v);
+        eff.output_drum_runout_phase_rad = Some(ph);
+        out.push(ParamEstimate {
+            name: "output_drum_runout".into(),
+            value: v,
+            std: s,
+            unit: "1 (eccentricity/radius)".into(),
+        });
+        out.push(ParamEstimate {
+            name: "output_drum_runout_phase".into(),
+            value: ph,
+            std: sp,
+            unit: "rad".into(),
+        });
+    }
+    for (e, unit) in [
+        (EffectName::EncoderDelay, "s"),
+        (EffectName::EncoderScaleError, "1"),
+        (EffectName::ThermalDrift, "rad/s"),
+    ] {
+        if let Some((i, v)) = lin(LinParam::Effect(e, 0)) {
+            match e {
+                EffectName::EncoderDelay => eff.encoder_delay_s = Some(v),
+                EffectName::EncoderScaleError => eff.encoder_scale_error = Some(v),
+                _ => eff.thermal_drift_rad_per_s = Some(v),
+            }
+            out.push(ParamEstimate {
+                name: e.to_string(),
+                value: v,
+                std: std_of(cov, &[(i, 1.0)]),
+                unit: unit.into(),
+            });
+        }
+    }
+    for (k, p) in fit.lin.iter().enumerate() {
+        if let LinParam::Offset(l) = p {
+            out.push(ParamEstimate {
+                name: format!("encoder_zero[{l}]"),
+                value: fit.coef[k],
+                std: std_of(cov, &[(nn + k, 1.0)]),
+                unit: "rad".into(),
+            });
+        }
+    }
+    (out, drive, eff)
+}
+
+/// Size of an effect in a diagnosis, by name (None when not identified).
+pub fn effect_value(d: &Diagnosis, e: EffectName) -> Option<f64> {
+    d.params
+        .iter()
+        .find(|p| p.name == e.as_str())
+        .map(|p| p.value)
+}
+
+fn wr(path: &Path, text: &str) -> Result<(), IdentifyError> {
+    std::fs::write(path, text).map_err(|e| IdentifyError::Write {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    })
+}
+
+/// The text an engineer reads first.
+pub fn summary_text(d: &Diagnosis) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "Diagnosis of {} log(s): {}",
+        d.logs.len(),
+        d.logs.join(", ")
+    );
+    let _ = writeln!(s, "Held out: {}", d.holdout);
+    let verdict = match d.cause.as_str() {
+        "none" => "nothing beyond sensor noise: the calibrated base model explains the data".to_string(),
+        "unexplained" => "structure remains that no effect in the library explains (look at the residual plots: resonance, sensor fault, load not logged?)".to_string(),
+        c => {
+            let m = c.parse::<EffectName>().map(|e| e.meaning()).unwrap_or("");
+            format!("{c} ({m})")
+        }
+    };
+    let _ = writeln!(s, "\nCAUSE: {verdict}");
+    if d.causes.len() > 1 {
+        let _ = writeln!(
+            s,
+            "All effects found, strongest first: {}",
+            d.causes.join(", ")
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nHeld-out RMS transmission error: base {:.4} mrad -> extended {:.4} mrad ({:+.1} %), noise floor {:.4} mrad",
+        d.rmse_base_mrad, d.rmse_extended_mrad, -d.gain_percent, d.noise_floor_mrad
+    );
+    if let Some(p) = &d.play_operator {
+        let _ = writeln!(
+            s,
+            "Play-operator (deadband) model for comparison: {:.4} mrad held out",
+            p.rmse_heldout_mrad
+        );
+    }
+    if d.unexplained_structure && d.cause != "unexplained" {
+        let _ = writeln!(
+            s,
+            "Residual is still {:.1}x the noise floor: more is going on than the model holds.",
+            d.structure_ratio
+        );
+    }
+    let _ = writeln!(s, "\nParameters (value +- 1 sigma):");
+    for p in &d.params {
+        let _ = writeln!(
+            s,
+            "  {:<28} {:>14.6e} +- {:<10.2e} {}",
+            p.name, p.value, p.std, p.unit
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nCandidates (held-out RMSE, gain, share of structure explained):"
+    );
+    for c in &d.candidates {
+        let _ = writeln!(
+            s,
+            "  round {} {:<22} {:.4} mrad {:+6.1} % {:5.2}  {}",
+            c.round, c.name, c.rmse_heldout_mrad, c.gain_percent, c.explained_fraction, c.verdict
+        );
+    }
+    s
+}
+
+/// Write `diagnosis.json`, `report.txt`, `traces.csv` and plots into `dir`; returns the
+/// files written. `json_path` overrides where the JSON goes.
+pub fn write_diagnosis(
+    dir: &Path,
+    diagnosis: &Diagnosis,
+    json_path: Option<&Path>,
+) -> Result<Vec<PathBuf>, IdentifyError> {
+    std::fs::create_dir_all(dir).map_err(|e| IdentifyError::Write {
+        path: dir.display().to_string(),
+        message: e.to_string(),
+    })?;
+    let mut files = Vec::new();
+    let json = serde_json::to_string_pretty(diagnosis).map_err(|e| IdentifyError::Write {
+        path: "diagnosis.json".into(),
+        message: e.to_string(),
+    })?;
+    let jp = json_path
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| dir.join("diagnosis.json"));
+    wr(&jp, &json)?;
+    files.push(jp);
+    let rp = dir.join("report.txt");
+    wr(&rp, &summary_text(diagnosis))?;
+    files.push(rp);
+    let mut csv = String::from("log,t_s,theta_in_rad,theta_out_rad,velocity_rad_s,measured_rad,base_rad,extended_rad,residual_rad\n");
+    for (k, t) in diagnosis.traces.iter().enumerate() {
+        for i in 0..t.t_s.len() {
+            let _ = writeln!(
+                csv,
+                "{k},{:.5},{:.7},{:.7},{:.6},{:.4e},{:.4e},{:.4e},{:.4e}",
+                t.t_s[i],
+                t.theta_in_rad[i],
+                t.theta_out_rad[i],
+                t.velocity_rad_s[i],
+                t.measured_rad[i],
+                t.base_rad[i],
+                t.extended_rad[i],
+                t.measured_rad[i] - t.extended_rad[i]
+            );
+        }
+    }
+    let cp = dir.join("traces.csv");
+    wr(&cp, &csv)?;
+    files.push(cp);
+    files.extend(plots(dir, diagnosis)?);
+    Ok(files)
+}
+
+/// Error traces and residual signatures: the shape of the residual against time, input
+/// angle, output angle and velocity is what names a cause.
+fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
+    use crate::plot::{save_chart, save_panels, Chart, HBand, Series};
+    let perr = |e: crate::plot::PlotError| IdentifyError::Write {
+        path: dir.display().to_string(),
+        message: e.to_string(),
+    };
+    let mut files = Vec::new();
+    let short = |s: &str| {
+        Path::new(s)
+            .file_stem()
+            .and_then(|x| x.to_str())
+            .unwrap_or(s)
+            .to_string()
+    };
+    let mut error_charts = Vec::new();
+    for t in &d.traces {
+        let mr = |v: &[f64]| v.iter().map(|x| x * 1e3).collect::<Vec<f64>>();
+        error_charts.push(Chart {
+            title: format!(
+                "{}{}: transmission error",
+                short(&t.log),
+                if t.held_out { " (held out)" } else { "" }
+            ),
+            x_label: "time (s)".into(),
+            y_label: "error (mrad)".into(),
+            series: vec![
+                Series::points("measured", t.t_s.clone(), mr(&t.measured_rad)),
+                Series::line("base model", t.t_s.clone(), mr(&t.base_rad)),
+                Series::line("extended model", t.t_s.clone(), mr(&t.extended_rad)),
+            ],
+            ..Chart::default()
+        });
+    }
+    files.extend(
+        save_panels(
+            "Measured, base and extended transmission error",
+            &error_charts,
+            &dir.join("error"),
+        )
+        .map_err(perr)?,
+    );
+    let floor = d.noise_floor_mrad;
+    let band = || HBand {
+        lo: -floor,
+        hi: floor,
+        label: "noise floor".into(),
+    };
+    let against = |label: &str, f: &dyn Fn(&super::Trace) -> Vec<f64>, base: bool| -> Chart {
+        Chart {
+            title: format!(
+                "{} residual against {label}",
+                if base { "base-model" } else { "extended-model" }
+            ),
+            x_label: label.into(),
+            y_label: "residual (mrad)".into(),
+            series: d
+                .traces
+                .iter()
+                .map(|t| {
+                    let model = if base { &t.base_rad } else { &t.extended_rad };
+                    let r: Vec<f64> = t
+                        .measured_rad
+                        .iter()
+                        .zip(model)
+                        .map(|(m, p)| (m - p) * 1e3)
+                        .collect();
+                    Series::points(short(&t.log), f(t), r)
+                })
+                .collect(),
+            bands: vec![band()],
+            ..Chart::default()
+        }
+    };
+    for base in [true, false] {
+        let charts = vec![
+            against("time (s)", &|t| t.t_s.clone(), base),
+            against("input angle (rad)", &|t| t.theta_in_rad.clone(), base),
+            against("output angle (rad)", &|t| t.theta_out_rad.clone(), base),
+            against(
+                "input velocity (rad/s)",
+                &|t| t.velocity_rad_s.clone(),
+                base,
+            ),
+        ];
+        let stem = if base {
+            "residual_base"
+        } else {
+            "residual_extended"
+        };
+        files.extend(
+            save_panels(
+                &format!("Residual signatures ({stem})"),
+                &charts,
+                &dir.join(stem),
+            )
+            .map_err(perr)?,
+        );
+    }
+    let cands = Chart {
+        title: "Held-out RMSE of candidates (round 1)".into(),
+        x_label: "candidate index".into(),
+        y_label: "held-out RMSE (mrad)".into(),
+        series: vec![Series::points(
+            "candidates",
+            (0..d.candidates.len()).map(|i| i as f64).collect(),
+            d.candidates.iter().map(|c| c.rmse_heldout_mrad).collect(),
+        )],
+        bands: vec![HBand {
+            lo: 0.0,
+            hi: d.rmse_base_mrad,
+            label: "base model".into(),
+        }],
+        ..Chart::default()
+    };
+    files.extend(save_chart(&cands, &dir.join("candidates")).map_err(perr)?);
+    Ok(files)
+}
+
+/// Write the calibrated drive and the identified effects as a scenario TOML the closed loop
+/// can compensate with (`[effects]` section).
+pub fn save_model(
+    path: &Path,
+    scenario: &Scenario,
+    diagnosis: &Diagnosis,
+) -> Result<(), IdentifyError> {
+    let mut s = scenario.clone();
+    s.drive = diagnosis.drive.clone();
+    s.effects = Some(diagnosis.effects.clone());
+    let text = toml::to_string(&s).map_err(|e| IdentifyError::Write {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    })?;
+    let header = format!(
+        "# Calibrated from {} (held-out RMSE base {:.4} mrad, extended {:.4} mrad; cause: {})\n",
+        diagnosis.logs.join(", "),
+        diagnosis.rmse_base_mrad,
+        diagnosis.rmse_extended_mrad,
+        diagnosis.cause
+    );
+    wr(path, &(header + &text))
+}
