@@ -167,6 +167,56 @@ enum Command {
         #[command(subcommand)]
         question: Design,
     },
+    /// Diagnose bench logs: what the simulation gets wrong, its physical cause, and the
+    /// gain of the extended model on data the fit did not see.
+    Diagnose {
+        /// Scenario giving the drive (and optional [identify] settings).
+        #[arg(long)]
+        scenario: String,
+        /// Bench log (CSV, see data-format); repeat for several logs in one calibration.
+        #[arg(long = "data", value_name = "LOG.csv", required = true)]
+        data: Vec<PathBuf>,
+        /// Hold out whole logs by index (0-based, in --data order) instead of time blocks.
+        #[arg(long = "holdout", value_name = "INDEX")]
+        holdout: Vec<usize>,
+        /// Results directory (default: results/<scenario name>-diagnosis).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Also write the JSON report here.
+        #[arg(long, value_name = "FILE")]
+        json: Option<PathBuf>,
+        /// Write the calibrated, extended model as a scenario file.
+        #[arg(long = "save-model", value_name = "FILE")]
+        save_model: Option<PathBuf>,
+        /// Override a scenario value (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Replace an existing results directory.
+        #[arg(long)]
+        force: bool,
+    },
+    /// Make a synthetic bench log from a truth model with hidden effects, noise and
+    /// quantisation (motion from the scenario's quasi_static section).
+    Synth {
+        /// Scenario giving drive, load and motion.
+        #[arg(long)]
+        scenario: String,
+        /// Hidden effect NAME=VALUE (units: see the README), repeatable.
+        #[arg(long = "effect", value_name = "NAME=VALUE")]
+        effect: Vec<String>,
+        /// Random seed (noise and runout phases).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Output log file.
+        #[arg(long)]
+        out: PathBuf,
+        /// Override a scenario value (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Replace an existing file.
+        #[arg(long)]
+        force: bool,
+    },
     /// Join the sweep.csv files of shard runs into the file a single run writes.
     Merge {
         /// Output file (e.g. results/paper_fig11/sweep.csv).
@@ -373,6 +423,97 @@ fn main() -> ExitCode {
                 ExitCode::from(exit::PHYSICAL)
             }
         }
+        Command::Diagnose {
+            scenario,
+            data,
+            holdout,
+            out,
+            json,
+            save_model,
+            set,
+            force,
+        } => {
+            let scenario = match load(&scenario, &set) {
+                Ok(s) => s,
+                Err(code) => return code,
+            };
+            let dir = out.unwrap_or_else(|| {
+                PathBuf::from("results").join(format!("{}-diagnosis", scenario.name()))
+            });
+            let options = cable_servo::identify::DiagnoseOptions {
+                holdout_logs: holdout,
+                ..Default::default()
+            };
+            match cable_servo::run::run_diagnosis(
+                &scenario,
+                &data,
+                &options,
+                &OutputOptions { dir, force },
+                json.as_deref(),
+                save_model.as_deref(),
+            ) {
+                Ok(r) => {
+                    print!("{}", r.table);
+                    println!("results: {}", r.dir.display());
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    ExitCode::from(match e {
+                        RunError::Output(_) | RunError::Report(_) => exit::OUTPUT,
+                        _ => exit::INPUT,
+                    })
+                }
+            }
+        }
+        Command::Synth {
+            scenario,
+            effect,
+            seed,
+            out,
+            set,
+            force,
+        } => {
+            let scenario = match load(&scenario, &set) {
+                Ok(s) => s,
+                Err(code) => return code,
+            };
+            if out.exists() && !force {
+                eprintln!(
+                    "error: refusing to overwrite {}; pass --force to replace it",
+                    out.display()
+                );
+                return ExitCode::from(exit::OUTPUT);
+            }
+            let effects: Result<Vec<_>, _> = effect
+                .iter()
+                .map(|e| cable_servo::identify::parse_effect_arg(e))
+                .collect();
+            let result = effects.and_then(|effects| {
+                cable_servo::identify::synthesize(
+                    &scenario,
+                    &effects,
+                    seed,
+                    &cable_servo::identify::SynthOptions::default(),
+                )
+            });
+            match result {
+                Ok(log) => match cable_servo::io::benchlog::write_bench_log(&out, &log) {
+                    Ok(()) => {
+                        println!("{} samples written to {}", log.len(), out.display());
+                        ExitCode::SUCCESS
+                    }
+                    Err(e) => {
+                        eprintln!("error: {e}");
+                        ExitCode::from(exit::OUTPUT)
+                    }
+                },
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    ExitCode::from(exit::INPUT)
+                }
+            }
+        }
         Command::Merge { out, shards, force } => {
             match cable_servo::sweep::merge::merge_files(&shards, &out, force) {
                 Ok(rows) => {
@@ -484,6 +625,7 @@ fn report(result: Result<RunReport, RunError>) -> ExitCode {
                 | RunError::Table(_)
                 | RunError::Sweep(_)
                 | RunError::ClosedLoop(_)
+                | RunError::Identify(_)
                 | RunError::Unsupported(_) => exit::INPUT,
                 RunError::Output(_) | RunError::Report(_) | RunError::ClosedLoopReport(_) => {
                     exit::OUTPUT

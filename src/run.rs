@@ -34,6 +34,9 @@ pub enum RunError {
     /// The closed loop cannot start with this scenario.
     #[error(transparent)]
     ClosedLoop(#[from] crate::closed_loop::ClosedLoopError),
+    /// A diagnosis cannot be made.
+    #[error(transparent)]
+    Identify(#[from] crate::identify::IdentifyError),
     /// Closed-loop result files cannot be written.
     #[error(transparent)]
     ClosedLoopReport(#[from] crate::closed_loop::ReportError),
@@ -586,4 +589,30 @@ fn design_answers(
         }),
         text,
     )
+}
+
+/// Diagnose bench logs (read from `paths`) against `scenario` and write the report into a
+/// staged results directory; optionally also the JSON elsewhere and the extended model as
+/// a scenario file. Bad logs leave nothing behind.
+pub fn run_diagnosis(
+    scenario: &Scenario,
+    paths: &[PathBuf],
+    options: &crate::identify::DiagnoseOptions,
+    out: &OutputOptions,
+    json: Option<&Path>,
+    save_model: Option<&Path>,
+) -> Result<RunReport, RunError> {
+    let diagnosis = crate::identify::diagnose_files(scenario, paths, options)?;
+    let staged = StagedDir::create(&out.dir, out.force)?;
+    crate::identify::write_diagnosis(staged.path(), &diagnosis, None)?;
+    if let Some(path) = json {
+        let text = std::fs::read(staged.path().join("diagnosis.json"))
+            .map_err(|e| ReportError::io(path, e))?;
+        crate::io::output::write_atomic(path, &text)?;
+    }
+    if let Some(path) = save_model {
+        crate::identify::save_model(path, scenario, &diagnosis)?;
+    }
+    let table = crate::identify::summary_text(&diagnosis);
+    finish(staged, table, None, Vec::new())
 }

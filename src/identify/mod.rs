@@ -13,7 +13,7 @@ use serde::Serialize;
 
 pub use crate::io::benchlog::{read_bench_log, write_bench_log, BenchLog, LogError, Sample};
 pub use effects::{EffectName, EffectsParams, IdentifyParams};
-pub use report::{save_model, write_diagnosis};
+pub use report::{save_model, summary_text, write_diagnosis};
 pub use synth::{parse_effect_arg, synthesize, Ringing, SynthOptions};
 
 use crate::physics::DriveParams;
