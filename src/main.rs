@@ -9,6 +9,30 @@ use cable_servo::run::{self, OutputOptions, RunError, RunReport, SweepOptions};
 use cable_servo::scenario::{Scenario, DEFAULT_SCENARIO};
 use cable_servo::sweep::{answers, vary, Shard};
 
+/// Print a line to stdout; a closed pipe (`| head`) is not an error worth a panic.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+
+/// Print to stdout without a newline, ignoring a closed pipe.
+macro_rules! say_raw {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = write!(std::io::stdout(), $($arg)*);
+    }};
+}
+
+/// Print a line to stderr, ignoring a closed pipe.
+macro_rules! tell {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
 /// Exit codes, listed in the README.
 mod exit {
     /// Bad command line (clap's own code).
@@ -275,7 +299,7 @@ fn main() -> ExitCode {
             let shard = match shard.as_deref().map(Shard::parse).transpose() {
                 Ok(s) => s.unwrap_or(Shard::ALL),
                 Err(msg) => {
-                    eprintln!("error: {msg}");
+                    tell!("error: {msg}");
                     return ExitCode::from(exit::USAGE);
                 }
             };
@@ -287,7 +311,7 @@ fn main() -> ExitCode {
                     seed,
                 },
                 Err(msg) => {
-                    eprintln!("error: {msg}");
+                    tell!("error: {msg}");
                     return ExitCode::from(exit::USAGE);
                 }
             };
@@ -299,7 +323,7 @@ fn main() -> ExitCode {
                 match overrides.apply(scenario.sweep.take()) {
                     Ok(spec) => scenario.sweep = Some(spec),
                     Err(msg) => {
-                        eprintln!("error: {msg}");
+                        tell!("error: {msg}");
                         return ExitCode::from(exit::INPUT);
                     }
                 }
@@ -385,11 +409,11 @@ fn main() -> ExitCode {
                     .map_or(scenario.load.peak_torque_nm(), |b| b.load_nm)
             });
             if !(load_nm.is_finite() && load_nm > 0.0) {
-                eprintln!("error: --load-nm {load_nm}: give a torque > 0 N m");
+                tell!("error: --load-nm {load_nm}: give a torque > 0 N m");
                 return ExitCode::from(exit::USAGE);
             }
             if !(min_n > 0.0 && max_n > min_n && tol_n > 0.0) {
-                eprintln!("error: need 0 < --min-n < --max-n and --tol-n > 0");
+                tell!("error: need 0 < --min-n < --max-n and --tol-n > 0");
                 return ExitCode::from(exit::USAGE);
             }
             let model = scenario
@@ -404,7 +428,7 @@ fn main() -> ExitCode {
                 (min_n, max_n),
                 tol_n,
             );
-            println!(
+            say!(
                 "least preload at M = {load_nm} N m ({} model): {}",
                 cable_servo::study::quasi_static::model_name(model),
                 r.preload_n
@@ -412,11 +436,11 @@ fn main() -> ExitCode {
                         "{p:.3} N (+{tol_n} N)"
                     ))
             );
-            println!(
+            say!(
                 "  for comparison M/(2*drum_radius_m) = {:.3} N (slack limit if span tensions moved equally and oppositely)",
                 r.slack_bound_n
             );
-            println!("  definition: {}", r.definition);
+            say!("  definition: {}", r.definition);
             if r.preload_n.is_some() {
                 ExitCode::SUCCESS
             } else {
@@ -453,12 +477,12 @@ fn main() -> ExitCode {
                 save_model.as_deref(),
             ) {
                 Ok(r) => {
-                    print!("{}", r.table);
-                    println!("results: {}", r.dir.display());
+                    say_raw!("{}", r.table);
+                    say!("results: {}", r.dir.display());
                     ExitCode::SUCCESS
                 }
                 Err(e) => {
-                    eprintln!("error: {e}");
+                    tell!("error: {e}");
                     ExitCode::from(match e {
                         RunError::Output(_) | RunError::Report(_) => exit::OUTPUT,
                         _ => exit::INPUT,
@@ -479,7 +503,7 @@ fn main() -> ExitCode {
                 Err(code) => return code,
             };
             if out.exists() && !force {
-                eprintln!(
+                tell!(
                     "error: refusing to overwrite {}; pass --force to replace it",
                     out.display()
                 );
@@ -500,16 +524,16 @@ fn main() -> ExitCode {
             match result {
                 Ok(log) => match cable_servo::io::benchlog::write_bench_log(&out, &log) {
                     Ok(()) => {
-                        println!("{} samples written to {}", log.len(), out.display());
+                        say!("{} samples written to {}", log.len(), out.display());
                         ExitCode::SUCCESS
                     }
                     Err(e) => {
-                        eprintln!("error: {e}");
+                        tell!("error: {e}");
                         ExitCode::from(exit::OUTPUT)
                     }
                 },
                 Err(e) => {
-                    eprintln!("error: {e}");
+                    tell!("error: {e}");
                     ExitCode::from(exit::INPUT)
                 }
             }
@@ -517,23 +541,23 @@ fn main() -> ExitCode {
         Command::Merge { out, shards, force } => {
             match cable_servo::sweep::merge::merge_files(&shards, &out, force) {
                 Ok(rows) => {
-                    println!("{rows} cases merged into {}", out.display());
+                    say!("{rows} cases merged into {}", out.display());
                     ExitCode::SUCCESS
                 }
                 Err(e) => {
-                    eprintln!("error: {e}");
+                    tell!("error: {e}");
                     ExitCode::from(e.exit_code())
                 }
             }
         }
         Command::Show { name } => match cable_servo::scenario::builtin(&name) {
             Some(text) => {
-                print!("{text}");
+                say_raw!("{text}");
                 ExitCode::SUCCESS
             }
             None => {
                 let names: Vec<&str> = cable_servo::scenario::BUILTIN.iter().map(|b| b.0).collect();
-                eprintln!(
+                tell!(
                     "error: no built-in scenario {name:?}; built-in: {}",
                     names.join(", ")
                 );
@@ -557,7 +581,7 @@ fn closed_loop_answer(
         "memoryless" => CompensationMode::Memoryless,
         "memory" => CompensationMode::Memory,
         other => {
-            eprintln!("error: --mode {other}: use none, memoryless or memory");
+            tell!("error: --mode {other}: use none, memoryless or memory");
             return ExitCode::from(exit::USAGE);
         }
     };
@@ -568,10 +592,10 @@ fn closed_loop_answer(
     match cable_servo::design::largest_meeting_target(&scenario, question, mode, (min, max), tol) {
         Ok(a) => {
             match a.value {
-                Some(v) => println!("{v:.4} {} ({} closed-loop runs)", a.unit, a.runs),
-                None => println!("none: even {min} {} misses the target", a.unit),
+                Some(v) => say!("{v:.4} {} ({} closed-loop runs)", a.unit, a.runs),
+                None => say!("none: even {min} {} misses the target", a.unit),
             }
-            println!("  definition: {}", a.definition);
+            say!("  definition: {}", a.definition);
             if a.value.is_some() {
                 ExitCode::SUCCESS
             } else {
@@ -579,7 +603,7 @@ fn closed_loop_answer(
             }
         }
         Err(e) => {
-            eprintln!("error: {e}");
+            tell!("error: {e}");
             ExitCode::from(exit::INPUT)
         }
     }
@@ -588,7 +612,7 @@ fn closed_loop_answer(
 /// Load a scenario and fill its tables; prints the error and returns the exit code.
 fn load(name: &str, set: &[String]) -> Result<Scenario, ExitCode> {
     let mut scenario = Scenario::load(name, set).map_err(|e| {
-        eprintln!("error: {e}");
+        tell!("error: {e}");
         ExitCode::from(exit::INPUT)
     })?;
     let base = std::path::Path::new(name)
@@ -596,7 +620,7 @@ fn load(name: &str, set: &[String]) -> Result<Scenario, ExitCode> {
         .map(std::path::Path::to_path_buf)
         .unwrap_or_default();
     cable_servo::io::tables::load_tables(&mut scenario, &base).map_err(|e| {
-        eprintln!("error: {e}");
+        tell!("error: {e}");
         ExitCode::from(exit::INPUT)
     })?;
     Ok(scenario)
@@ -606,20 +630,20 @@ fn report(result: Result<RunReport, RunError>) -> ExitCode {
     match result {
         Ok(r) => {
             for w in &r.warnings {
-                eprintln!("warning: {w}");
+                tell!("warning: {w}");
             }
-            print!("{}", r.table);
-            println!("results: {}", r.dir.display());
+            say_raw!("{}", r.table);
+            say!("results: {}", r.dir.display());
             match &r.failure {
                 None => ExitCode::SUCCESS,
                 Some(f) => {
-                    eprintln!("error: run incomplete (results kept, marked INCOMPLETE): {f}");
+                    tell!("error: run incomplete (results kept, marked INCOMPLETE): {f}");
                     ExitCode::from(exit::PHYSICAL)
                 }
             }
         }
         Err(e) => {
-            eprintln!("error: {e}");
+            tell!("error: {e}");
             ExitCode::from(match e {
                 RunError::Scenario(_)
                 | RunError::Table(_)
