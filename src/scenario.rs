@@ -166,6 +166,8 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ),
     ("eots_scan", include_str!("../scenarios/eots_scan.toml")),
     ("step_stare", include_str!("../scenarios/step_stare.toml")),
+    ("gimbal_ident", include_str!("../scenarios/gimbal_ident.toml")),
+    ("davinci_tool4", include_str!("../scenarios/davinci_tool4.toml")),
     ("paper_bench", include_str!("../scenarios/paper_bench.toml")),
     ("paper_fig11", include_str!("../scenarios/paper_fig11.toml")),
     (

@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Regenerate the small reference results and README plots under results/reference/.
+# Usage: scripts/reference.sh   (from the repository root; needs only cargo)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+cargo build --release --quiet
+bin=target/release/cable-servo
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+ref=results/reference
+rm -rf "$ref.new"
+mkdir -p "$ref.new"
+
+keep() { # keep <study dir> <files...>
+  local src=$1; shift
+  local dst=$ref.new/$(basename "$src")
+  mkdir -p "$dst"
+  for f in "$@"; do cp "$src/$f" "$dst/"; done
+}
+
+for s in paper_tension paper_bench memory_vs_memoryless; do
+  $bin run $s --out "$work/$s" >/dev/null
+done
+keep "$work/paper_tension" tensions.png profiles.png summary.json
+keep "$work/paper_bench" angles_error.png error_vs_output.png summary.json
+keep "$work/memory_vs_memoryless" error_vs_load.png angles_error.png summary.json
+
+$bin sweep paper_fig11 --out "$work/paper_fig11" >/dev/null
+keep "$work/paper_fig11" sweep.csv summary.json reversal_mrad_vs_preload_n.png reversal_mrad_vs_load_nm.png
+
+for s in eots_tracking eots_scan; do
+  $bin run $s --out "$work/$s" >/dev/null
+done
+keep "$work/eots_tracking" pointing_error.png error_vs_angle.png tensions.png motor_command.png summary.json
+keep "$work/eots_scan" pointing_error.png summary.json
+
+$bin synth --scenario gimbal_ident --effect input_pulley_runout=0.003 --seed 3 --out "$work/gimbal_runout.csv" >/dev/null
+$bin diagnose --scenario gimbal_ident --data "$work/gimbal_runout.csv" --out "$work/gimbal_ident-diagnosis" >/dev/null
+keep "$work/gimbal_ident-diagnosis" diagnosis.json report.txt error.png residual_base.png residual_extended.png
+
+real=../shared/real-data/davinci
+if [ -d "$real" ]; then
+  $bin diagnose --scenario davinci_tool4 --data $real/tool4_00.csv --data $real/tool4_09.csv \
+    --data $real/tool4_05.csv --holdout 2 --out "$work/davinci_tool4-diagnosis" >/dev/null
+  keep "$work/davinci_tool4-diagnosis" diagnosis.json report.txt error.png residual_base.png
+fi
+
+rm -rf "$ref"
+mv "$ref.new" "$ref"
+du -sh "$ref"
