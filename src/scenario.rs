@@ -25,6 +25,12 @@ pub enum Study {
     ClosedLoop,
 }
 
+/// Most samples a quasi-static run may take (memory and run time grow with it).
+pub const MAX_QS_SAMPLES: f64 = 2e6;
+
+/// Fewest samples per period of the fastest motion or load component.
+pub const SAMPLES_PER_PERIOD: f64 = 10.0;
+
 /// Prescribed-motion quasi-static study.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -106,7 +112,7 @@ pub enum ScenarioError {
         source: std::io::Error,
     },
     /// Syntax or type error in the file.
-    #[error("{source_name}:{line}:{column}: {message}")]
+    #[error("{source_name}:{line}:{column}: {}", printable(message))]
     Parse {
         /// File name.
         source_name: String,
@@ -118,7 +124,7 @@ pub enum ScenarioError {
         message: String,
     },
     /// A `--set` argument that cannot be applied.
-    #[error("--set {arg}: {message}")]
+    #[error("--set {}: {}", printable(arg), printable(message))]
     Override {
         /// The argument as given.
         arg: String,
@@ -126,7 +132,7 @@ pub enum ScenarioError {
         message: String,
     },
     /// A value outside its physical range or an inconsistent combination.
-    #[error("{source_name}: {key}: {message}")]
+    #[error("{source_name}: {}: {}", printable(key), printable(message))]
     Invalid {
         /// File name (with `+ --set` when overrides were applied).
         source_name: String,
@@ -135,6 +141,23 @@ pub enum ScenarioError {
         /// What is wrong and what is allowed.
         message: String,
     },
+}
+
+/// Text for a one-line message: line breaks and other control characters escaped.
+fn printable(text: &str) -> String {
+    if text.chars().any(char::is_control) {
+        text.chars()
+            .map(|c| {
+                if c.is_control() {
+                    c.escape_default().to_string()
+                } else {
+                    c.to_string()
+                }
+            })
+            .collect()
+    } else {
+        text.to_string()
+    }
 }
 
 impl ScenarioError {
@@ -196,9 +219,18 @@ fn with_suggestion(message: &str) -> String {
     };
     let bad = &rest[..end];
     let candidates: Vec<&str> = rest[end + 1..].split('`').skip(1).step_by(2).collect();
+    // Edit distance for typos; a shared start for shortened spellings (`figure8`).
+    let letters: String = bad
+        .chars()
+        .take_while(|c| c.is_ascii_alphabetic() || *c == '_')
+        .collect();
     let best = candidates
         .iter()
-        .map(|c| (strsim::normalized_damerau_levenshtein(bad, c), *c))
+        .map(|c| {
+            let edits = strsim::normalized_damerau_levenshtein(bad, c);
+            let shortened = letters.len() >= 4 && c.starts_with(letters.as_str());
+            (if shortened { edits.max(0.6) } else { edits }, *c)
+        })
         .filter(|(score, _)| *score > 0.5)
         .max_by(|a, b| a.0.total_cmp(&b.0));
     let first_line = message.lines().next().unwrap_or(message);
@@ -208,16 +240,87 @@ fn with_suggestion(message: &str) -> String {
     }
 }
 
+/// Serde's type names in words a scenario author knows, on one line.
+fn plain_message(message: &str) -> String {
+    let one_line = message
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect::<Vec<_>>()
+        .join("; ");
+    one_line
+        .replace("expected f64", "expected a number")
+        .replace("expected u32", "expected a whole number >= 0")
+        .replace("expected a string", "expected a quoted string")
+}
+
+/// The header of a `[section]` or `[[section]]` line, if it is one.
+fn header_name(line: &str) -> Option<String> {
+    let t = line.trim();
+    let t = t.strip_prefix('[')?;
+    let t = t.strip_prefix('[').unwrap_or(t);
+    let end = t.find(']')?;
+    let name: String = t[..end].chars().filter(|c| !c.is_whitespace()).collect();
+    (!name.is_empty()).then_some(name)
+}
+
+/// The dotted key (or section) at a byte offset of a scenario text, when the line shows it
+/// plainly: `[section]` headers above and `key = ...` on the line.
+fn key_at(text: &str, offset: usize) -> Option<String> {
+    let offset = offset.min(text.len());
+    let before = text.get(..offset)?;
+    let start = before.rfind('\n').map_or(0, |i| i + 1);
+    let end = text[start..].find('\n').map_or(text.len(), |i| start + i);
+    let line = &text[start..end];
+    if let Some(h) = header_name(line) {
+        return Some(h);
+    }
+    let section = text[..start].lines().rev().find_map(header_name);
+    let key = line.split_once('=')?.0.trim();
+    let plain = !key.is_empty()
+        && key
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.' | '"' | '\'' | ' '));
+    if !plain {
+        return section;
+    }
+    let key: String = key
+        .chars()
+        .filter(|c| !matches!(c, '"' | '\'' | ' '))
+        .collect();
+    Some(match section {
+        Some(s) => format!("{s}.{key}"),
+        None => key,
+    })
+}
+
 fn parse_error(source_name: &str, text: &str, err: &toml::de::Error) -> ScenarioError {
     let (line, column) = err
         .span()
         .map(|s| line_col(text, s.start))
         .unwrap_or((1, 1));
+    let mut message = plain_message(&with_suggestion(err.message()));
+    if message.starts_with("invalid type") || message.starts_with("invalid value") {
+        if let Some(key) = err.span().and_then(|s| key_at(text, s.start)) {
+            message = format!("{key}: {message}");
+        }
+    } else if message.starts_with("missing field") {
+        match err.span().and_then(|s| key_at(text, s.start)) {
+            Some(section) => message = format!("[{section}]: {message}"),
+            None if text
+                .lines()
+                .all(|l| l.trim().is_empty() || l.trim_start().starts_with('#')) =>
+            {
+                message = format!("the file holds no settings ({message}); a scenario needs at least study, [drive] and the study's section, see `cable-servo show paper_bench`");
+            }
+            None => message.push_str(" at the top of the file"),
+        }
+    }
     ScenarioError::Parse {
         source_name: source_name.to_string(),
         line,
         column,
-        message: with_suggestion(err.message()),
+        message,
     }
 }
 
@@ -287,9 +390,24 @@ impl Scenario {
                 return Scenario::from_toml(text, &format!("{path} (built-in)"), path, overrides);
             }
         }
-        let text = std::fs::read_to_string(p).map_err(|source| ScenarioError::Io {
+        let bytes = std::fs::read(p).map_err(|source| ScenarioError::Io {
             path: path.to_string(),
             source,
+        })?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            let good = e.utf8_error().valid_up_to();
+            let bytes = e.as_bytes();
+            let prefix = std::str::from_utf8(&bytes[..good]).unwrap_or_default();
+            let (line, column) = line_col(prefix, good);
+            ScenarioError::Parse {
+                source_name: path.to_string(),
+                line,
+                column,
+                message: format!(
+                    "byte 0x{:02x} is not UTF-8 text; a scenario is a TOML text file saved as UTF-8",
+                    bytes[good]
+                ),
+            }
         })?;
         let stem = p
             .file_stem()
@@ -324,14 +442,14 @@ impl Scenario {
                 Scenario::deserialize(toml::Value::Table(table.clone())).map_err(|e| {
                     ScenarioError::Override {
                         arg: arg.clone(),
-                        message: with_suggestion(e.message()),
+                        message: plain_message(&with_suggestion(e.message())),
                     }
                 })?;
             }
             scenario = Scenario::deserialize(toml::Value::Table(table)).map_err(|e| {
                 ScenarioError::Override {
                     arg: overrides.join(" "),
-                    message: with_suggestion(e.message()),
+                    message: plain_message(&with_suggestion(e.message())),
                 }
             })?;
             shown_name = format!("{source_name} with --set");
@@ -353,7 +471,7 @@ impl Scenario {
             ScenarioError::Invalid {
                 source_name: source_name.to_string(),
                 key: "scenario".into(),
-                message: with_suggestion(e.message()),
+                message: plain_message(&with_suggestion(e.message())),
             }
         })?;
         if scenario.name.is_none() {
@@ -407,83 +525,162 @@ impl Scenario {
                     "drive.center_distance_m".to_string()
                 }
             };
-            bad(&key, e.to_string())
+            let full = e.to_string();
+            let message = full
+                .strip_prefix(&format!("{key} = "))
+                .unwrap_or(&full)
+                .to_string();
+            bad(&key, message)
         })?;
         self.load
             .validate()
             .map_err(|(key, msg)| bad(&format!("load.{key}"), msg))?;
+        // Every section present is checked, used by the study or not: a bad value in the
+        // file is a mistake either way.
         match self.study {
-            Study::QuasiStatic => {
-                let qs = self.quasi_static.as_ref().ok_or_else(|| {
-                    bad(
-                        "quasi_static",
-                        "study = \"quasi_static\" needs a [quasi_static] section with duration_s and [quasi_static.motion]".into(),
-                    )
-                })?;
-                if !(qs.duration_s.is_finite() && qs.duration_s > 0.0 && qs.duration_s <= 1e6) {
-                    return Err(bad(
-                        "quasi_static.duration_s",
-                        format!("{} must be in (0, 1e6] s", qs.duration_s),
-                    ));
-                }
-                if !(qs.sample_rate_hz.is_finite() && qs.sample_rate_hz > 0.0) {
-                    return Err(bad(
-                        "quasi_static.sample_rate_hz",
-                        format!("{} must be > 0", qs.sample_rate_hz),
-                    ));
-                }
-                let samples = qs.duration_s * qs.sample_rate_hz;
-                if samples > 5e7 {
-                    return Err(bad(
-                        "quasi_static.sample_rate_hz",
-                        format!("{samples:.0} samples is too many (at most 5e7); lower the rate or the duration"),
-                    ));
-                }
-                if qs.models.is_empty() {
-                    return Err(bad(
-                        "quasi_static.models",
-                        "list at least one of \"memory\", \"memoryless\"".into(),
-                    ));
-                }
-                qs.motion
-                    .validate()
-                    .map_err(|m| bad("quasi_static.motion", m))?;
-                if let Some(t) = qs
-                    .profile_times_s
-                    .iter()
-                    .find(|t| !(t.is_finite() && **t >= 0.0 && **t <= qs.duration_s))
-                {
-                    return Err(bad(
-                        "quasi_static.profile_times_s",
-                        format!("{t} must lie within [0, duration_s = {}]", qs.duration_s),
-                    ));
-                }
+            Study::QuasiStatic if self.quasi_static.is_none() => {
+                return Err(bad(
+                    "quasi_static",
+                    "study = \"quasi_static\" needs a [quasi_static] section with duration_s and [quasi_static.motion]".into(),
+                ));
             }
-            Study::Backlash => {
-                let b = self.backlash.as_ref().ok_or_else(|| {
-                    bad(
-                        "backlash",
-                        "study = \"backlash\" needs a [backlash] section with load_nm".into(),
-                    )
-                })?;
-                if !(b.load_nm.is_finite() && b.load_nm > 0.0) {
-                    return Err(bad(
-                        "backlash.load_nm",
-                        format!("{} must be a finite torque > 0 N m", b.load_nm),
-                    ));
-                }
+            Study::Backlash if self.backlash.is_none() => {
+                return Err(bad(
+                    "backlash",
+                    "study = \"backlash\" needs a [backlash] section with load_nm".into(),
+                ));
             }
-            Study::ClosedLoop => {
-                if self.closed_loop.is_none() {
-                    return Err(bad(
-                        "closed_loop",
-                        "study = \"closed_loop\" needs a [closed_loop] section".into(),
-                    ));
+            Study::ClosedLoop if self.closed_loop.is_none() => {
+                return Err(bad(
+                    "closed_loop",
+                    "study = \"closed_loop\" needs a [closed_loop] section".into(),
+                ));
+            }
+            _ => {}
+        }
+        if let Some(qs) = &self.quasi_static {
+            if !(qs.duration_s.is_finite() && qs.duration_s > 0.0 && qs.duration_s <= 1e6) {
+                return Err(bad(
+                    "quasi_static.duration_s",
+                    format!("{} must be in (0, 1e6] s", crate::number(qs.duration_s)),
+                ));
+            }
+            if !(qs.sample_rate_hz.is_finite() && qs.sample_rate_hz > 0.0) {
+                return Err(bad(
+                    "quasi_static.sample_rate_hz",
+                    format!(
+                        "{} must be a finite rate > 0 Hz",
+                        crate::number(qs.sample_rate_hz)
+                    ),
+                ));
+            }
+            let samples = qs.duration_s * qs.sample_rate_hz;
+            if !(samples.is_finite() && samples <= MAX_QS_SAMPLES) {
+                return Err(bad(
+                    "quasi_static.sample_rate_hz",
+                    format!(
+                        "{} Hz over duration_s = {} s is {samples:.3e} samples, too many (at most {MAX_QS_SAMPLES:.0e}); lower the rate or the duration",
+                        crate::number(qs.sample_rate_hz), crate::number(qs.duration_s)),
+                ));
+            }
+            if qs.models.is_empty() {
+                return Err(bad(
+                    "quasi_static.models",
+                    "list at least one of \"memory\", \"memoryless\"".into(),
+                ));
+            }
+            qs.motion
+                .validate()
+                .map_err(|m| bad("quasi_static.motion", m))?;
+            let resolve = |key: &str, what: &str, f: f64| {
+                if f * SAMPLES_PER_PERIOD > qs.sample_rate_hz {
+                    Err(bad(
+                        key,
+                        format!(
+                            "{what} = {} Hz is too fast for sample_rate_hz = {}: use at least {SAMPLES_PER_PERIOD} samples per period (sample_rate_hz >= {}) or a slower signal", crate::number(f), crate::number(qs.sample_rate_hz), crate::number(f * SAMPLES_PER_PERIOD)
+                        ),
+                    ))
+                } else {
+                    Ok(())
                 }
+            };
+            resolve(
+                "quasi_static.motion",
+                "the motion's frequency_hz (or 1/period_s)",
+                qs.motion.fastest_frequency_hz(),
+            )?;
+            if self.load.sine_nm != 0.0 {
+                resolve(
+                    "load.sine_frequency_hz",
+                    "sine_frequency_hz",
+                    self.load.sine_frequency_hz,
+                )?;
+            }
+            if let Some(t) = qs
+                .profile_times_s
+                .iter()
+                .find(|t| !(t.is_finite() && **t >= 0.0 && **t <= qs.duration_s))
+            {
+                return Err(bad(
+                    "quasi_static.profile_times_s",
+                    format!(
+                        "{} must lie within [0, duration_s = {}]",
+                        crate::number(*t),
+                        crate::number(qs.duration_s)
+                    ),
+                ));
+            }
+        }
+        if let Some(b) = &self.backlash {
+            if !(b.load_nm.is_finite() && b.load_nm > 0.0) {
+                return Err(bad(
+                    "backlash.load_nm",
+                    format!(
+                        "{} must be a finite torque > 0 N m",
+                        crate::number(b.load_nm)
+                    ),
+                ));
             }
         }
         if let Some(sweep) = &self.sweep {
             crate::sweep::validate_spec(sweep).map_err(|(key, msg)| bad(&key, msg))?;
+            self.validate_sweep_values(sweep, source_name)?;
+        }
+        Ok(())
+    }
+
+    /// Every value a sweep gives a key must make a valid scenario on its own (combinations
+    /// are checked again before a sweep runs).
+    fn validate_sweep_values(
+        &self,
+        sweep: &SweepSpec,
+        source_name: &str,
+    ) -> Result<(), ScenarioError> {
+        let mut base = self.to_table();
+        base.remove("sweep");
+        for (i, p) in sweep.parameters.iter().enumerate() {
+            let path: Vec<String> = p.key.split('.').map(str::to_string).collect();
+            for (j, value) in p.values.iter().enumerate() {
+                let key = format!("sweep.parameters[{i}].values[{j}]");
+                let mut table = base.clone();
+                let shown = format!("{} = {value}", p.key);
+                set_path(&mut table, &path, value.clone()).map_err(|m| {
+                    ScenarioError::invalid(source_name, &key, format!("{shown}: {m}"))
+                })?;
+                let case = Scenario::from_table(table, source_name, self.name()).map_err(|e| {
+                    let why = match e {
+                        ScenarioError::Invalid { key, message, .. }
+                            if key != "scenario" && key != p.key =>
+                        {
+                            format!("{key}: {message}")
+                        }
+                        ScenarioError::Invalid { message, .. } => message,
+                        other => other.to_string(),
+                    };
+                    ScenarioError::invalid(source_name, &key, format!("{shown}: {why}"))
+                });
+                case?;
+            }
         }
         Ok(())
     }

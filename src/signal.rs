@@ -184,7 +184,10 @@ impl Signal {
             if v.is_finite() {
                 Ok(())
             } else {
-                Err(format!("{name} = {v} must be a finite number"))
+                Err(format!(
+                    "{name} = {} must be a finite number",
+                    crate::number(v)
+                ))
             }
         };
         match self {
@@ -198,7 +201,10 @@ impl Signal {
                 finite("phase_rad", *phase_rad)?;
                 finite("offset_rad", *offset_rad)?;
                 if !(frequency_hz.is_finite() && *frequency_hz >= 0.0) {
-                    return Err(format!("frequency_hz = {frequency_hz} must be >= 0"));
+                    return Err(format!(
+                        "frequency_hz = {} must be a finite frequency >= 0 Hz",
+                        crate::number(*frequency_hz)
+                    ));
                 }
                 Ok(())
             }
@@ -212,11 +218,17 @@ impl Signal {
             Signal::StepStare {
                 amplitude_rad,
                 period_s,
-                ..
+                steps_per_sweep,
             } => {
                 finite("amplitude_rad", *amplitude_rad)?;
                 if !(period_s.is_finite() && *period_s > 0.0) {
-                    return Err(format!("period_s = {period_s} must be > 0"));
+                    return Err(format!(
+                        "period_s = {} must be a finite time > 0 s",
+                        crate::number(*period_s)
+                    ));
+                }
+                if *steps_per_sweep == 0 {
+                    return Err("steps_per_sweep = 0 must be at least 1".into());
                 }
                 Ok(())
             }
@@ -229,6 +241,13 @@ impl Signal {
                 finite("start_s", *start_s)?;
                 if let Some(s) = stop_s {
                     finite("stop_s", *s)?;
+                    if s < start_s {
+                        return Err(format!(
+                            "stop_s = {} must not come before start_s = {}",
+                            crate::number(*s),
+                            crate::number(*start_s)
+                        ));
+                    }
                 }
                 Ok(())
             }
@@ -239,14 +258,28 @@ impl Signal {
             } => {
                 finite("amplitude_rad", *amplitude_rad)?;
                 if !(frequency_hz.is_finite() && *frequency_hz > 0.0) {
-                    return Err(format!("frequency_hz = {frequency_hz} must be > 0"));
+                    return Err(format!(
+                        "frequency_hz = {} must be a finite frequency > 0 Hz",
+                        crate::number(*frequency_hz)
+                    ));
                 }
                 if !(*turn_fraction > 0.0 && *turn_fraction < 1.0) {
-                    return Err(format!("turn_fraction = {turn_fraction} must be in (0, 1)"));
+                    return Err(format!(
+                        "turn_fraction = {} must be in (0, 1)",
+                        crate::number(*turn_fraction)
+                    ));
                 }
                 Ok(())
             }
-            Signal::Sum { parts } => parts.iter().try_for_each(Signal::validate),
+            Signal::Sum { parts } => {
+                if parts.is_empty() {
+                    return Err("a sum needs at least one part in `parts`".into());
+                }
+                parts
+                    .iter()
+                    .enumerate()
+                    .try_for_each(|(i, p)| p.validate().map_err(|m| format!("parts[{i}]: {m}")))
+            }
             Signal::Table { path, column, .. } => {
                 if path.is_empty() || column.is_empty() {
                     Err("a table signal needs a CSV `path` and a value `column`".into())
@@ -254,6 +287,22 @@ impl Signal {
                     Ok(())
                 }
             }
+        }
+    }
+
+    /// Highest frequency the signal repeats at, Hz (sine and triangle frequencies, step-stare
+    /// step rate), for checking the sample rate; 0 for signals that do not repeat.
+    pub fn fastest_frequency_hz(&self) -> f64 {
+        match self {
+            Signal::Sine { frequency_hz, .. } | Signal::Triangle { frequency_hz, .. } => {
+                *frequency_hz
+            }
+            Signal::StepStare { period_s, .. } => 1.0 / period_s,
+            Signal::Sum { parts } => parts
+                .iter()
+                .map(Signal::fastest_frequency_hz)
+                .fold(0.0, f64::max),
+            Signal::Step { .. } | Signal::Ramp { .. } | Signal::Table { .. } => 0.0,
         }
     }
 

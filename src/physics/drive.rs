@@ -16,6 +16,30 @@ pub enum Routing {
     Open,
 }
 
+impl Routing {
+    /// The name used in scenario files (`figure_eight`, `open`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Routing::FigureEight => "figure_eight",
+            Routing::Open => "open",
+        }
+    }
+
+    /// Smallest centre distance that leaves the spans a length, m.
+    pub fn min_center_distance_m(self, pulley_radius_m: f64, drum_radius_m: f64) -> f64 {
+        match self {
+            Routing::FigureEight => drum_radius_m + pulley_radius_m,
+            Routing::Open => (drum_radius_m - pulley_radius_m).abs(),
+        }
+    }
+}
+
+impl std::fmt::Display for Routing {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 /// Geometry and material of the cable drive. Field names carry their units; the defaults
 /// are the published bench (physics.md section 6).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -63,7 +87,7 @@ impl Default for DriveParams {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DriveParamError {
     /// A value outside its physical range.
-    #[error("drive.{key} = {value} is out of range: {allowed}")]
+    #[error("drive.{key} = {} is out of range: it must be {allowed}", crate::number(*value))]
     OutOfRange {
         /// Scenario key below `[drive]`.
         key: &'static str,
@@ -74,7 +98,9 @@ pub enum DriveParamError {
     },
     /// Pulleys overlap for the chosen routing: no free span exists.
     #[error(
-        "drive.center_distance_m = {center_distance_m} is too small for {routing:?} routing: it must exceed {min_m:.6} m (the spans would have no length)"
+        "drive.center_distance_m = {} is too small for routing = \"{routing}\": it must exceed {min_m:.6} m ({}; the spans would have no length)",
+        crate::number(*center_distance_m),
+        if matches!(routing, Routing::FigureEight) { "drum_radius_m + pulley_radius_m" } else { "|drum_radius_m - pulley_radius_m|" }
     )]
     NoFreeSpan {
         /// The given centre distance, m.
@@ -130,11 +156,25 @@ impl DriveParams {
                 allowed: "a number in (0, 1]",
             });
         }
-        let min_m = match self.routing {
-            Routing::FigureEight => self.drum_radius_m + self.pulley_radius_m,
-            Routing::Open => (self.drum_radius_m - self.pulley_radius_m).abs(),
-        };
-        if self.center_distance_m <= min_m {
+        let min_m = self
+            .routing
+            .min_center_distance_m(self.pulley_radius_m, self.drum_radius_m);
+        let ratio = self.ratio();
+        if !(ratio.is_finite() && ratio > 0.0) {
+            return Err(DriveParamError::OutOfRange {
+                key: "drum_radius_m",
+                value: self.drum_radius_m,
+                allowed: "such that drum_radius_m / pulley_radius_m is a finite ratio",
+            });
+        }
+        if !self.free_span_m().is_finite() {
+            return Err(DriveParamError::OutOfRange {
+                key: "center_distance_m",
+                value: self.center_distance_m,
+                allowed: "small enough for a finite span length",
+            });
+        }
+        if self.center_distance_m <= min_m || self.free_span_m() <= 0.0 {
             return Err(DriveParamError::NoFreeSpan {
                 center_distance_m: self.center_distance_m,
                 routing: self.routing,

@@ -75,14 +75,17 @@ impl LoadParams {
             if v.is_finite() && v >= 0.0 {
                 Ok(())
             } else {
-                Err((key, format!("{v} must be a finite number >= 0")))
+                Err((
+                    key,
+                    format!("{} must be a finite number >= 0", crate::number(v)),
+                ))
             }
         };
         let finite = |key: &'static str, v: f64| {
             if v.is_finite() {
                 Ok(())
             } else {
-                Err((key, format!("{v} must be a finite number")))
+                Err((key, format!("{} must be a finite number", crate::number(v))))
             }
         };
         nonneg("brake_nm", self.brake_nm)?;
@@ -91,7 +94,11 @@ impl LoadParams {
             if b < self.brake_nm {
                 return Err((
                     "brake_breakaway_nm",
-                    format!("{b} must be >= brake_nm = {}", self.brake_nm),
+                    format!(
+                        "{} must be >= brake_nm = {}",
+                        crate::number(b),
+                        crate::number(self.brake_nm)
+                    ),
                 ));
             }
         }
