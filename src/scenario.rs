@@ -294,14 +294,61 @@ fn key_at(text: &str, offset: usize) -> Option<String> {
     })
 }
 
+/// In the section whose header is on 1-based `header_line`, the single `key = value` line
+/// whose value is the one quoted in a serde message (`integer `-2``, `string "x"`); returns
+/// its line and dotted key.
+fn find_value_line(text: &str, header_line: usize, message: &str) -> Option<(usize, String)> {
+    let quoted = if let Some(i) = message.find('`') {
+        let rest = &message[i + 1..];
+        rest[..rest.find('`')?].to_string()
+    } else {
+        let i = message.find('"')?;
+        let rest = &message[i + 1..];
+        format!("\"{}\"", &rest[..rest.find('"')?])
+    };
+    let mut hits = Vec::new();
+    let mut offset = 0;
+    for (i, l) in text.split('\n').enumerate() {
+        let start = offset;
+        offset += l.len() + 1;
+        if i < header_line {
+            continue;
+        }
+        if header_name(l).is_some() {
+            break;
+        }
+        let Some((k, v)) = l.split_once('=') else {
+            continue;
+        };
+        let v = v.split('#').next().unwrap_or("").trim();
+        if v == quoted {
+            let key = key_at(text, start).unwrap_or_else(|| k.trim().to_string());
+            hits.push((i + 1, key));
+        }
+    }
+    (hits.len() == 1).then(|| hits.remove(0))
+}
+
 fn parse_error(source_name: &str, text: &str, err: &toml::de::Error) -> ScenarioError {
-    let (line, column) = err
+    let (mut line, mut column) = err
         .span()
         .map(|s| line_col(text, s.start))
         .unwrap_or((1, 1));
     let mut message = plain_message(&with_suggestion(err.message()));
     if message.starts_with("invalid type") || message.starts_with("invalid value") {
-        if let Some(key) = err.span().and_then(|s| key_at(text, s.start)) {
+        let at_header = text.lines().nth(line - 1).and_then(header_name).is_some();
+        let found = if at_header {
+            // Tagged sections (`[quasi_static.motion]`) report the section, not the value:
+            // find the line that holds the offending value.
+            find_value_line(text, line, &message)
+        } else {
+            None
+        };
+        if let Some((l, key)) = found {
+            line = l;
+            column = 1;
+            message = format!("{key}: {message}");
+        } else if let Some(key) = err.span().and_then(|s| key_at(text, s.start)) {
             message = format!("{key}: {message}");
         }
     } else if message.starts_with("missing field") {
@@ -632,11 +679,14 @@ impl Scenario {
             }
         }
         if let Some(b) = &self.backlash {
-            if !(b.load_nm.is_finite() && b.load_nm > 0.0) {
+            if !(b.load_nm.is_finite()
+                && b.load_nm > 0.0
+                && b.load_nm <= crate::physics::load::MAX_TORQUE_NM)
+            {
                 return Err(bad(
                     "backlash.load_nm",
                     format!(
-                        "{} must be a finite torque > 0 N m",
+                        "{} must be a torque > 0 and at most 1e6 N m",
                         crate::number(b.load_nm)
                     ),
                 ));

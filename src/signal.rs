@@ -5,6 +5,9 @@
 
 use serde::{Deserialize, Serialize};
 
+/// Largest amplitude, offset or slew rate a signal may have (rad, rad/s).
+pub const MAX_ANGLE_RAD: f64 = 1e6;
+
 /// A scalar signal of time, in radians for motions and references.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
@@ -60,7 +63,7 @@ pub enum Signal {
         amplitude_rad: f64,
         /// Scan frequency, Hz.
         frequency_hz: f64,
-        /// Fraction of each half period spent turning around, (0, 1).
+        /// Fraction of each half period spent turning around, [0.001, 1).
         #[serde(default = "default_turn")]
         turn_fraction: f64,
     },
@@ -190,6 +193,18 @@ impl Signal {
                 ))
             }
         };
+        // Angles and rates beyond any pointing motion; also keeps derivatives finite.
+        let angle = |name: &str, v: f64| {
+            finite(name, v)?;
+            if v.abs() <= MAX_ANGLE_RAD {
+                Ok(())
+            } else {
+                Err(format!(
+                    "{name} = {} is beyond any motion (at most {MAX_ANGLE_RAD:e} in size)",
+                    crate::number(v)
+                ))
+            }
+        };
         match self {
             Signal::Sine {
                 amplitude_rad,
@@ -197,9 +212,9 @@ impl Signal {
                 phase_rad,
                 offset_rad,
             } => {
-                finite("amplitude_rad", *amplitude_rad)?;
+                angle("amplitude_rad", *amplitude_rad)?;
                 finite("phase_rad", *phase_rad)?;
-                finite("offset_rad", *offset_rad)?;
+                angle("offset_rad", *offset_rad)?;
                 if !(frequency_hz.is_finite() && *frequency_hz >= 0.0) {
                     return Err(format!(
                         "frequency_hz = {} must be a finite frequency >= 0 Hz",
@@ -212,7 +227,7 @@ impl Signal {
                 amplitude_rad,
                 time_s,
             } => {
-                finite("amplitude_rad", *amplitude_rad)?;
+                angle("amplitude_rad", *amplitude_rad)?;
                 finite("time_s", *time_s)
             }
             Signal::StepStare {
@@ -220,7 +235,7 @@ impl Signal {
                 period_s,
                 steps_per_sweep,
             } => {
-                finite("amplitude_rad", *amplitude_rad)?;
+                angle("amplitude_rad", *amplitude_rad)?;
                 if !(period_s.is_finite() && *period_s > 0.0) {
                     return Err(format!(
                         "period_s = {} must be a finite time > 0 s",
@@ -237,7 +252,7 @@ impl Signal {
                 start_s,
                 stop_s,
             } => {
-                finite("rate_rad_s", *rate_rad_s)?;
+                angle("rate_rad_s", *rate_rad_s)?;
                 finite("start_s", *start_s)?;
                 if let Some(s) = stop_s {
                     finite("stop_s", *s)?;
@@ -256,16 +271,16 @@ impl Signal {
                 frequency_hz,
                 turn_fraction,
             } => {
-                finite("amplitude_rad", *amplitude_rad)?;
+                angle("amplitude_rad", *amplitude_rad)?;
                 if !(frequency_hz.is_finite() && *frequency_hz > 0.0) {
                     return Err(format!(
                         "frequency_hz = {} must be a finite frequency > 0 Hz",
                         crate::number(*frequency_hz)
                     ));
                 }
-                if !(*turn_fraction > 0.0 && *turn_fraction < 1.0) {
+                if !(*turn_fraction >= 1e-3 && *turn_fraction < 1.0) {
                     return Err(format!(
-                        "turn_fraction = {} must be in (0, 1)",
+                        "turn_fraction = {} must be in [0.001, 1)",
                         crate::number(*turn_fraction)
                     ));
                 }

@@ -216,6 +216,13 @@ fn check_ok(s: &Scenario, context: &str) {
     ] {
         assert!(positive(v), "accepted drive.{k} = {v}\n{context}");
     }
+    assert!(
+        d.preload_n <= 0.05 * d.cable_modulus_n,
+        "accepted a preload strain over 5 %\n{context}"
+    );
+    for r in [d.pulley_radius_m, d.drum_radius_m] {
+        assert!((1e-4..=10.0).contains(&r), "accepted radius {r}\n{context}");
+    }
     let mu = d.friction_coefficient;
     assert!(mu > 0.0 && mu <= 1.0, "accepted friction {mu}\n{context}");
     let min = match d.routing {
@@ -241,6 +248,7 @@ fn check_ok(s: &Scenario, context: &str) {
         assert!(v.is_finite(), "accepted load.{k} = {v}\n{context}");
     }
     assert!(l.brake_nm >= 0.0 && l.unbalance_nm >= 0.0, "{context}");
+    assert!(l.peak_torque_nm() <= 5e6, "accepted load {l:?}\n{context}");
     match s.study {
         Study::QuasiStatic => {
             let qs = s.quasi_static.as_ref().expect("validated quasi_static");
@@ -268,7 +276,7 @@ fn check_ok(s: &Scenario, context: &str) {
         }
         Study::Backlash => {
             let b = s.backlash.as_ref().expect("validated backlash");
-            assert!(positive(b.load_nm), "{context}");
+            assert!(positive(b.load_nm) && b.load_nm <= 1e6, "{context}");
         }
         Study::ClosedLoop => assert!(s.closed_loop.is_some(), "{context}"),
     }

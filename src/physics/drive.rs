@@ -83,6 +83,9 @@ impl Default for DriveParams {
     }
 }
 
+/// Largest preload strain `preload_n / cable_modulus_n` accepted.
+pub const MAX_PRELOAD_STRAIN: f64 = 0.05;
+
 /// A parameter set the model cannot use, with what is allowed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DriveParamError {
@@ -141,6 +144,27 @@ impl DriveParams {
                 })
             }
         }
+        /// Physical ranges, generous on both sides: outside them the model's assumptions
+        /// (thin cable, small strain, exponentials of the wrap) stop holding or the numbers
+        /// overflow.
+        fn within(
+            key: &'static str,
+            value: f64,
+            low: f64,
+            high: f64,
+            allowed: &'static str,
+        ) -> Result<(), DriveParamError> {
+            if (low..=high).contains(&value) {
+                Ok(())
+            } else {
+                Err(DriveParamError::OutOfRange {
+                    key,
+                    value,
+                    allowed,
+                })
+            }
+        }
+        use std::f64::consts::PI;
         positive("pulley_radius_m", self.pulley_radius_m)?;
         positive("drum_radius_m", self.drum_radius_m)?;
         positive("center_distance_m", self.center_distance_m)?;
@@ -148,6 +172,44 @@ impl DriveParams {
         positive("preload_n", self.preload_n)?;
         positive("drum_wrap_rad", self.drum_wrap_rad)?;
         positive("pulley_wrap_rad", self.pulley_wrap_rad)?;
+        let radius = "between 1e-4 m (0.1 mm) and 10 m";
+        within("pulley_radius_m", self.pulley_radius_m, 1e-4, 10.0, radius)?;
+        within("drum_radius_m", self.drum_radius_m, 1e-4, 10.0, radius)?;
+        within(
+            "center_distance_m",
+            self.center_distance_m,
+            0.0,
+            100.0,
+            "at most 100 m",
+        )?;
+        within(
+            "cable_modulus_n",
+            self.cable_modulus_n,
+            1.0,
+            1e10,
+            "a tensile stiffness E*A between 1 N and 1e10 N (1.4e4 N on the bench)",
+        )?;
+        within(
+            "drum_wrap_rad",
+            self.drum_wrap_rad,
+            0.0,
+            20.0 * PI,
+            "at most 20*pi rad (ten turns)",
+        )?;
+        within(
+            "pulley_wrap_rad",
+            self.pulley_wrap_rad,
+            0.0,
+            200.0 * PI,
+            "at most 200*pi rad (a hundred turns)",
+        )?;
+        within(
+            "preload_n",
+            self.preload_n,
+            0.0,
+            MAX_PRELOAD_STRAIN * self.cable_modulus_n,
+            "at most 5 % of cable_modulus_n (a strain of 5 %; cables break at a few percent and the model assumes small strains)",
+        )?;
         let mu = self.friction_coefficient;
         if !(mu.is_finite() && mu > 0.0 && mu <= 1.0) {
             return Err(DriveParamError::OutOfRange {

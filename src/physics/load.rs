@@ -6,6 +6,9 @@
 
 use serde::{Deserialize, Serialize};
 
+/// Largest load torque accepted, N m.
+pub const MAX_TORQUE_NM: f64 = 1e6;
+
 /// Load applied to the output drum. All torques in N m.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
 #[serde(deny_unknown_fields)]
@@ -88,6 +91,20 @@ impl LoadParams {
                 Err((key, format!("{} must be a finite number", crate::number(v))))
             }
         };
+        // Torques beyond any cable drive: they only make unreadable numbers.
+        let torque = |key: &'static str, v: f64| {
+            if v.abs() <= MAX_TORQUE_NM {
+                Ok(())
+            } else {
+                Err((
+                    key,
+                    format!(
+                        "{} N m is beyond any cable drive (at most {MAX_TORQUE_NM:e} N m)",
+                        crate::number(v)
+                    ),
+                ))
+            }
+        };
         nonneg("brake_nm", self.brake_nm)?;
         if let Some(b) = self.brake_breakaway_nm {
             nonneg("brake_breakaway_nm", b)?;
@@ -107,6 +124,11 @@ impl LoadParams {
         finite("constant_nm", self.constant_nm)?;
         finite("sine_nm", self.sine_nm)?;
         nonneg("sine_frequency_hz", self.sine_frequency_hz)?;
+        torque("brake_nm", self.brake_nm)?;
+        torque("brake_breakaway_nm", self.breakaway_nm())?;
+        torque("unbalance_nm", self.unbalance_nm)?;
+        torque("constant_nm", self.constant_nm)?;
+        torque("sine_nm", self.sine_nm)?;
         Ok(())
     }
 
