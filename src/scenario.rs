@@ -248,10 +248,55 @@ fn plain_message(message: &str) -> String {
         .filter(|l| !l.is_empty())
         .collect::<Vec<_>>()
         .join("; ");
-    one_line
+    let mut out = one_line
         .replace("expected f64", "expected a number")
         .replace("expected u32", "expected a whole number >= 0")
         .replace("expected a string", "expected a quoted string")
+        .replace("expected a sequence", "expected a list in brackets [ ]")
+        .replace(
+            "expected internally tagged enum Signal",
+            "expected a signal table with a kind, e.g. { kind = \"sine\", amplitude_rad = 0.1, frequency_hz = 0.1 }",
+        );
+    // `expected struct DriveParams[ with N elements]` -> the section a user writes.
+    if let Some(i) = out.find("expected struct ") {
+        let rest = &out[i + "expected struct ".len()..];
+        let name_len = rest
+            .find(|c: char| !c.is_ascii_alphanumeric())
+            .unwrap_or(rest.len());
+        let mut tail = &rest[name_len..];
+        if let Some(t) = tail.strip_prefix(" with ") {
+            tail = t
+                .find(" elements")
+                .map_or(tail, |j| &t[j + " elements".len()..]);
+        }
+        let what = match &rest[..name_len] {
+            "DriveParams" => "a [drive] section",
+            "LoadParams" => "a [load] section",
+            "QuasiStaticParams" => "a [quasi_static] section",
+            "BacklashParams" => "a [backlash] section",
+            "ClosedLoopParams" => "a [closed_loop] section",
+            "SweepSpec" => "a [sweep] section",
+            "SweepParameter" => "a table { key = \"drive.preload_n\", values = [...] }",
+            _ => "a section (a table of key = value)",
+        };
+        out = format!("{}expected {what}{tail}", &out[..i]);
+    }
+    const SERDE: &[&str] = &[
+        "invalid type",
+        "invalid value",
+        "invalid length",
+        "missing field",
+        "unknown field",
+        "unknown variant",
+        "duplicate field",
+    ];
+    if !out.is_empty() && !SERDE.iter().any(|p| out.starts_with(p)) {
+        out = format!("TOML syntax error: {out}");
+        if out.contains("invalid string") {
+            out.push_str(" (text values need quotes, e.g. routing = \"open\")");
+        }
+    }
+    out
 }
 
 /// The header of a `[section]` or `[[section]]` line, if it is one.

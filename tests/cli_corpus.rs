@@ -326,3 +326,55 @@ fn missing_scenario_file_is_an_input_error() {
     assert!(err.contains("no_such_file.toml"), "{err}");
     assert!(entries(tmp.path()).is_empty());
 }
+
+#[test]
+fn sweep_refuses_bad_scenarios_and_existing_results() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out_dir = tmp.path().join("out");
+    let out_arg = out_dir.to_str().unwrap();
+    // Bad sweep scenarios from the corpus: input error, nothing written.
+    for stem in [
+        "sweep_bad_value",
+        "sweep_unknown_key",
+        "sweep_grid_too_large",
+    ] {
+        let case = corpus("scenarios").join(format!("{stem}.toml"));
+        let out = run(
+            &["sweep", case.to_str().unwrap(), "--out", out_arg],
+            tmp.path(),
+        );
+        let mut failures = Vec::new();
+        check_rejected(
+            &format!("sweep {stem}"),
+            &out,
+            3,
+            &expected_lines(&case),
+            tmp.path(),
+            &mut failures,
+        );
+        report("sweep", 1, failures);
+    }
+    let small = "sweep.parameters=[{key=\"drive.preload_n\", values=[50.0, 100.0]}]";
+    let args = [
+        "sweep",
+        "paper_fig11",
+        "--out",
+        out_arg,
+        "--threads",
+        "1",
+        "--set",
+        small,
+    ];
+    let first = run(&args, tmp.path());
+    assert_eq!(first.status.code(), Some(0), "{}", stderr(&first));
+    let table = fs::read(out_dir.join("sweep.csv")).unwrap();
+    let second = run(&args, tmp.path());
+    let err = stderr(&second);
+    assert_eq!(second.status.code(), Some(5), "{err}");
+    assert!(err.contains("refusing to overwrite"), "{err}");
+    assert_eq!(fs::read(out_dir.join("sweep.csv")).unwrap(), table);
+    assert_eq!(entries(tmp.path()), vec!["out"]);
+    let forced = run(&[&args[..], &["--force"]].concat(), tmp.path());
+    assert_eq!(forced.status.code(), Some(0), "{}", stderr(&forced));
+    assert_eq!(entries(tmp.path()), vec!["out"]);
+}
