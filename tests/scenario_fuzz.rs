@@ -627,6 +627,7 @@ fn fuzz_mutated_scenario_files() {
         }
     }
     // The mutations must leave a fair share of valid files, or the checks on Ok are idle.
+    eprintln!("mutated scenario files: {accepted} of {CASES_MUTATED_FILES} accepted");
     assert!(
         accepted > CASES_MUTATED_FILES / 20,
         "only {accepted} accepted"
@@ -705,6 +706,7 @@ fn fuzz_sets(seed_xor: u64, cases: usize, gen: fn(&mut StdRng) -> String) -> usi
 #[test]
 fn fuzz_set_mutated_keys() {
     let accepted = fuzz_sets(3, CASES_SET_MUTATED_KEYS, set_arg);
+    eprintln!("--set with mutated keys: {accepted} of {CASES_SET_MUTATED_KEYS} accepted");
     assert!(accepted > 100, "only {accepted} accepted");
 }
 
@@ -719,6 +721,7 @@ fn fuzz_set_numbers_on_real_keys() {
         let key = KEYS.choose(rng).unwrap();
         format!("{key}={}", random_number(rng))
     });
+    eprintln!("--set numbers on real keys: {accepted} of {CASES_SET_NUMBERS} accepted");
     assert!(accepted > 1000, "only {accepted} accepted");
 }
 
