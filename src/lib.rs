@@ -14,3 +14,13 @@ pub mod scenario;
 pub mod signal;
 pub mod study;
 pub mod sweep;
+
+/// A number as shown in messages: plain for everyday magnitudes, in exponent form for very
+/// large or small ones (`1e300`, not three hundred digits).
+pub fn number(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() || (1e-4..1e9).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}

@@ -131,6 +131,14 @@ fn run_quasi_static(
     );
     for t in &traces {
         let f = t.figures();
+        if t.samples.is_empty() {
+            // No sample: no figure to show (zeros would read as results).
+            table.push_str(&format!(
+                "{:<12} {:>12} {:>12} {:>12} {:>10} {:>10}  no samples: stopped at the start\n",
+                f.model, "-", "-", "-", "-", "-"
+            ));
+            continue;
+        }
         table.push_str(&format!(
             "{:<12} {:>12.6} {:>12.6} {:>12.6} {:>10.3} {:>10.3}\n",
             f.model,
@@ -292,13 +300,15 @@ impl CaseRunner for QuasiStaticRunner {
 impl QuasiStaticRunner {
     fn cells(trace: &quasi_static::QsTrace) -> Vec<Cell> {
         let f = trace.figures();
+        // An empty trace has no figures (its zeros would read as results).
+        let some = |v: f64| (!trace.samples.is_empty()).then_some(v);
         vec![
-            Cell::Num(Some(f.peak_error_mrad)),
-            Cell::Num(Some(f.peak_to_peak_error_mrad)),
-            Cell::Num(Some(f.rms_error_mrad)),
-            Cell::Num(Some(f.largest_jump_mrad)),
-            Cell::Num(Some(f.tension_min_n)),
-            Cell::Num(Some(f.tension_max_n)),
+            Cell::Num(some(f.peak_error_mrad)),
+            Cell::Num(some(f.peak_to_peak_error_mrad)),
+            Cell::Num(some(f.rms_error_mrad)),
+            Cell::Num(some(f.largest_jump_mrad)),
+            Cell::Num(some(f.tension_min_n)),
+            Cell::Num(some(f.tension_max_n)),
             Cell::Text(f.complete.to_string()),
         ]
     }

@@ -5,6 +5,9 @@
 
 use serde::{Deserialize, Serialize};
 
+/// Largest amplitude, offset or slew rate a signal may have (rad, rad/s).
+pub const MAX_ANGLE_RAD: f64 = 1e6;
+
 /// A scalar signal of time, in radians for motions and references.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
@@ -60,7 +63,7 @@ pub enum Signal {
         amplitude_rad: f64,
         /// Scan frequency, Hz.
         frequency_hz: f64,
-        /// Fraction of each half period spent turning around, (0, 1).
+        /// Fraction of each half period spent turning around, [0.001, 1).
         #[serde(default = "default_turn")]
         turn_fraction: f64,
     },
@@ -184,7 +187,22 @@ impl Signal {
             if v.is_finite() {
                 Ok(())
             } else {
-                Err(format!("{name} = {v} must be a finite number"))
+                Err(format!(
+                    "{name} = {} must be a finite number",
+                    crate::number(v)
+                ))
+            }
+        };
+        // Angles and rates beyond any pointing motion; also keeps derivatives finite.
+        let angle = |name: &str, v: f64| {
+            finite(name, v)?;
+            if v.abs() <= MAX_ANGLE_RAD {
+                Ok(())
+            } else {
+                Err(format!(
+                    "{name} = {} is beyond any motion (at most {MAX_ANGLE_RAD:e} in size)",
+                    crate::number(v)
+                ))
             }
         };
         match self {
@@ -194,11 +212,14 @@ impl Signal {
                 phase_rad,
                 offset_rad,
             } => {
-                finite("amplitude_rad", *amplitude_rad)?;
+                angle("amplitude_rad", *amplitude_rad)?;
                 finite("phase_rad", *phase_rad)?;
-                finite("offset_rad", *offset_rad)?;
+                angle("offset_rad", *offset_rad)?;
                 if !(frequency_hz.is_finite() && *frequency_hz >= 0.0) {
-                    return Err(format!("frequency_hz = {frequency_hz} must be >= 0"));
+                    return Err(format!(
+                        "frequency_hz = {} must be a finite frequency >= 0 Hz",
+                        crate::number(*frequency_hz)
+                    ));
                 }
                 Ok(())
             }
@@ -206,17 +227,23 @@ impl Signal {
                 amplitude_rad,
                 time_s,
             } => {
-                finite("amplitude_rad", *amplitude_rad)?;
+                angle("amplitude_rad", *amplitude_rad)?;
                 finite("time_s", *time_s)
             }
             Signal::StepStare {
                 amplitude_rad,
                 period_s,
-                ..
+                steps_per_sweep,
             } => {
-                finite("amplitude_rad", *amplitude_rad)?;
+                angle("amplitude_rad", *amplitude_rad)?;
                 if !(period_s.is_finite() && *period_s > 0.0) {
-                    return Err(format!("period_s = {period_s} must be > 0"));
+                    return Err(format!(
+                        "period_s = {} must be a finite time > 0 s",
+                        crate::number(*period_s)
+                    ));
+                }
+                if *steps_per_sweep == 0 {
+                    return Err("steps_per_sweep = 0 must be at least 1".into());
                 }
                 Ok(())
             }
@@ -225,10 +252,17 @@ impl Signal {
                 start_s,
                 stop_s,
             } => {
-                finite("rate_rad_s", *rate_rad_s)?;
+                angle("rate_rad_s", *rate_rad_s)?;
                 finite("start_s", *start_s)?;
                 if let Some(s) = stop_s {
                     finite("stop_s", *s)?;
+                    if s < start_s {
+                        return Err(format!(
+                            "stop_s = {} must not come before start_s = {}",
+                            crate::number(*s),
+                            crate::number(*start_s)
+                        ));
+                    }
                 }
                 Ok(())
             }
@@ -237,16 +271,30 @@ impl Signal {
                 frequency_hz,
                 turn_fraction,
             } => {
-                finite("amplitude_rad", *amplitude_rad)?;
+                angle("amplitude_rad", *amplitude_rad)?;
                 if !(frequency_hz.is_finite() && *frequency_hz > 0.0) {
-                    return Err(format!("frequency_hz = {frequency_hz} must be > 0"));
+                    return Err(format!(
+                        "frequency_hz = {} must be a finite frequency > 0 Hz",
+                        crate::number(*frequency_hz)
+                    ));
                 }
-                if !(*turn_fraction > 0.0 && *turn_fraction < 1.0) {
-                    return Err(format!("turn_fraction = {turn_fraction} must be in (0, 1)"));
+                if !(*turn_fraction >= 1e-3 && *turn_fraction < 1.0) {
+                    return Err(format!(
+                        "turn_fraction = {} must be in [0.001, 1)",
+                        crate::number(*turn_fraction)
+                    ));
                 }
                 Ok(())
             }
-            Signal::Sum { parts } => parts.iter().try_for_each(Signal::validate),
+            Signal::Sum { parts } => {
+                if parts.is_empty() {
+                    return Err("a sum needs at least one part in `parts`".into());
+                }
+                parts
+                    .iter()
+                    .enumerate()
+                    .try_for_each(|(i, p)| p.validate().map_err(|m| format!("parts[{i}]: {m}")))
+            }
             Signal::Table { path, column, .. } => {
                 if path.is_empty() || column.is_empty() {
                     Err("a table signal needs a CSV `path` and a value `column`".into())
@@ -254,6 +302,22 @@ impl Signal {
                     Ok(())
                 }
             }
+        }
+    }
+
+    /// Highest frequency the signal repeats at, Hz (sine and triangle frequencies, step-stare
+    /// step rate), for checking the sample rate; 0 for signals that do not repeat.
+    pub fn fastest_frequency_hz(&self) -> f64 {
+        match self {
+            Signal::Sine { frequency_hz, .. } | Signal::Triangle { frequency_hz, .. } => {
+                *frequency_hz
+            }
+            Signal::StepStare { period_s, .. } => 1.0 / period_s,
+            Signal::Sum { parts } => parts
+                .iter()
+                .map(Signal::fastest_frequency_hz)
+                .fold(0.0, f64::max),
+            Signal::Step { .. } | Signal::Ramp { .. } | Signal::Table { .. } => 0.0,
         }
     }
 

@@ -16,6 +16,30 @@ pub enum Routing {
     Open,
 }
 
+impl Routing {
+    /// The name used in scenario files (`figure_eight`, `open`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Routing::FigureEight => "figure_eight",
+            Routing::Open => "open",
+        }
+    }
+
+    /// Smallest centre distance that leaves the spans a length, m.
+    pub fn min_center_distance_m(self, pulley_radius_m: f64, drum_radius_m: f64) -> f64 {
+        match self {
+            Routing::FigureEight => drum_radius_m + pulley_radius_m,
+            Routing::Open => (drum_radius_m - pulley_radius_m).abs(),
+        }
+    }
+}
+
+impl std::fmt::Display for Routing {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 /// Geometry and material of the cable drive. Field names carry their units; the defaults
 /// are the published bench (physics.md section 6).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -59,11 +83,14 @@ impl Default for DriveParams {
     }
 }
 
+/// Largest preload strain `preload_n / cable_modulus_n` accepted.
+pub const MAX_PRELOAD_STRAIN: f64 = 0.05;
+
 /// A parameter set the model cannot use, with what is allowed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DriveParamError {
     /// A value outside its physical range.
-    #[error("drive.{key} = {value} is out of range: {allowed}")]
+    #[error("drive.{key} = {} is out of range: it must be {allowed}", crate::number(*value))]
     OutOfRange {
         /// Scenario key below `[drive]`.
         key: &'static str,
@@ -74,7 +101,9 @@ pub enum DriveParamError {
     },
     /// Pulleys overlap for the chosen routing: no free span exists.
     #[error(
-        "drive.center_distance_m = {center_distance_m} is too small for {routing:?} routing: it must exceed {min_m:.6} m (the spans would have no length)"
+        "drive.center_distance_m = {} is too small for routing = \"{routing}\": it must exceed {min_m:.6} m ({}; the spans would have no length)",
+        crate::number(*center_distance_m),
+        if matches!(routing, Routing::FigureEight) { "drum_radius_m + pulley_radius_m" } else { "|drum_radius_m - pulley_radius_m|" }
     )]
     NoFreeSpan {
         /// The given centre distance, m.
@@ -115,6 +144,27 @@ impl DriveParams {
                 })
             }
         }
+        /// Physical ranges, generous on both sides: outside them the model's assumptions
+        /// (thin cable, small strain, exponentials of the wrap) stop holding or the numbers
+        /// overflow.
+        fn within(
+            key: &'static str,
+            value: f64,
+            low: f64,
+            high: f64,
+            allowed: &'static str,
+        ) -> Result<(), DriveParamError> {
+            if (low..=high).contains(&value) {
+                Ok(())
+            } else {
+                Err(DriveParamError::OutOfRange {
+                    key,
+                    value,
+                    allowed,
+                })
+            }
+        }
+        use std::f64::consts::PI;
         positive("pulley_radius_m", self.pulley_radius_m)?;
         positive("drum_radius_m", self.drum_radius_m)?;
         positive("center_distance_m", self.center_distance_m)?;
@@ -122,6 +172,44 @@ impl DriveParams {
         positive("preload_n", self.preload_n)?;
         positive("drum_wrap_rad", self.drum_wrap_rad)?;
         positive("pulley_wrap_rad", self.pulley_wrap_rad)?;
+        let radius = "between 1e-4 m (0.1 mm) and 10 m";
+        within("pulley_radius_m", self.pulley_radius_m, 1e-4, 10.0, radius)?;
+        within("drum_radius_m", self.drum_radius_m, 1e-4, 10.0, radius)?;
+        within(
+            "center_distance_m",
+            self.center_distance_m,
+            0.0,
+            100.0,
+            "at most 100 m",
+        )?;
+        within(
+            "cable_modulus_n",
+            self.cable_modulus_n,
+            1.0,
+            1e10,
+            "a tensile stiffness E*A between 1 N and 1e10 N (1.4e4 N on the bench)",
+        )?;
+        within(
+            "drum_wrap_rad",
+            self.drum_wrap_rad,
+            0.0,
+            20.0 * PI,
+            "at most 20*pi rad (ten turns)",
+        )?;
+        within(
+            "pulley_wrap_rad",
+            self.pulley_wrap_rad,
+            0.0,
+            200.0 * PI,
+            "at most 200*pi rad (a hundred turns)",
+        )?;
+        within(
+            "preload_n",
+            self.preload_n,
+            0.0,
+            MAX_PRELOAD_STRAIN * self.cable_modulus_n,
+            "at most 5 % of cable_modulus_n (a strain of 5 %; cables break at a few percent and the model assumes small strains)",
+        )?;
         let mu = self.friction_coefficient;
         if !(mu.is_finite() && mu > 0.0 && mu <= 1.0) {
             return Err(DriveParamError::OutOfRange {
@@ -130,11 +218,25 @@ impl DriveParams {
                 allowed: "a number in (0, 1]",
             });
         }
-        let min_m = match self.routing {
-            Routing::FigureEight => self.drum_radius_m + self.pulley_radius_m,
-            Routing::Open => (self.drum_radius_m - self.pulley_radius_m).abs(),
-        };
-        if self.center_distance_m <= min_m {
+        let min_m = self
+            .routing
+            .min_center_distance_m(self.pulley_radius_m, self.drum_radius_m);
+        let ratio = self.ratio();
+        if !(ratio.is_finite() && ratio > 0.0) {
+            return Err(DriveParamError::OutOfRange {
+                key: "drum_radius_m",
+                value: self.drum_radius_m,
+                allowed: "such that drum_radius_m / pulley_radius_m is a finite ratio",
+            });
+        }
+        if !self.free_span_m().is_finite() {
+            return Err(DriveParamError::OutOfRange {
+                key: "center_distance_m",
+                value: self.center_distance_m,
+                allowed: "small enough for a finite span length",
+            });
+        }
+        if self.center_distance_m <= min_m || self.free_span_m() <= 0.0 {
             return Err(DriveParamError::NoFreeSpan {
                 center_distance_m: self.center_distance_m,
                 routing: self.routing,

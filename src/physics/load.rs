@@ -6,6 +6,9 @@
 
 use serde::{Deserialize, Serialize};
 
+/// Largest load torque accepted, N m.
+pub const MAX_TORQUE_NM: f64 = 1e6;
+
 /// Load applied to the output drum. All torques in N m.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
 #[serde(deny_unknown_fields)]
@@ -75,14 +78,31 @@ impl LoadParams {
             if v.is_finite() && v >= 0.0 {
                 Ok(())
             } else {
-                Err((key, format!("{v} must be a finite number >= 0")))
+                Err((
+                    key,
+                    format!("{} must be a finite number >= 0", crate::number(v)),
+                ))
             }
         };
         let finite = |key: &'static str, v: f64| {
             if v.is_finite() {
                 Ok(())
             } else {
-                Err((key, format!("{v} must be a finite number")))
+                Err((key, format!("{} must be a finite number", crate::number(v))))
+            }
+        };
+        // Torques beyond any cable drive: they only make unreadable numbers.
+        let torque = |key: &'static str, v: f64| {
+            if v.abs() <= MAX_TORQUE_NM {
+                Ok(())
+            } else {
+                Err((
+                    key,
+                    format!(
+                        "{} N m is beyond any cable drive (at most {MAX_TORQUE_NM:e} N m)",
+                        crate::number(v)
+                    ),
+                ))
             }
         };
         nonneg("brake_nm", self.brake_nm)?;
@@ -91,7 +111,11 @@ impl LoadParams {
             if b < self.brake_nm {
                 return Err((
                     "brake_breakaway_nm",
-                    format!("{b} must be >= brake_nm = {}", self.brake_nm),
+                    format!(
+                        "{} must be >= brake_nm = {}",
+                        crate::number(b),
+                        crate::number(self.brake_nm)
+                    ),
                 ));
             }
         }
@@ -100,6 +124,11 @@ impl LoadParams {
         finite("constant_nm", self.constant_nm)?;
         finite("sine_nm", self.sine_nm)?;
         nonneg("sine_frequency_hz", self.sine_frequency_hz)?;
+        torque("brake_nm", self.brake_nm)?;
+        torque("brake_breakaway_nm", self.breakaway_nm())?;
+        torque("unbalance_nm", self.unbalance_nm)?;
+        torque("constant_nm", self.constant_nm)?;
+        torque("sine_nm", self.sine_nm)?;
         Ok(())
     }
 

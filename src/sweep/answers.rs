@@ -108,6 +108,8 @@ pub fn least_preload_at_load(
     tol_n: f64,
 ) -> LeastPreload {
     use crate::study::quasi_static::{backlash, Regime};
+    // Preloads beyond the strain the model accepts are not candidates, not failures.
+    let hi_n = hi_n.min(crate::physics::drive::MAX_PRELOAD_STRAIN * drive.cable_modulus_n);
     let params = crate::scenario::BacklashParams { load_nm, model };
     let ok = |p: f64| {
         let d = crate::physics::DriveParams {

@@ -8,7 +8,8 @@ pub mod spec;
 pub mod vary;
 
 pub use engine::{expand, run_cases, Case, CaseRunner, Cell, Shard, SweepError};
-pub use spec::{DistKind, SweepMode, SweepParameter, SweepSpec};
+pub use spec::{DistKind, SweepMode, SweepParameter, SweepSpec, MAX_CASES};
+
 /// Check a sweep declaration; returns `(key, message)` of the first problem.
 pub fn validate_spec(spec: &SweepSpec) -> Result<(), (String, String)> {
     spec.validate()

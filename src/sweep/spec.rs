@@ -251,7 +251,7 @@ pub struct SweepSpec {
 }
 
 /// Most cases one sweep may hold (the case list is kept in memory, a few hundred bytes each).
-pub const MAX_CASES: usize = 10_000_000;
+pub const MAX_CASES: usize = 1_000_000;
 
 impl SweepSpec {
     /// Number of cases the sweep expands to.
@@ -384,11 +384,35 @@ impl SweepSpec {
                 ));
             }
         }
+        let mut columns: Vec<&str> = Vec::new();
+        for (i, p) in self.parameters.iter().enumerate() {
+            let column = p.column_name();
+            if column.is_empty()
+                || column == "case"
+                || column
+                    .chars()
+                    .any(|c| c.is_control() || matches!(c, ',' | '"'))
+            {
+                return Err((
+                    format!("sweep.parameters[{i}].column"),
+                    format!("{column:?} is not usable as a column name: use letters, digits and '_' (not \"case\")"),
+                ));
+            }
+            if columns.contains(&column) {
+                return Err((
+                    format!("sweep.parameters[{i}].column"),
+                    format!(
+                        "column {column:?} is used twice; give the parameters different `column` names"
+                    ),
+                ));
+            }
+            columns.push(column);
+        }
         let count = self.case_count();
         if count > MAX_CASES {
             return Err((
-                "sweep".into(),
-                format!("{count} cases is more than {MAX_CASES}; split the sweep"),
+                "sweep.parameters".into(),
+                format!("the sweep has {count} cases, more than {MAX_CASES} cases; sweep fewer values or split the study"),
             ));
         }
         Ok(())
