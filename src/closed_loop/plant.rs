@@ -13,9 +13,7 @@ use ode_solvers::System;
 use super::params::{Amplifier, CableModel, ClosedLoopParams};
 use crate::physics::half::CableHalf;
 use crate::physics::newton::solve_increasing;
-use crate::physics::{
-    CableDrive, DriveFault, DriveParams, DriveState, Half, HysteresisModel, LoadParams,
-};
+use crate::physics::{CableDrive, DriveFault, DriveParams, Half, HysteresisModel, LoadParams};
 
 /// Plant state vector.
 pub type State = SVector<f64, 5>;
@@ -214,35 +212,7 @@ impl PlantCable {
     pub fn commit(&mut self, d: f64, warm: &mut WarmStart) -> Result<(f64, f64), DriveFault> {
         let (tu, tl) = self.tensions(d, warm)?;
         if let PlantCable::Hysteretic(drive) = self {
-            let p = drive.params();
-            let (up, lo) = (drive.upper().trial(tu), drive.lower().trial(tl));
-            for (half, t, tr) in [(Half::Upper, tu, &up), (Half::Lower, tl, &lo)] {
-                if tr.pulley_neutral_reached {
-                    // Where the slip zone would end on an unlimited pulley wrap.
-                    let demanded = (t / p.preload_n).ln().abs() / p.friction_coefficient;
-                    return Err(DriveFault::GrossSlip {
-                        half,
-                        slip_angle_rad: demanded.max(tr.pulley_slip_rad),
-                        available_rad: 0.5 * p.pulley_wrap_rad,
-                        tension_n: t,
-                    });
-                }
-            }
-            let state = DriveState {
-                tension_upper_n: tu,
-                tension_lower_n: tl,
-                surface_displacement_m: d,
-                transmission_error_rad: -d / p.drum_radius_m,
-                elongation_upper_m: up.elongation_m,
-                elongation_lower_m: lo.elongation_m,
-                slip_angles_rad: [
-                    up.drum_slip_rad,
-                    up.pulley_slip_rad,
-                    lo.drum_slip_rad,
-                    lo.pulley_slip_rad,
-                ],
-                anchor_reached: [up.drum_anchor_reached, lo.drum_anchor_reached],
-            };
+            let state = drive.state_at(tu, tl, d)?;
             drive.commit_state(state);
         }
         Ok((tu, tl))

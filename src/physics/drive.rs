@@ -562,6 +562,18 @@ impl CableDrive {
             self.state.tension_lower_n,
             Half::Lower,
         )?;
+        self.state_at(tu, tl, displacement_m)
+    }
+
+    /// Full state for span tensions `tu`, `tl` (N) solved elsewhere for the displacement
+    /// `displacement_m` (e.g. by a warm-started dynamic solve): slip angles, anchor flags
+    /// and the gross-slip check. Nothing is committed.
+    pub fn state_at(
+        &self,
+        tu: f64,
+        tl: f64,
+        displacement_m: f64,
+    ) -> Result<DriveState, DriveFault> {
         let up = self.upper.trial(tu);
         let lo = self.lower.trial(tl);
         self.check_pulley(Half::Upper, tu, &up)?;
