@@ -187,6 +187,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "eots_mismatch",
         include_str!("../scenarios/eots_mismatch.toml"),
     ),
+    ("eots_runout", include_str!("../scenarios/eots_runout.toml")),
     ("eots_scan", include_str!("../scenarios/eots_scan.toml")),
     ("step_stare", include_str!("../scenarios/step_stare.toml")),
     (

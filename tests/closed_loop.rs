@@ -1,6 +1,7 @@
 //! Closed-loop gimbal axis against independent math and the quasi-static core.
 
 use cable_servo::closed_loop::*;
+use cable_servo::identify::EffectsParams;
 use cable_servo::physics::{CableDrive, HysteresisModel};
 use cable_servo::scenario::Scenario;
 use cable_servo::signal::Signal;
@@ -360,4 +361,142 @@ fn eots_scan_memory_beats_memoryless() {
         less.rms_mrad
     );
     assert!(mem.p95_mrad < less.p95_mrad);
+}
+
+fn shortened(name: &str, duration_s: f64) -> Scenario {
+    let mut s = builtin(name);
+    let p = params(&mut s);
+    p.duration_s = duration_s;
+    p.metrics_start_s = 1.0;
+    s
+}
+
+fn metrics_of(s: &Scenario) -> Vec<cable_servo::metrics::Metrics> {
+    run_closed_loop(s, &RunOptions::metrics_only())
+        .unwrap()
+        .modes
+        .into_iter()
+        .map(|m| {
+            assert_eq!(m.completion, Completion::Complete, "{:?}", m.mode);
+            m.metrics
+        })
+        .collect()
+}
+
+/// Slow motion on a stiff linear cable without brake: the plant's transmission error is
+/// the effects' closed form; what remains is the drive's dither from encoder quantisation
+/// (below 1e-3 mrad) once started.
+#[test]
+fn plant_transmission_error_carries_the_kinematic_effects() {
+    let mut s = shortened("eots_tracking", 3.0);
+    s.load.brake_nm = 0.0;
+    s.load.brake_breakaway_nm = Some(0.0);
+    let fx = EffectsParams {
+        input_pulley_runout: Some(0.01),
+        input_pulley_runout_phase_rad: Some(0.5),
+        output_drum_runout: Some(1e-3),
+        output_drum_runout_phase_rad: Some(-0.7),
+        thermal_drift_rad_per_s: Some(2e-5),
+        ..EffectsParams::default()
+    };
+    s.effects = Some(fx.clone());
+    params(&mut s).cable = CableModel::Linear;
+    params(&mut s).modes = vec![CompensationMode::None];
+    let r = run_closed_loop(&s, &RunOptions::default()).unwrap();
+    let ts = r.modes[0].series.as_ref().unwrap();
+    let ic = s.drive.ratio();
+    let mut largest = 0.0f64;
+    // After the start-up transient.
+    for i in (0..ts.len()).step_by(50).filter(|&i| ts.t_s[i] >= 1.0) {
+        let expect =
+            fx.kinematic_error_rad(ts.motor_angle_rad[i], ts.output_angle_rad[i], ts.t_s[i], ic)
+                * 1e3;
+        largest = largest.max(expect.abs());
+        let got = ts.transmission_error_mrad[i];
+        assert!(
+            (got - expect).abs() < 2e-3,
+            "t = {}: {got} vs {expect}",
+            ts.t_s[i]
+        );
+    }
+    assert!(largest > 0.05, "{largest}");
+}
+
+/// The extended model's feedforward removes most of the runout error the base model
+/// leaves.
+#[test]
+fn compensating_identified_runout_lowers_pointing_error() {
+    let mut base = shortened("eots_runout", 6.0);
+    params(&mut base).modes = vec![CompensationMode::Memory];
+    assert!(!params(&mut base).compensate_effects);
+    let mut ext = base.clone();
+    params(&mut ext).compensate_effects = true;
+    let b = &metrics_of(&base)[0];
+    let e = &metrics_of(&ext)[0];
+    assert!(
+        e.rms_mrad < 0.5 * b.rms_mrad,
+        "extended {} vs base {} mrad",
+        e.rms_mrad,
+        b.rms_mrad
+    );
+    assert!(e.passes_target && !b.passes_target, "{e:?} {b:?}");
+    // An explicit compensator copy equal to the plant's is the default.
+    let mut same = ext.clone();
+    params(&mut same).compensator_effects = ext.effects.clone();
+    assert_eq!(metrics_of(&same)[0], *e);
+    // A compensator copy without the runout falls back to the base result.
+    let mut none = ext.clone();
+    params(&mut none).compensator_effects = Some(EffectsParams {
+        bearing_friction_nm: Some(0.0),
+        ..EffectsParams::default()
+    });
+    assert_eq!(metrics_of(&none)[0], *b);
+}
+
+/// An `[effects]` section of zeros changes nothing, bit for bit.
+#[test]
+fn zero_effects_leave_results_unchanged() {
+    let plain = shortened("eots_tracking", 4.0);
+    let mut zero = plain.clone();
+    zero.effects = Some(EffectsParams {
+        input_pulley_runout: Some(0.0),
+        input_pulley_runout_phase_rad: Some(0.0),
+        output_drum_runout: Some(0.0),
+        output_drum_runout_phase_rad: Some(0.0),
+        bearing_friction_nm: Some(0.0),
+        thermal_drift_rad_per_s: Some(0.0),
+        ..EffectsParams::default()
+    });
+    let before = metrics_of(&plain);
+    assert_eq!(before, metrics_of(&zero));
+    params(&mut zero).compensate_effects = true;
+    assert_eq!(before, metrics_of(&zero));
+}
+
+#[test]
+fn effects_options_are_validated_by_key() {
+    let text = cable_servo::scenario::builtin("eots_tracking").unwrap();
+    let err = Scenario::from_toml(
+        text,
+        "x.toml",
+        "x",
+        &["closed_loop.compensate_effects=true".into()],
+    )
+    .map(|s| run_closed_loop(&s, &RunOptions::metrics_only()).map(|_| ()))
+    .map_or_else(|e| e.to_string(), |r| r.unwrap_err().to_string());
+    assert!(
+        err.contains("closed_loop.compensate_effects") && err.contains("[effects]"),
+        "{err}"
+    );
+    let mut s = builtin("eots_runout");
+    params(&mut s).compensator_effects = Some(EffectsParams {
+        input_pulley_runout: Some(-1.0),
+        ..EffectsParams::default()
+    });
+    match run_closed_loop(&s, &RunOptions::metrics_only()) {
+        Err(ClosedLoopError::Invalid { key, .. }) => {
+            assert_eq!(key, "closed_loop.compensator_effects.input_pulley_runout")
+        }
+        r => panic!("expected a validation error, got {r:?}"),
+    }
 }

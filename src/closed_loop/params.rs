@@ -5,6 +5,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::identify::effects::EffectsParams;
 use crate::physics::{CableDrive, DriveParams, HysteresisModel, Routing};
 use crate::signal::Signal;
 
@@ -382,6 +383,16 @@ pub struct ClosedLoopParams {
     /// Compensator cable parameters where they differ from the plant's `[drive]`.
     #[serde(default)]
     pub compensator_drive: Option<DriveOverride>,
+    /// Whether the memoryless and memory compensators also use the identified effects:
+    /// they subtract the predicted kinematic error (runouts, thermal drift; rad) from the
+    /// shifted motor reference and add the bearing friction (N m) to the predicted brake
+    /// torque. Needs `[closed_loop.compensator_effects]` or the scenario's `[effects]`.
+    #[serde(default)]
+    pub compensate_effects: bool,
+    /// The compensator's copy of the effects where it differs from the plant's `[effects]`
+    /// (same keys and units); defaults to the plant's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compensator_effects: Option<EffectsParams>,
 }
 
 fn default_metrics_start() -> f64 {
@@ -471,6 +482,35 @@ impl ClosedLoopParams {
             Some(o) => o.apply(drive),
             None => drive.clone(),
         }
+    }
+
+    /// Effects the compensator uses, given the plant's `[effects]`: `None` unless
+    /// `compensate_effects` is on.
+    pub fn compensator_effects<'a>(
+        &'a self,
+        plant: Option<&'a EffectsParams>,
+    ) -> Option<&'a EffectsParams> {
+        if self.compensate_effects {
+            self.compensator_effects.as_ref().or(plant)
+        } else {
+            None
+        }
+    }
+
+    /// Check the effects options against the plant's `[effects]`; returns `(dotted key,
+    /// message)`.
+    pub fn validate_effects(&self, plant: Option<&EffectsParams>) -> Result<(), (String, String)> {
+        if let Some(fx) = &self.compensator_effects {
+            fx.validate()
+                .map_err(|(k, m)| (format!("closed_loop.compensator_effects.{k}"), m))?;
+        }
+        if self.compensate_effects && self.compensator_effects(plant).is_none() {
+            return Err((
+                "closed_loop.compensate_effects".into(),
+                "true needs effects to compensate: an [effects] section (as written by `diagnose --save-model`) or [closed_loop.compensator_effects]".into(),
+            ));
+        }
+        Ok(())
     }
 
     /// Number of control periods in the run.

@@ -11,6 +11,7 @@ use nalgebra::SVector;
 use ode_solvers::System;
 
 use super::params::{Amplifier, CableModel, ClosedLoopParams};
+use crate::identify::effects::EffectsParams;
 use crate::physics::half::CableHalf;
 use crate::physics::newton::solve_increasing;
 use crate::physics::{CableDrive, DriveFault, DriveParams, Half, HysteresisModel, LoadParams};
@@ -257,11 +258,39 @@ pub struct PlantCoefficients {
     /// Whether any smooth load (unbalance, constant, sine, series) is present; saves a
     /// sine per evaluation when none is.
     pub smooth_load: bool,
+    /// Radius ratio `ic = ro/ri`.
+    pub ratio: f64,
+    /// Kinematic effects of the plant (runouts, thermal drift); `None` when absent or all
+    /// zero, so the plain geometry is used.
+    pub effects: Option<EffectsParams>,
+}
+
+/// Cable geometry at one state: displacement, its rate and the lever arms through which
+/// the span force acts (the base geometry has `ri` and `ro`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Kinematics {
+    /// Surface displacement `D = ri*theta_m - ro*(theta_o - e_fx)`, m, where `e_fx` is the
+    /// effects' added transmission error.
+    pub d: f64,
+    /// `dD/dt`, m/s.
+    pub d_dot: f64,
+    /// `dD/d theta_m`, m/rad: the motor feels `-lever_in*(Tu - Tl)`.
+    pub lever_in: f64,
+    /// `-dD/d theta_o`, m/rad: the drum feels `lever_out*(Tu - Tl)`.
+    pub lever_out: f64,
 }
 
 impl PlantCoefficients {
-    /// From the scenario parts.
-    pub fn new(p: &ClosedLoopParams, drive: &DriveParams, load: &LoadParams) -> Self {
+    /// From the scenario parts; `effects` are the plant's `[effects]`: the kinematic ones
+    /// shift the output against the cable, the bearing friction adds to the brake's
+    /// sliding and breakaway torques.
+    pub fn new(
+        p: &ClosedLoopParams,
+        drive: &DriveParams,
+        load: &LoadParams,
+        effects: Option<&EffectsParams>,
+    ) -> Self {
+        let bearing = effects.map_or(0.0, EffectsParams::bearing_friction);
         PlantCoefficients {
             ri: drive.pulley_radius_m,
             ro: drive.drum_radius_m,
@@ -277,12 +306,46 @@ impl PlantCoefficients {
             voltage_mode: p.motor.amplifier == Amplifier::Voltage,
             jo: p.output.inertia_kg_m2,
             bo: p.output.viscous_nm_s_per_rad,
-            brake: load.brake_nm,
-            breakaway: load.breakaway_nm(),
+            brake: if bearing > 0.0 {
+                load.brake_nm + bearing
+            } else {
+                load.brake_nm
+            },
+            breakaway: if bearing > 0.0 {
+                load.breakaway_nm() + bearing
+            } else {
+                load.breakaway_nm()
+            },
             smooth_load: load.unbalance_nm != 0.0
                 || load.constant_nm != 0.0
                 || load.sine_nm != 0.0
                 || !load.disturbance.is_empty(),
+            ratio: drive.ratio(),
+            effects: effects.filter(|e| e.has_kinematic()).cloned(),
+        }
+    }
+
+    /// Cable geometry at state `x` and time `t` (s).
+    #[inline]
+    pub fn kinematics(&self, x: &State, t: f64) -> Kinematics {
+        match &self.effects {
+            None => Kinematics {
+                d: self.ri * x[THETA_M] - self.ro * x[THETA_O],
+                d_dot: self.ri * x[OMEGA_M] - self.ro * x[OMEGA_O],
+                lever_in: self.ri,
+                lever_out: self.ro,
+            },
+            Some(fx) => {
+                let k = fx.kinematic_error(x[THETA_M], x[THETA_O], t, self.ratio);
+                let lever_in = self.ri + self.ro * k.d_theta_in;
+                let lever_out = self.ro * (1.0 - k.d_theta_out);
+                Kinematics {
+                    d: self.ri * x[THETA_M] - self.ro * (x[THETA_O] - k.value_rad),
+                    d_dot: lever_in * x[OMEGA_M] - lever_out * x[OMEGA_O] + self.ro * k.d_t,
+                    lever_in,
+                    lever_out,
+                }
+            }
         }
     }
 }
@@ -324,19 +387,20 @@ pub struct Forces {
     pub smooth_load_nm: f64,
 }
 
-/// Tensions including structural damping for elastic tensions `el` and state `x`.
+/// Tensions including structural damping for elastic tensions `el` and geometry `k`.
 #[inline]
-pub fn damped(c: &PlantCoefficients, el: (f64, f64), x: &State) -> (f64, f64) {
-    let d_dot = c.ri * x[OMEGA_M] - c.ro * x[OMEGA_O];
-    let f = c.cable_damping * d_dot;
+pub fn damped(c: &PlantCoefficients, el: (f64, f64), k: &Kinematics) -> (f64, f64) {
+    let f = c.cable_damping * k.d_dot;
     (el.0 + f, el.1 - f)
 }
 
-/// State derivative for tensions `(tu, tl)` (damping included).
+/// State derivative for tensions `(tu, tl)` (damping included) acting through the lever
+/// arms of `k`.
 #[inline]
 pub fn derivative(
     c: &PlantCoefficients,
     x: &State,
+    k: &Kinematics,
     tensions: (f64, f64),
     smooth_load: f64,
     brake: BrakeState,
@@ -345,7 +409,7 @@ pub fn derivative(
     let f = tensions.0 - tensions.1;
     let wm = x[OMEGA_M];
     let friction = c.bm * wm + c.tcm * (wm / c.wcm).clamp(-1.0, 1.0);
-    let dwm = (c.kt * x[CURRENT] - friction - c.ri * f) / c.jm;
+    let dwm = (c.kt * x[CURRENT] - friction - k.lever_in * f) / c.jm;
     let di = if c.voltage_mode {
         (command - c.r * x[CURRENT] - c.ke * wm) / c.l
     } else {
@@ -355,7 +419,7 @@ pub fn derivative(
         BrakeState::Stuck => (0.0, 0.0),
         BrakeState::Slipping(dir) => (
             x[OMEGA_O],
-            (c.ro * f + smooth_load - c.bo * x[OMEGA_O] - c.brake * dir) / c.jo,
+            (k.lever_out * f + smooth_load - c.bo * x[OMEGA_O] - c.brake * dir) / c.jo,
         ),
     };
     State::new(wm, dwm, di, dto, dwo)
@@ -365,9 +429,10 @@ impl System<f64, State> for &PeriodRhs<'_> {
     #[inline]
     fn system(&self, tau: f64, x: &State, dx: &mut State) {
         let c = self.c;
-        let d = c.ri * x[THETA_M] - c.ro * x[THETA_O];
+        let t = self.t0 + tau * self.h;
+        let k = c.kinematics(x, t);
         let mut warm = self.warm.get();
-        let el = match self.cable.tensions(d, &mut warm) {
+        let el = match self.cable.tensions(k.d, &mut warm) {
             Ok(t) => t,
             Err(e) => {
                 if self.fault.get().is_none() {
@@ -378,13 +443,20 @@ impl System<f64, State> for &PeriodRhs<'_> {
             }
         };
         self.warm.set(warm);
-        let t = self.t0 + tau * self.h;
         let smooth = if c.smooth_load {
             self.load.smooth_torque_nm(t, x[THETA_O])
         } else {
             0.0
         };
-        let dxt = derivative(c, x, damped(c, el, x), smooth, self.brake, self.command);
+        let dxt = derivative(
+            c,
+            x,
+            &k,
+            damped(c, el, &k),
+            smooth,
+            self.brake,
+            self.command,
+        );
         *dx = dxt * self.h;
     }
 }

@@ -271,6 +271,15 @@ pub fn run_closed_loop(
             key: format!("load.{k}"),
             message,
         })?;
+    if let Some(fx) = &scenario.effects {
+        fx.validate()
+            .map_err(|(k, message)| ClosedLoopError::Invalid {
+                key: format!("effects.{k}"),
+                message,
+            })?;
+    }
+    p.validate_effects(scenario.effects.as_ref())
+        .map_err(|(key, message)| ClosedLoopError::Invalid { key, message })?;
     check_tables(&p.reference)?;
     if let (Some(path), true) = (
         &scenario.load.disturbance_csv,
@@ -355,16 +364,23 @@ fn run_mode(
     let ts = 1.0 / p.controller.sample_rate_hz;
     let n = p.periods();
     let sub = p.rk4_substeps;
-    let coeff = PlantCoefficients::new(p, drive, load);
+    let coeff = PlantCoefficients::new(p, drive, load, scenario.effects.as_ref());
     let mut cable = PlantCable::new(p.cable, drive);
     let mut sensors = Sensors::new(&p.sensors);
     let mut pid = Pid::new(&p.controller, p.motor.command_limit());
     let mut comp = mode
         .model()
         .map(|m| Compensator::new(p.compensator_params(drive), m));
+    // Effects the compensator predicts (only modes with a compensator use them).
+    let comp_fx = p
+        .compensator_effects(scenario.effects.as_ref())
+        .filter(|_| comp.is_some());
+    let comp_kinematic = comp_fx.filter(|fx| fx.has_kinematic());
+    let comp_bearing = comp_fx.map_or(0.0, |fx| fx.bearing_friction());
+    let comp_ic = p.compensator_params(drive).ratio();
     let mut brake_pred = BrakePredictor::new(
-        load.brake_nm,
-        load.breakaway_nm(),
+        load.brake_nm + comp_bearing,
+        load.breakaway_nm() + comp_bearing,
         p.controller.brake_transition_s,
         ts,
     );
@@ -398,8 +414,8 @@ fn run_mode(
 
     for k in 0..=n {
         let t = k as f64 * ts;
-        let d = coeff.ri * x[THETA_M] - coeff.ro * x[THETA_O];
-        let el = match cable.commit(d, &mut warm) {
+        let kin = coeff.kinematics(&x, t);
+        let el = match cable.commit(kin.d, &mut warm) {
             Ok(el) => el,
             Err(f) => {
                 completion = Completion::Incomplete {
@@ -409,11 +425,11 @@ fn run_mode(
                 break;
             }
         };
-        let (tu, tl) = damped(&coeff, el, &x);
+        let (tu, tl) = damped(&coeff, el, &kin);
         let forces = Forces {
             tension_upper_n: tu,
             tension_lower_n: tl,
-            cable_torque_nm: coeff.ro * (tu - tl),
+            cable_torque_nm: kin.lever_out * (tu - tl),
             smooth_load_nm: if coeff.smooth_load {
                 load.smooth_torque_nm(t, x[THETA_O])
             } else {
@@ -441,7 +457,20 @@ fn run_mode(
         let m_brake = brake_pred.update(delta);
         let m_pred =
             m_brake - load.smooth_torque_nm(t, r.value) + coeff.jo * r.accel + coeff.bo * r.rate;
-        let e_pred = comp.as_mut().map_or(0.0, |cp| cp.predict(m_pred));
+        let e_cable = comp.as_mut().map_or(0.0, |cp| cp.predict(m_pred));
+        let e_pred = match comp_kinematic {
+            // The effect error depends on the motor angle it shifts: two fixed-point
+            // passes from the cable-only reference (each shrinks the error by about eps).
+            Some(fx) => {
+                let mut e_fx = 0.0;
+                for _ in 0..2 {
+                    let theta_in = ic * (r.value - e_cable - e_fx);
+                    e_fx = fx.kinematic_error_rad(theta_in, r.value, t, comp_ic);
+                }
+                e_cable + e_fx
+            }
+            None => e_cable,
+        };
         let r_m = ic * (r.value - e_pred);
         let shift_rate = if k > 0 {
             -ic * (e_pred - prev_e_pred) / ts
