@@ -56,7 +56,7 @@ discrete PID loop around it, sweep design parameters, and diagnose measured benc
 Scenario files are TOML; every command accepts repeated --set KEY=VALUE overrides, \
 validated like the file (e.g. --set drive.preload_n=70 --set drive.routing=open).\n\
 Built-in scenarios (usable by name from any directory): eots_tracking (the default), eots_scan, \
-eots_mismatch, step_stare, eots_tolerance, paper_bench, paper_tension, memory_vs_memoryless, \
+eots_mismatch, eots_runout, step_stare, eots_tolerance, paper_bench, paper_tension, memory_vs_memoryless, \
 paper_fig11, gimbal_ident, davinci_tool4; `cable-servo show NAME` prints one.\n\n\
 Exit codes: 0 success, 2 usage error, 3 input error, 4 physical failure (results kept, marked \
 incomplete), 5 output error (existing results without --force)."
