@@ -655,9 +655,7 @@ fn report(result: Result<RunReport, RunError>) -> ExitCode {
                 | RunError::ClosedLoop(_)
                 | RunError::Identify(_)
                 | RunError::Unsupported(_) => exit::INPUT,
-                RunError::Output(_) | RunError::Report(_) | RunError::ClosedLoopReport(_) => {
-                    exit::OUTPUT
-                }
+                RunError::Output(_) | RunError::Report(_) => exit::OUTPUT,
             })
         }
     }

@@ -37,9 +37,6 @@ pub enum RunError {
     /// A diagnosis cannot be made.
     #[error(transparent)]
     Identify(#[from] crate::identify::IdentifyError),
-    /// Closed-loop result files cannot be written.
-    #[error(transparent)]
-    ClosedLoopReport(#[from] crate::closed_loop::ReportError),
 }
 
 /// What a run produced.

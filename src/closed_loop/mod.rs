@@ -16,9 +16,7 @@ pub use params::{
     Amplifier, CableModel, ClosedLoopParams, CompensationMode, ControllerParams, DriveOverride,
     Feedback, MotorParams, OutputParams, SensorParams,
 };
-pub use report::{
-    closed_loop_charts, format_table, plot_closed_loop, write_closed_loop_outputs, ReportError,
-};
+pub use report::{closed_loop_charts, format_table, plot_closed_loop, write_closed_loop_outputs};
 pub use sim::{
     run_closed_loop, run_closed_loop_metrics, ClosedLoopError, ClosedLoopResult, Completion,
     ModeResult, RunOptions, SolverStats, TimeSeries,

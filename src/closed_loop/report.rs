@@ -8,36 +8,8 @@ use serde::Serialize;
 use super::sim::{ClosedLoopResult, Completion, ModeResult, SolverStats, TimeSeries};
 use crate::metrics::Metrics;
 use crate::plot::{save_chart, Chart, HBand, PlotError, Series};
+use crate::report::ReportError;
 use crate::scenario::Scenario;
-
-/// Why outputs could not be written.
-#[derive(Debug, thiserror::Error)]
-pub enum ReportError {
-    /// File system error.
-    #[error("cannot write {path}: {source}")]
-    Io {
-        /// File path.
-        path: PathBuf,
-        /// Underlying error.
-        source: std::io::Error,
-    },
-    /// CSV encoding error.
-    #[error("cannot write {path}: {source}")]
-    Csv {
-        /// File path.
-        path: PathBuf,
-        /// Underlying error.
-        source: csv::Error,
-    },
-    /// JSON encoding error.
-    #[error("cannot encode {path}: {source}")]
-    Json {
-        /// File path.
-        path: PathBuf,
-        /// Underlying error.
-        source: serde_json::Error,
-    },
-}
 
 /// Header of `timeseries.csv` (units in the names); the command column is
 /// `motor_command_a` with a current amplifier and `motor_command_v` with a voltage one.
@@ -105,10 +77,7 @@ pub fn write_closed_loop_outputs(
     scenario: &Scenario,
     result: &ClosedLoopResult,
 ) -> Result<Vec<PathBuf>, ReportError> {
-    std::fs::create_dir_all(dir).map_err(|source| ReportError::Io {
-        path: dir.to_path_buf(),
-        source,
-    })?;
+    std::fs::create_dir_all(dir).map_err(|e| ReportError::io(dir, e))?;
     let mut written = Vec::new();
     let command_unit = match scenario.closed_loop.as_ref().map(|p| p.motor.amplifier) {
         Some(super::Amplifier::Voltage) => "V",
@@ -116,10 +85,7 @@ pub fn write_closed_loop_outputs(
     };
     if result.modes.iter().any(|m| m.series.is_some()) {
         let path = dir.join("timeseries.csv");
-        let csv_err = |source| ReportError::Csv {
-            path: path.clone(),
-            source,
-        };
+        let csv_err = |e| ReportError::csv(&path, e);
         let mut w = csv::Writer::from_path(&path).map_err(csv_err)?;
         let mut header = TIMESERIES_HEADER;
         if command_unit == "V" {
@@ -148,10 +114,7 @@ pub fn write_closed_loop_outputs(
                 w.write_record(&row).map_err(csv_err)?;
             }
         }
-        w.flush().map_err(|source| ReportError::Io {
-            path: path.clone(),
-            source,
-        })?;
+        w.flush().map_err(|e| ReportError::io(&path, e))?;
         written.push(path);
     }
     let total = result
@@ -183,14 +146,11 @@ pub fn write_closed_loop_outputs(
         scenario,
     };
     let path = dir.join("summary.json");
-    let text = serde_json::to_string_pretty(&summary).map_err(|source| ReportError::Json {
+    let value = serde_json::to_value(&summary).map_err(|e| ReportError::Encode {
         path: path.clone(),
-        source,
+        message: e.to_string(),
     })?;
-    std::fs::write(&path, text).map_err(|source| ReportError::Io {
-        path: path.clone(),
-        source,
-    })?;
+    crate::report::write_json(&path, &value)?;
     written.push(path);
     Ok(written)
 }

@@ -17,9 +17,9 @@ pub enum ReportError {
         /// Cause.
         source: std::io::Error,
     },
-    /// CSV encoding error.
+    /// CSV or JSON encoding error.
     #[error("cannot write {path}: {message}")]
-    Csv {
+    Encode {
         /// File.
         path: PathBuf,
         /// Cause.
@@ -38,7 +38,7 @@ impl ReportError {
         }
     }
     pub(crate) fn csv(path: &Path, e: csv::Error) -> Self {
-        ReportError::Csv {
+        ReportError::Encode {
             path: path.to_path_buf(),
             message: e.to_string(),
         }
@@ -53,7 +53,7 @@ pub fn csv_writer(path: &Path) -> Result<csv::Writer<std::fs::File>, ReportError
 
 /// Write pretty JSON atomically.
 pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<(), ReportError> {
-    let mut text = serde_json::to_string_pretty(value).map_err(|e| ReportError::Csv {
+    let mut text = serde_json::to_string_pretty(value).map_err(|e| ReportError::Encode {
         path: path.to_path_buf(),
         message: e.to_string(),
     })?;
