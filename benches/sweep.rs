@@ -3,9 +3,12 @@
 //! `fig11`: the 48-case backlash grid of the paper's Fig. 11. `tolerance`: 1000 random
 //! cases of the quasi-static paper bench (20 s of 0.1 Hz sine at 200 Hz, first model)
 //! with preload, friction, cable stiffness and brake torque drawn around their nominal
-//! values. Rows go to a sink that only counts them, so the figures exclude file output.
+//! values. `closed_loop_tolerance_1000`: the built-in `eots_tolerance` sweep, 1000
+//! Latin-hypercube cases of the EOTS tracking loop, 2 s at 10 kHz each (memory mode),
+//! on two threads; run it alone with `cargo bench --bench sweep -- closed_loop`. Rows go to
+//! a sink that only counts them, so the figures exclude file output.
 
-use cable_servo::run::{BacklashRunner, QuasiStaticRunner};
+use cable_servo::run::{BacklashRunner, ClosedLoopRunner, QuasiStaticRunner};
 use cable_servo::scenario::{builtin, Scenario};
 use cable_servo::sweep::engine::{expand, run_cases, CaseRunner, Plan};
 use cable_servo::sweep::vary::SweepOverrides;
@@ -76,6 +79,21 @@ fn sweeps(c: &mut Criterion) {
             b.iter(|| run(&base, &cases, &QuasiStaticRunner, t))
         });
     }
+    group.finish();
+
+    let (base, cases) = prepared("eots_tolerance", &SweepOverrides::default());
+    let scenario = Scenario::from_toml(
+        builtin("eots_tolerance").unwrap(),
+        "eots_tolerance",
+        "eots_tolerance",
+        &[],
+    )
+    .unwrap();
+    let runner = ClosedLoopRunner::for_scenario(&scenario);
+    let mut group = c.benchmark_group("closed_loop_tolerance_1000");
+    group.throughput(Throughput::Elements(cases.len() as u64));
+    group.sample_size(10);
+    group.bench_function("threads/2", |b| b.iter(|| run(&base, &cases, &runner, 2)));
     group.finish();
 }
 
