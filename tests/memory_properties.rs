@@ -35,7 +35,8 @@ proptest! {
             for half in [drive.upper(), drive.lower()] {
                 prop_assert!(half.wrap().max_log_slope() <= MU * (1.0 + 1e-9));
                 // Friction cannot create tension beyond what the boundary ever carried.
-                for (_, t) in half.drum_breakpoints().into_iter().chain(half.pulley_breakpoints()) {
+                let tb = half.wrap().boundary_tension_n();
+                for (_, t) in half.drum_breakpoints(tb).into_iter().chain(half.pulley_breakpoints(tb)) {
                     prop_assert!(t >= lo * (1.0 - 1e-12) && t <= hi * (1.0 + 1e-12));
                 }
             }

@@ -82,3 +82,29 @@ fn whole_reversal_table() {
         }
     }
 }
+
+#[test]
+fn region_elongations_add_up_to_the_half() {
+    for model in [HysteresisModel::Memory, HysteresisModel::Memoryless] {
+        let mut drive = CableDrive::new(DriveParams::default(), model);
+        for m in [0.72, -0.72, 0.3, 1.3] {
+            let s = drive.apply_torque(m).unwrap();
+            let (span, drum, pulley) = drive.upper().region_elongations_m(s.tension_upper_n);
+            assert!(
+                (span + drum + pulley - s.elongation_upper_m).abs() < 1e-12,
+                "{model:?} {m}"
+            );
+            let (span, drum, pulley) = drive.lower().region_elongations_m(s.tension_lower_n);
+            assert!((span + drum + pulley - s.elongation_lower_m).abs() < 1e-12);
+        }
+    }
+    // On the first loading of the bench the drum and pulley wraps follow
+    // (r Tpre / (G mu)) f(Tu/Tpre) with their own radii.
+    let mut drive = CableDrive::new(DriveParams::default(), HysteresisModel::Memory);
+    let s = drive.apply_torque(0.72).unwrap();
+    let v: f64 = s.tension_upper_n / 100.0;
+    let f = v - 1.0 - v.ln();
+    let (_, drum, pulley) = drive.upper().region_elongations_m(s.tension_upper_n);
+    assert!(rel(drum, 0.1025 * 100.0 / (1.4e4 * 0.2) * f) < 1e-6);
+    assert!(rel(pulley, 0.020 * 100.0 / (1.4e4 * 0.2) * f) < 1e-6);
+}

@@ -33,6 +33,8 @@ pub struct CableHalf {
     preload_n: f64,
     drum_wrap_rad: f64,
     pulley_wrap_rad: f64,
+    drum_radius_m: f64,
+    pulley_radius_m: f64,
     /// Whether committed tensions are remembered (memory model) or every state is computed
     /// from the virgin preloaded cable (memoryless model).
     remembers: bool,
@@ -64,6 +66,8 @@ impl CableHalf {
             preload_n,
             drum_wrap_rad,
             pulley_wrap_rad: pulley_half_wrap_rad,
+            drum_radius_m,
+            pulley_radius_m,
             remembers,
             wrap: WrapRegion::with_regions(
                 &[
@@ -117,14 +121,46 @@ impl CableHalf {
         &self.wrap
     }
 
-    /// Drum wrap profile `(s rad, T N)` from the contact point to the anchor.
-    pub fn drum_breakpoints(&self) -> Vec<(f64, f64)> {
-        self.wrap.breakpoints_within(self.drum_wrap_rad)
+    /// The wrap profile at span tension `tension_n`: the committed one for the memory
+    /// model (whose last commit is that tension), the virgin profile loaded to the tension
+    /// for the memoryless model.
+    fn profile_at(&self, tension_n: f64) -> std::borrow::Cow<'_, WrapRegion> {
+        if self.remembers {
+            std::borrow::Cow::Borrowed(&self.wrap)
+        } else {
+            let mut w = self.wrap.clone();
+            w.reset();
+            w.commit(tension_n);
+            std::borrow::Cow::Owned(w)
+        }
     }
 
-    /// Pulley wrap profile `(s rad, T N)` from the contact point to the neutral point.
-    pub fn pulley_breakpoints(&self) -> Vec<(f64, f64)> {
-        self.wrap.breakpoints_within(self.pulley_wrap_rad)
+    /// Drum wrap profile `(s rad, T N)` from the contact point to the anchor, at span
+    /// tension `tension_n` (the last committed one for the memory model).
+    pub fn drum_breakpoints(&self, tension_n: f64) -> Vec<(f64, f64)> {
+        self.profile_at(tension_n)
+            .breakpoints_within(self.drum_wrap_rad)
+    }
+
+    /// Pulley wrap profile `(s rad, T N)` from the contact point to the neutral point, at
+    /// span tension `tension_n`.
+    pub fn pulley_breakpoints(&self, tension_n: f64) -> Vec<(f64, f64)> {
+        self.profile_at(tension_n)
+            .breakpoints_within(self.pulley_wrap_rad)
+    }
+
+    /// Elongations relative to the preloaded state at span tension `tension_n` (the last
+    /// committed one for the memory model), m: `(free span, drum wrap, pulley wrap)`.
+    /// Off the hot path: for reports and plots.
+    pub fn region_elongations_m(&self, tension_n: f64) -> (f64, f64, f64) {
+        let profile = self.profile_at(tension_n);
+        (
+            self.span_m * (tension_n - self.preload_n) / self.modulus_n,
+            self.drum_radius_m * profile.tension_integral_within(self.drum_wrap_rad)
+                / self.modulus_n,
+            self.pulley_radius_m * profile.tension_integral_within(self.pulley_wrap_rad)
+                / self.modulus_n,
+        )
     }
 
     /// Free-span length, m.

@@ -433,6 +433,21 @@ impl WrapRegion {
         out
     }
 
+    /// `integral_0^wrap (T - Tpre) ds` of the committed profile up to `wrap_rad` (clamped to
+    /// the stored profile), N rad: times `radius / E*A` it is the elongation of a region
+    /// that wraps that far.
+    pub fn tension_integral_within(&self, wrap_rad: f64) -> f64 {
+        let points = self.breakpoints_within(wrap_rad);
+        points
+            .windows(2)
+            .map(|w| {
+                let ((s0, t0), (s1, t1)) = (w[0], w[1]);
+                let h = s1 - s0;
+                segment_integral(h, t0.ln(), t1.ln(), t0, t1) - self.preload_n * h
+            })
+            .sum()
+    }
+
     /// The whole committed profile's breakpoints, `(wrap angle rad, tension N)`.
     pub fn breakpoints(&self) -> Vec<(f64, f64)> {
         self.breakpoints_within(self.wrap_rad)
@@ -585,6 +600,20 @@ mod tests {
             drum.commit(tb);
             pulley.commit(tb);
             assert!(shared.max_log_slope() <= MU * (1.0 + 1e-9));
+        }
+    }
+
+    #[test]
+    fn region_integrals_add_up_to_the_committed_elongation() {
+        let (rd, wd, rp, wp) = (0.1025, 0.9, 0.02, 2.5);
+        let mut shared = WrapRegion::with_regions(&[(rd, wd), (rp, wp)], MU, TPRE, G);
+        for tb in [130.0, 80.0, 120.0, 95.0, 240.0, 40.0, 101.0] {
+            shared.commit(tb);
+            let sum = (rd * shared.tension_integral_within(wd)
+                + rp * shared.tension_integral_within(wp))
+                / G;
+            let floor = 1e-12 * (rd * wd + rp * wp) * TPRE / G;
+            assert!((sum - shared.elongation_m()).abs() < floor, "{tb}");
         }
     }
 }

@@ -58,8 +58,15 @@ pub fn write_tables(dir: &Path, traces: &[QsTrace]) -> Result<(), ReportError> {
 
     let path = dir.join("profiles.csv");
     let mut w = csv_writer(&path)?;
-    w.write_record(["model", "t_s", "region", "s_rad", "tension_n"])
-        .map_err(|e| ReportError::csv(&path, e))?;
+    w.write_record([
+        "model",
+        "t_s",
+        "region",
+        "elongation_um",
+        "s_rad",
+        "tension_n",
+    ])
+    .map_err(|e| ReportError::csv(&path, e))?;
     for trace in traces {
         for p in &trace.profiles {
             for (s, t) in &p.breakpoints {
@@ -67,6 +74,7 @@ pub fn write_tables(dir: &Path, traces: &[QsTrace]) -> Result<(), ReportError> {
                     model_name(trace.model).to_string(),
                     format!("{}", p.t_s),
                     p.region.to_string(),
+                    format!("{}", p.elongation_m * 1e6),
                     format!("{s}"),
                     format!("{t}"),
                 ])

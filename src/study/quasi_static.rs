@@ -40,6 +40,8 @@ pub struct ProfileSnapshot {
     pub region: &'static str,
     /// Breakpoints from the contact point inward.
     pub breakpoints: Vec<(f64, f64)>,
+    /// Elongation of this wrap region relative to the preloaded state, m.
+    pub elongation_m: f64,
 }
 
 /// Where a run stopped early.
@@ -227,19 +229,39 @@ pub fn run_model(
     }
 }
 
-/// Tension profiles of all four wrap regions.
+/// Tension profiles and elongations of all four wrap regions.
 pub fn snapshot(drive: &CableDrive, t_s: f64) -> Vec<ProfileSnapshot> {
+    let state = drive.state();
+    let (_, ud, up) = drive.upper().region_elongations_m(state.tension_upper_n);
+    let (_, ld, lp) = drive.lower().region_elongations_m(state.tension_lower_n);
     [
-        ("upper_drum", drive.upper().drum_breakpoints()),
-        ("upper_pulley", drive.upper().pulley_breakpoints()),
-        ("lower_drum", drive.lower().drum_breakpoints()),
-        ("lower_pulley", drive.lower().pulley_breakpoints()),
+        (
+            "upper_drum",
+            drive.upper().drum_breakpoints(state.tension_upper_n),
+            ud,
+        ),
+        (
+            "upper_pulley",
+            drive.upper().pulley_breakpoints(state.tension_upper_n),
+            up,
+        ),
+        (
+            "lower_drum",
+            drive.lower().drum_breakpoints(state.tension_lower_n),
+            ld,
+        ),
+        (
+            "lower_pulley",
+            drive.lower().pulley_breakpoints(state.tension_lower_n),
+            lp,
+        ),
     ]
     .into_iter()
-    .map(|(region, breakpoints)| ProfileSnapshot {
+    .map(|(region, breakpoints, elongation_m)| ProfileSnapshot {
         t_s,
         region,
         breakpoints,
+        elongation_m,
     })
     .collect()
 }
