@@ -187,6 +187,13 @@ fn resonance_is_unexplained() {
         let log = synthesize(&sc, &[], 2000 + seed, &synth).unwrap();
         let d = diagnose(&sc, &[log], &opts()).unwrap();
         assert_eq!(d.cause, "unexplained", "seed {seed}: {:?}", d.candidates);
+        let w = d
+            .residual_whiteness
+            .expect("a 30 s log is long enough to test");
+        assert!(
+            w.p_value < 1e-3,
+            "seed {seed}: ringing left a white residual {w:?}"
+        );
     }
 }
 

@@ -218,16 +218,11 @@ pub fn summary_text(d: &Diagnosis) -> String {
     if let Some(w) = &d.residual_whiteness {
         let _ = writeln!(
             s,
-            "Residual whiteness (Ljung-Box, {} lags, {} samples): Q = {:.1}, p = {:.2e}{}",
+            "Residual whiteness (Ljung-Box, {} lags, {} samples): Q = {:.1}, p = {:.2e} (second opinion; the noise-floor test decides)",
             w.lags,
             w.samples,
             w.q,
             w.p_value,
-            if w.p_value < 1e-3 {
-                " (structure remains)"
-            } else {
-                " (white)"
-            }
         );
     }
     if d.unexplained_structure && d.cause != "unexplained" {
