@@ -4,34 +4,19 @@ use cable_servo::identify::{diagnose, synthesize, DiagnoseOptions, EffectName, S
 use cable_servo::scenario::Scenario;
 use criterion::{criterion_group, criterion_main, Criterion};
 
-const SCENARIO: &str = r#"
-name = "bench_ident"
-study = "quasi_static"
-[drive]
-pulley_radius_m = 0.020
-drum_radius_m = 0.1025
-center_distance_m = 0.1450595
-cable_modulus_n = 1.4e4
-friction_coefficient = 0.2
-preload_n = 50.0
-drum_wrap_rad = 3.14159265
-pulley_wrap_rad = 18.8495559
-[load]
-brake_nm = 0.7
-unbalance_nm = 0.3
-[quasi_static]
-duration_s = 60.0
-sample_rate_hz = 200.0
-[quasi_static.motion]
-kind = "sine"
-amplitude_rad = 10.0
-frequency_hz = 0.1
-[identify]
-unknown = ["cable_modulus_n", "preload_n", "friction_coefficient"]
-"#;
+/// The built-in slewing-axis scenario, lengthened to 60 s at 200 Hz, with friction,
+/// preload and modulus all calibrated (the heaviest diagnosis).
+fn scenario() -> Scenario {
+    let overrides = [
+        "quasi_static.duration_s=60".to_string(),
+        "quasi_static.sample_rate_hz=200".to_string(),
+        r#"identify.unknown=["cable_modulus_n", "preload_n", "friction_coefficient"]"#.to_string(),
+    ];
+    Scenario::load("gimbal_ident", &overrides).expect("built-in scenario")
+}
 
 fn bench(c: &mut Criterion) {
-    let sc = Scenario::from_toml(SCENARIO, "bench", "bench", &[]).expect("scenario");
+    let sc = scenario();
     let log = synthesize(
         &sc,
         &[(EffectName::BearingFriction, 0.15)],

@@ -7,37 +7,9 @@ use cable_servo::identify::{
 use cable_servo::scenario::Scenario;
 use rand::{Rng, SeedableRng};
 
-/// A slewing gimbal axis on the paper bench's drive: large sine scan, brake and unbalance.
-const GIMBAL: &str = r#"
-name = "gimbal_ident"
-study = "quasi_static"
-
-[drive]
-pulley_radius_m = 0.020
-drum_radius_m = 0.1025
-center_distance_m = 0.1450595
-cable_modulus_n = 1.4e4
-friction_coefficient = 0.2
-preload_n = 50.0
-drum_wrap_rad = 3.14159265
-pulley_wrap_rad = 18.8495559
-
-[load]
-brake_nm = 0.7
-unbalance_nm = 0.3
-
-[quasi_static]
-duration_s = 30.0
-sample_rate_hz = 100.0
-
-[quasi_static.motion]
-kind = "sine"
-amplitude_rad = 10.0
-frequency_hz = 0.1
-
-[identify]
-unknown = ["cable_modulus_n"]
-"#;
+/// A slewing gimbal axis on the paper bench's drive: large sine scan, brake and unbalance
+/// (the built-in `gimbal_ident` scenario).
+const GIMBAL: &str = include_str!("../scenarios/gimbal_ident.toml");
 
 fn scenario(triangle: bool) -> Scenario {
     let mut text = GIMBAL.to_string();
