@@ -66,50 +66,38 @@ struct Cli {
     command: Command,
 }
 
+/// A bisection on closed-loop runs for the largest value that meets the pointing target.
+#[derive(clap::Args)]
+struct TargetSearch {
+    /// Closed-loop scenario file or built-in name.
+    scenario: Option<String>,
+    /// Compensation mode judged: none, memoryless or memory.
+    #[arg(long, default_value = "memory")]
+    mode: String,
+    /// Lower end of the search (N m or Hz).
+    #[arg(long)]
+    min: Option<f64>,
+    /// Upper end of the search (N m or Hz).
+    #[arg(long)]
+    max: Option<f64>,
+    /// Bisection tolerance (N m or Hz).
+    #[arg(long)]
+    tol: Option<f64>,
+    /// Override a scenario value (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+}
+
 #[derive(Subcommand)]
 enum Design {
     /// Largest brake load (N m) at which the closed loop still meets the pointing target
-    /// with the given compensation (breakaway torque scaled with it).
-    LargestLoad {
-        /// Closed-loop scenario file or built-in name (default: eots_tracking).
-        scenario: Option<String>,
-        /// Compensation mode judged: none, memoryless or memory.
-        #[arg(long, default_value = "memory")]
-        mode: String,
-        /// Search range, N m.
-        #[arg(long, default_value_t = 0.05)]
-        min: f64,
-        /// Search range, N m.
-        #[arg(long, default_value_t = 3.0)]
-        max: f64,
-        /// Bisection tolerance, N m.
-        #[arg(long, default_value_t = 0.02)]
-        tol: f64,
-        /// Override a scenario value (repeatable).
-        #[arg(long = "set", value_name = "KEY=VALUE")]
-        set: Vec<String>,
-    },
+    /// with the given compensation (breakaway torque scaled with it). Defaults: scenario
+    /// eots_tracking, range 0.05 to 3 N m, tolerance 0.02 N m.
+    LargestLoad(TargetSearch),
     /// Fastest scan (reference frequency, Hz, amplitude unchanged) at which the closed loop
-    /// still meets the pointing target with the given compensation.
-    FastestScan {
-        /// Closed-loop scenario file or built-in name (default: eots_scan).
-        scenario: Option<String>,
-        /// Compensation mode judged: none, memoryless or memory.
-        #[arg(long, default_value = "memory")]
-        mode: String,
-        /// Search range, Hz.
-        #[arg(long, default_value_t = 0.05)]
-        min: f64,
-        /// Search range, Hz.
-        #[arg(long, default_value_t = 5.0)]
-        max: f64,
-        /// Bisection tolerance, Hz.
-        #[arg(long, default_value_t = 0.02)]
-        tol: f64,
-        /// Override a scenario value (repeatable).
-        #[arg(long = "set", value_name = "KEY=VALUE")]
-        set: Vec<String>,
-    },
+    /// still meets the pointing target with the given compensation. Defaults: scenario
+    /// eots_scan, range 0.05 to 5 Hz, tolerance 0.02 Hz.
+    FastestScan(TargetSearch),
     /// Least preload (N) at which the +M, -M, +M backlash protocol at the given load runs
     /// with no slack span and no gross slip (drive otherwise as in the scenario).
     LeastPreload {
@@ -358,38 +346,20 @@ fn main() -> ExitCode {
             report(result)
         }
         Command::Design {
-            question:
-                Design::LargestLoad {
-                    scenario,
-                    mode,
-                    min,
-                    max,
-                    tol,
-                    set,
-                },
+            question: Design::LargestLoad(search),
         } => closed_loop_answer(
-            scenario.as_deref().unwrap_or("eots_tracking"),
-            &set,
-            &mode,
+            &search,
+            "eots_tracking",
             cable_servo::design::Question::LargestLoad,
-            (min, max, tol),
+            (0.05, 3.0, 0.02),
         ),
         Command::Design {
-            question:
-                Design::FastestScan {
-                    scenario,
-                    mode,
-                    min,
-                    max,
-                    tol,
-                    set,
-                },
+            question: Design::FastestScan(search),
         } => closed_loop_answer(
-            scenario.as_deref().unwrap_or("eots_scan"),
-            &set,
-            &mode,
+            &search,
+            "eots_scan",
             cable_servo::design::Question::FastestScan,
-            (min, max, tol),
+            (0.05, 5.0, 0.02),
         ),
         Command::Design {
             question:
@@ -573,14 +543,20 @@ fn main() -> ExitCode {
 
 /// Closed-loop design answer: bisect, print the value with its definition.
 fn closed_loop_answer(
-    name: &str,
-    set: &[String],
-    mode: &str,
+    search: &TargetSearch,
+    default_scenario: &str,
     question: cable_servo::design::Question,
     (min, max, tol): (f64, f64, f64),
 ) -> ExitCode {
     use cable_servo::closed_loop::CompensationMode;
-    let mode = match mode {
+    let (min, max, tol) = (
+        search.min.unwrap_or(min),
+        search.max.unwrap_or(max),
+        search.tol.unwrap_or(tol),
+    );
+    let name = search.scenario.as_deref().unwrap_or(default_scenario);
+    let set = &search.set;
+    let mode = match search.mode.as_str() {
         "none" => CompensationMode::None,
         "memoryless" => CompensationMode::Memoryless,
         "memory" => CompensationMode::Memory,
