@@ -473,14 +473,11 @@ pub fn run_sweep(
     } else {
         design_answers(scenario, &parameter_columns, &figure_columns, &table.rows)
     };
-    report::write_json(
+    report::write_summary(
         &dir.join("summary.json"),
+        scenario,
+        failure.is_none(),
         &serde_json::json!({
-            "program": "cable-servo",
-            "program_version": env!("CARGO_PKG_VERSION"),
-            "scenario_name": scenario.name(),
-            "study": scenario.study,
-            "complete": failure.is_none(),
             "cases_total": cases.len(),
             "cases_written": table.rows.len(),
             "shard": format!("{}/{}", options.shard.k, options.shard.n),
@@ -488,7 +485,6 @@ pub fn run_sweep(
             "seed": sampled.then(|| spec.seed.unwrap_or(0)),
             "design_answers": if sampled { serde_json::Value::Null } else { answers.0.clone() },
             "statistics": if sampled { answers.0.clone() } else { serde_json::Value::Null },
-            "scenario": scenario,
         }),
     )?;
     let drawn = if sampled {

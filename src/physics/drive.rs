@@ -529,42 +529,6 @@ impl CableDrive {
         Ok(state)
     }
 
-    /// Span tensions for a prescribed relative surface displacement `D` (m), as in the
-    /// dynamic model: `elong_u(Tu) = D`, `elong_l(Tl) = -D`. Nothing is committed.
-    pub fn trial_displacement(&self, displacement_m: f64) -> Result<DriveState, DriveFault> {
-        let pre = self.params.preload_n;
-        let solve = |half: &CableHalf, target: f64, guess: f64, which: Half| {
-            solve_increasing(
-                |t| {
-                    let tr = half.trial(t);
-                    (tr.elongation_m - target, tr.d_elongation_m_per_n)
-                },
-                0.0,
-                guess,
-                pre,
-                TENSION_RTOL,
-            )
-            .map_err(|_| DriveFault::Slack {
-                half: which,
-                torque_nm: 0.0,
-                needed_preload_n: pre,
-            })
-        };
-        let tu = solve(
-            &self.upper,
-            displacement_m,
-            self.state.tension_upper_n,
-            Half::Upper,
-        )?;
-        let tl = solve(
-            &self.lower,
-            -displacement_m,
-            self.state.tension_lower_n,
-            Half::Lower,
-        )?;
-        self.state_at(tu, tl, displacement_m)
-    }
-
     /// Full state for span tensions `tu`, `tl` (N) solved elsewhere for the displacement
     /// `displacement_m` (e.g. by a warm-started dynamic solve): slip angles, anchor flags
     /// and the gross-slip check. Nothing is committed.
@@ -582,49 +546,6 @@ impl CableDrive {
         state.surface_displacement_m = displacement_m;
         state.transmission_error_rad = -displacement_m / self.params.drum_radius_m;
         Ok(state)
-    }
-
-    /// Span tensions only, for the inner loop of a dynamic simulation: `(Tu, Tl)` in N for
-    /// displacement `D` (m), starting Newton from `guess`. No fault classification beyond
-    /// slack; call [`CableDrive::trial_displacement`] at sample instants for the full state.
-    #[inline]
-    pub fn tensions_for_displacement(
-        &self,
-        displacement_m: f64,
-        guess: (f64, f64),
-    ) -> Result<(f64, f64), DriveFault> {
-        let pre = self.params.preload_n;
-        let tu = solve_increasing(
-            |t| {
-                let tr = self.upper.trial(t);
-                (tr.elongation_m - displacement_m, tr.d_elongation_m_per_n)
-            },
-            0.0,
-            guess.0,
-            pre,
-            1e-10,
-        )
-        .map_err(|_| DriveFault::Slack {
-            half: Half::Upper,
-            torque_nm: 0.0,
-            needed_preload_n: pre,
-        })?;
-        let tl = solve_increasing(
-            |t| {
-                let tr = self.lower.trial(t);
-                (tr.elongation_m + displacement_m, tr.d_elongation_m_per_n)
-            },
-            0.0,
-            guess.1,
-            pre,
-            1e-10,
-        )
-        .map_err(|_| DriveFault::Slack {
-            half: Half::Lower,
-            torque_nm: 0.0,
-            needed_preload_n: pre,
-        })?;
-        Ok((tu, tl))
     }
 
     /// Commit a state (from a trial) to the wrap memory.

@@ -63,3 +63,26 @@ pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<(), ReportEr
         source: std::io::Error::other(e.to_string()),
     })
 }
+
+/// Write `summary.json`: the provenance every result records (program and version,
+/// scenario name, study, completeness and the resolved scenario) merged with the study's
+/// own `fields` (a JSON object).
+pub fn write_summary(
+    path: &Path,
+    scenario: &crate::scenario::Scenario,
+    complete: bool,
+    fields: &serde_json::Value,
+) -> Result<(), ReportError> {
+    let mut summary = serde_json::json!({
+        "program": "cable-servo",
+        "program_version": env!("CARGO_PKG_VERSION"),
+        "scenario_name": scenario.name(),
+        "study": scenario.study,
+        "complete": complete,
+        "scenario": scenario,
+    });
+    if let (Some(all), Some(own)) = (summary.as_object_mut(), fields.as_object()) {
+        all.extend(own.clone());
+    }
+    write_json(path, &summary)
+}

@@ -4,7 +4,7 @@ use std::path::Path;
 
 use serde_json::json;
 
-use super::{csv_writer, write_json, ReportError};
+use super::{csv_writer, ReportError};
 use crate::physics::drive::DriveParams;
 use crate::plot::{save_chart, save_panels, Chart, Series};
 use crate::scenario::Scenario;
@@ -111,18 +111,14 @@ pub fn write_summary(
         .iter()
         .filter_map(|t| t.samples.last().map(|s| s.t_s))
         .fold(0.0, f64::max);
-    write_json(
+    super::write_summary(
         &dir.join("summary.json"),
+        scenario,
+        complete,
         &json!({
-            "program": "cable-servo",
-            "program_version": env!("CARGO_PKG_VERSION"),
-            "scenario_name": scenario.name(),
-            "study": "quasi_static",
-            "complete": complete,
             "simulated_s": simulated_s,
             "models": models,
             "warnings": warnings,
-            "scenario": scenario,
         }),
     )
 }
@@ -339,18 +335,14 @@ pub fn write_backlash(
     result: &BacklashResult,
     warnings: &[String],
 ) -> Result<(), ReportError> {
-    write_json(
+    super::write_summary(
         &dir.join("summary.json"),
+        scenario,
+        true,
         &json!({
-            "program": "cable-servo",
-            "program_version": env!("CARGO_PKG_VERSION"),
-            "scenario_name": scenario.name(),
-            "study": "backlash",
-            "complete": true,
             "result": result,
             "free_span_backlash_mrad": scenario.backlash.as_ref().map(|b| free_span_backlash_mrad(&scenario.drive, b.load_nm)),
             "warnings": warnings,
-            "scenario": scenario,
         }),
     )
 }
