@@ -476,40 +476,35 @@ fn write_png<F: Figure>(fig: &F, target: &Path) -> Result<(), PlotError> {
     fs::create_dir(&tmp_dir).map_err(io_err(&tmp_dir))?;
     let name = target.file_name().unwrap_or_else(|| "figure.png".as_ref());
     let tmp_file = tmp_dir.join(name);
-    let drawn = {
-        let root = BitMapBackend::new(&tmp_file, fig.size()).into_drawing_area();
-        root.fill(&WHITE)
-            .map_err(err)
-            .and_then(|_| fig.render(&root))
-            .and_then(|_| root.present().map_err(err))
-        // `root` (and its backend) is dropped here, before the clean-up.
-    };
-    let result = drawn
+    // The backend is dropped inside `draw`, before the clean-up.
+    let result = draw(fig, BitMapBackend::new(&tmp_file, fig.size()), target)
+        .and_then(|_| fs::rename(&tmp_file, target).map_err(io_err(target)));
+    let _ = fs::remove_dir_all(&tmp_dir);
+    result
+}
+
+/// Draws `fig` on a white background with `backend`; errors name `target`.
+fn draw<F: Figure, DB: DrawingBackend>(
+    fig: &F,
+    backend: DB,
+    target: &Path,
+) -> Result<(), PlotError> {
+    let root = backend.into_drawing_area();
+    root.fill(&WHITE)
+        .map_err(err)
+        .and_then(|_| fig.render(&root))
+        .and_then(|_| root.present().map_err(err))
         .map_err(|message| PlotError::Backend {
             path: target.to_path_buf(),
             message,
         })
-        .and_then(|_| fs::rename(&tmp_file, target).map_err(io_err(target)));
-    let _ = fs::remove_dir_all(&tmp_dir);
-    result
 }
 
 /// Renders the SVG atomically via `<stem>.svg.tmp`.
 fn write_svg<F: Figure>(fig: &F, target: &Path) -> Result<(), PlotError> {
     let tmp = with_suffix(target, ".tmp");
     remove_stale(&tmp);
-    let drawn = {
-        let root = SVGBackend::new(&tmp, fig.size()).into_drawing_area();
-        root.fill(&WHITE)
-            .map_err(err)
-            .and_then(|_| fig.render(&root))
-            .and_then(|_| root.present().map_err(err))
-    };
-    let result = drawn
-        .map_err(|message| PlotError::Backend {
-            path: target.to_path_buf(),
-            message,
-        })
+    let result = draw(fig, SVGBackend::new(&tmp, fig.size()), target)
         .and_then(|_| fs::rename(&tmp, target).map_err(io_err(target)));
     if result.is_err() {
         let _ = fs::remove_file(&tmp);
