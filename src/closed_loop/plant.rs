@@ -13,7 +13,6 @@ use ode_solvers::System;
 use super::params::{Amplifier, CableModel, ClosedLoopParams};
 use crate::identify::effects::EffectsParams;
 use crate::physics::half::CableHalf;
-use crate::physics::newton::solve_increasing;
 use crate::physics::{CableDrive, DriveFault, DriveParams, Half, HysteresisModel, LoadParams};
 
 /// Plant state vector.
@@ -75,57 +74,26 @@ impl WarmStart {
     }
 }
 
-/// Tension of one half whose elongation must equal `target` (m).
+/// Tension of one half whose elongation must equal `target` (m), exact.
 ///
-/// First guess on the tangent line through the last solution; one Newton step from
-/// there. Newton's error after a step is about `|f''/(2 f')| * step^2`, and for a cable
-/// half `|f''/f'| <= 1/(mu*T)`-ish (0.05 /N on the bench), so a step below `1e-6*T`
-/// leaves an error near 1e-12 relative: accepted without a second evaluation. Anything
-/// else goes to the safeguarded solver. `None` = no positive tension fits (slack).
+/// The half solves it in closed form on the stored segment its slip zone ended on last
+/// time, which holds for most of a period and across periods of monotone loading. The
+/// tangent line through the last solution is the guess that picks the segment when that
+/// one no longer holds. `None` = no positive tension fits (slack).
 #[inline]
-fn solve_half(
-    half: &CableHalf,
-    target: f64,
-    g: &mut HalfGuess,
-    preload_n: f64,
-    trials: &mut u64,
-) -> Option<f64> {
-    let t0 = g.tension_n + (target - g.elongation_m) * g.stiffness_n_per_m;
-    if t0 > 0.0 && t0.is_finite() {
-        let tr = half.trial(t0);
-        *trials += 1;
-        let step = (tr.elongation_m - target) / tr.d_elongation_m_per_n;
-        let t1 = t0 - step;
-        if step.abs() <= 1e-6 * t1 && t1 > 0.0 {
-            *g = HalfGuess {
-                tension_n: t1,
-                elongation_m: target,
-                stiffness_n_per_m: 1.0 / tr.d_elongation_m_per_n,
-            };
-            return Some(t1);
-        }
-    }
-    let count = Cell::new(0u64);
-    let t = solve_increasing(
-        |t| {
-            count.set(count.get() + 1);
-            let tr = half.trial(t);
-            (tr.elongation_m - target, tr.d_elongation_m_per_n)
-        },
-        0.0,
-        g.tension_n,
-        preload_n,
-        1e-10,
-    )
-    .ok()?;
-    *trials += count.get();
-    let tr = half.trial(t);
+fn solve_half(half: &CableHalf, target: f64, g: &mut HalfGuess, trials: &mut u64) -> Option<f64> {
+    let guess = g.tension_n + (target - g.elongation_m) * g.stiffness_n_per_m;
+    let t = half.tension_for_elongation(target, guess)?;
     *trials += 1;
-    *g = HalfGuess {
-        tension_n: t,
-        elongation_m: target,
-        stiffness_n_per_m: 1.0 / tr.d_elongation_m_per_n,
-    };
+    // A chord through the last two solutions keeps the tangent guess current without a
+    // derivative evaluation.
+    let de = target - g.elongation_m;
+    let dt = t - g.tension_n;
+    if de != 0.0 && dt / de > 0.0 && (dt / de).is_finite() {
+        g.stiffness_n_per_m = dt / de;
+    }
+    g.tension_n = t;
+    g.elongation_m = target;
     Some(t)
 }
 
@@ -175,18 +143,20 @@ impl PlantCable {
         match self {
             PlantCable::Hysteretic(drive) => {
                 let pre = drive.params().preload_n;
-                let tu = solve_half(drive.upper(), d, &mut warm.half[0], pre, &mut warm.trials)
-                    .ok_or(DriveFault::Slack {
+                let tu = solve_half(drive.upper(), d, &mut warm.half[0], &mut warm.trials).ok_or(
+                    DriveFault::Slack {
                         half: Half::Upper,
                         torque_nm: 0.0,
                         needed_preload_n: pre,
-                    })?;
-                let tl = solve_half(drive.lower(), -d, &mut warm.half[1], pre, &mut warm.trials)
-                    .ok_or(DriveFault::Slack {
+                    },
+                )?;
+                let tl = solve_half(drive.lower(), -d, &mut warm.half[1], &mut warm.trials).ok_or(
+                    DriveFault::Slack {
                         half: Half::Lower,
                         torque_nm: 0.0,
                         needed_preload_n: pre,
-                    })?;
+                    },
+                )?;
                 Ok((tu, tl))
             }
             PlantCable::Linear {
@@ -213,8 +183,7 @@ impl PlantCable {
     pub fn commit(&mut self, d: f64, warm: &mut WarmStart) -> Result<(f64, f64), DriveFault> {
         let (tu, tl) = self.tensions(d, warm)?;
         if let PlantCable::Hysteretic(drive) = self {
-            let state = drive.state_at(tu, tl, d)?;
-            drive.commit_state(state);
+            drive.commit_tensions(tu, tl, d)?;
         }
         Ok((tu, tl))
     }

@@ -2,8 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::half::{CableHalf, HalfTrial};
-use super::newton::{solve_increasing, RootError};
+use super::half::{CableHalf, HalfSlip, HalfTrial};
+use super::newton::{solve_increasing_curved, RootError};
 
 /// How the cable crosses between pulley and drum.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -346,6 +346,15 @@ pub struct CableDrive {
     upper_share: f64,
 }
 
+/// A solved quasi-static state with the trials and slip zones its commit needs.
+struct Solved {
+    state: DriveState,
+    up: HalfTrial,
+    lo: HalfTrial,
+    su: HalfSlip,
+    sl: HalfSlip,
+}
+
 /// Relative tolerance on span tensions of every solve (far below any measurable effect).
 const TENSION_RTOL: f64 = 1e-13;
 
@@ -421,9 +430,17 @@ impl CableDrive {
         };
     }
 
-    fn state_from(&self, tu: f64, tl: f64, up: &HalfTrial, lo: &HalfTrial) -> DriveState {
+    fn state_from(
+        &self,
+        tu: f64,
+        tl: f64,
+        up: &HalfTrial,
+        lo: &HalfTrial,
+        slip: (&HalfSlip, &HalfSlip),
+    ) -> DriveState {
         // Both halves give D at equilibrium; their mean cancels the residual of the solve.
         let d = 0.5 * (up.elongation_m - lo.elongation_m);
+        let (su, sl) = slip;
         DriveState {
             tension_upper_n: tu,
             tension_lower_n: tl,
@@ -432,23 +449,23 @@ impl CableDrive {
             elongation_upper_m: up.elongation_m,
             elongation_lower_m: lo.elongation_m,
             slip_angles_rad: [
-                up.drum_slip_rad,
-                up.pulley_slip_rad,
-                lo.drum_slip_rad,
-                lo.pulley_slip_rad,
+                su.drum_slip_rad,
+                su.pulley_slip_rad,
+                sl.drum_slip_rad,
+                sl.pulley_slip_rad,
             ],
-            anchor_reached: [up.drum_anchor_reached, lo.drum_anchor_reached],
+            anchor_reached: [su.drum_anchor_reached, sl.drum_anchor_reached],
         }
     }
 
-    fn check_pulley(&self, half: Half, tension_n: f64, t: &HalfTrial) -> Result<(), DriveFault> {
-        if t.pulley_neutral_reached {
+    fn check_pulley(&self, half: Half, tension_n: f64, slip: &HalfSlip) -> Result<(), DriveFault> {
+        if slip.pulley_neutral_reached {
             // Where the slip zone would end on an infinitely long pulley wrap.
             let demanded =
                 (tension_n / self.params.preload_n).ln().abs() / self.params.friction_coefficient;
             return Err(DriveFault::GrossSlip {
                 half,
-                slip_angle_rad: demanded.max(t.pulley_slip_rad),
+                slip_angle_rad: demanded.max(slip.pulley_slip_rad),
                 available_rad: 0.5 * self.params.pulley_wrap_rad,
                 tension_n,
             });
@@ -456,18 +473,30 @@ impl CableDrive {
         Ok(())
     }
 
+    /// Full state of both halves at span tensions `(tu, tl)`, with the gross-slip check.
+    fn checked_state(
+        &self,
+        tu: f64,
+        tl: f64,
+        up: &HalfTrial,
+        lo: &HalfTrial,
+    ) -> Result<DriveState, DriveFault> {
+        let su = self.upper.slip(up);
+        let sl = self.lower.slip(lo);
+        self.check_pulley(Half::Upper, tu, &su)?;
+        self.check_pulley(Half::Lower, tl, &sl)?;
+        Ok(self.state_from(tu, tl, up, lo, (&su, &sl)))
+    }
+
     /// Quasi-static state when the cable transmits torque `torque_nm` (N m, `M = -Ml`,
     /// positive tightens the upper span), without committing it to memory.
     ///
     /// Solves `Tu - Tl = M/ro` and `elong_u(Tu) + elong_l(Tl) = 0` by safeguarded Newton.
     pub fn trial_torque(&self, torque_nm: f64) -> Result<DriveState, DriveFault> {
-        self.solve_torque(torque_nm).map(|(state, _, _)| state)
+        self.solve_torque(torque_nm).map(|solved| solved.state)
     }
 
-    fn solve_torque(
-        &self,
-        torque_nm: f64,
-    ) -> Result<(DriveState, HalfTrial, HalfTrial), DriveFault> {
+    fn solve_torque(&self, torque_nm: f64) -> Result<Solved, DriveFault> {
         let dt = torque_nm / self.params.drum_radius_m;
         let pre = self.params.preload_n;
         // Tl = Tu - dt > 0 and Tu > 0.
@@ -482,17 +511,22 @@ impl CableDrive {
             0.5
         };
         let guess = (self.state.tension_upper_n + share * change).max(lower_bound + 1e-3 * pre);
-        let last = std::cell::Cell::new(None);
+        // Each half's law is iterated on a local copy: it holds across the whole solve
+        // unless a slip zone moves onto another stored segment.
+        let mut law_u = self.upper.wrap().cached_law(guess);
+        let mut law_l = self.lower.wrap().cached_law(guess - dt);
+        let mut last = None;
         let residual = |tu: f64| {
-            let up = self.upper.trial(tu);
-            let lo = self.lower.trial(tu - dt);
-            last.set(Some((tu, up, lo)));
+            let up = self.upper.trial_with(&mut law_u, tu);
+            let lo = self.lower.trial_with(&mut law_l, tu - dt);
+            last = Some((tu, up, lo));
             (
                 up.elongation_m + lo.elongation_m,
                 up.d_elongation_m_per_n + lo.d_elongation_m_per_n,
+                up.d2_elongation + lo.d2_elongation,
             )
         };
-        let tu = match solve_increasing(residual, lower_bound, guess, pre, TENSION_RTOL) {
+        let tu = match solve_increasing_curved(residual, lower_bound, guess, pre, TENSION_RTOL) {
             Ok(tu) => tu,
             Err(RootError::BelowDomain) => {
                 return Err(DriveFault::Slack {
@@ -503,21 +537,35 @@ impl CableDrive {
             }
         };
         let tl = tu - dt;
-        let (up, lo) = match last.get() {
+        let (up, lo) = match last {
             Some((x, up, lo)) if x == tu => (up, lo),
             _ => (self.upper.trial(tu), self.lower.trial(tl)),
         };
-        self.check_pulley(Half::Upper, tu, &up)?;
-        self.check_pulley(Half::Lower, tl, &lo)?;
-        Ok((self.state_from(tu, tl, &up, &lo), up, lo))
+        let su = self.upper.slip(&up);
+        let sl = self.lower.slip(&lo);
+        self.check_pulley(Half::Upper, tu, &su)?;
+        self.check_pulley(Half::Lower, tl, &sl)?;
+        Ok(Solved {
+            state: self.state_from(tu, tl, &up, &lo, (&su, &sl)),
+            up,
+            lo,
+            su,
+            sl,
+        })
     }
 
     /// Quasi-static step: apply transmitted torque `torque_nm` and commit the new tension
     /// profiles. On a fault nothing is committed.
     pub fn apply_torque(&mut self, torque_nm: f64) -> Result<DriveState, DriveFault> {
-        let (state, up, lo) = self.solve_torque(torque_nm)?;
-        self.upper.commit_trial(&up);
-        self.lower.commit_trial(&lo);
+        let Solved {
+            state,
+            up,
+            lo,
+            su,
+            sl,
+        } = self.solve_torque(torque_nm)?;
+        self.upper.commit_trial_with_slip(&up, &su);
+        self.lower.commit_trial_with_slip(&lo, &sl);
         let change = (state.tension_upper_n - state.tension_lower_n)
             - (self.state.tension_upper_n - self.state.tension_lower_n);
         if change != 0.0 {
@@ -540,9 +588,7 @@ impl CableDrive {
     ) -> Result<DriveState, DriveFault> {
         let up = self.upper.trial(tu);
         let lo = self.lower.trial(tl);
-        self.check_pulley(Half::Upper, tu, &up)?;
-        self.check_pulley(Half::Lower, tl, &lo)?;
-        let mut state = self.state_from(tu, tl, &up, &lo);
+        let mut state = self.checked_state(tu, tl, &up, &lo)?;
         state.surface_displacement_m = displacement_m;
         state.transmission_error_rad = -displacement_m / self.params.drum_radius_m;
         Ok(state)
@@ -553,5 +599,28 @@ impl CableDrive {
         self.upper.commit(state.tension_upper_n);
         self.lower.commit(state.tension_lower_n);
         self.state = state;
+    }
+
+    /// [`Self::state_at`] followed by [`Self::commit_state`], evaluating each half once:
+    /// the period-boundary step of the dynamic plant. On a fault nothing is committed.
+    pub fn commit_tensions(
+        &mut self,
+        tu: f64,
+        tl: f64,
+        displacement_m: f64,
+    ) -> Result<DriveState, DriveFault> {
+        let up = self.upper.trial(tu);
+        let lo = self.lower.trial(tl);
+        let su = self.upper.slip(&up);
+        let sl = self.lower.slip(&lo);
+        self.check_pulley(Half::Upper, tu, &su)?;
+        self.check_pulley(Half::Lower, tl, &sl)?;
+        let mut state = self.state_from(tu, tl, &up, &lo, (&su, &sl));
+        state.surface_displacement_m = displacement_m;
+        state.transmission_error_rad = -displacement_m / self.params.drum_radius_m;
+        self.upper.commit_trial_with_slip(&up, &su);
+        self.lower.commit_trial_with_slip(&lo, &sl);
+        self.state = state;
+        Ok(state)
     }
 }

@@ -1,6 +1,6 @@
 //! One half of the cable: free span, drum wrap and pulley wrap sharing the span tension.
 
-use super::wrap::{WrapRegion, WrapTrial};
+use super::wrap::{WrapLaw, WrapRegion, WrapTrial};
 
 /// Elongation of a half if its span tension became a given value.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -9,6 +9,15 @@ pub struct HalfTrial {
     pub elongation_m: f64,
     /// Its derivative with respect to the span tension, m/N (always > 0).
     pub d_elongation_m_per_n: f64,
+    /// Second derivative, m/N^2 (the free span is linear: the wrap's).
+    pub(crate) d2_elongation: f64,
+    /// The wrap trial, for committing and for the slip zones.
+    wrap: WrapTrial,
+}
+
+/// Where the slip zones of a half end for a trial tension.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HalfSlip {
     /// Slip-zone length on the drum (at most the drum wrap), rad.
     pub drum_slip_rad: f64,
     /// Slip-zone length on the pulley (at most the half's pulley wrap), rad.
@@ -17,8 +26,8 @@ pub struct HalfTrial {
     pub drum_anchor_reached: bool,
     /// The pulley slip zone reaches the neutral point: gross slip.
     pub pulley_neutral_reached: bool,
-    /// The wrap trial, for committing.
-    wrap: WrapTrial,
+    /// Slip zone over the stored profile, rad (for the commit).
+    slip_rad: f64,
 }
 
 /// A cable half: free span of length `span_m`, a wrap on the drum and a wrap on the pulley.
@@ -89,12 +98,32 @@ impl CableHalf {
         HalfTrial {
             elongation_m: span_per_n * (tension_n - self.preload_n) + wrap.elongation_m,
             d_elongation_m_per_n: span_per_n + wrap.d_elongation_m_per_n,
-            drum_slip_rad: wrap.slip_within(self.drum_wrap_rad),
-            pulley_slip_rad: wrap.slip_within(self.pulley_wrap_rad),
-            drum_anchor_reached: wrap.reaches(self.drum_wrap_rad),
-            pulley_neutral_reached: wrap.reaches(self.pulley_wrap_rad),
+            d2_elongation: wrap.d2_elongation,
             wrap,
         }
+    }
+
+    /// Slip zones of a trial on the drum and on the pulley.
+    pub fn slip(&self, trial: &HalfTrial) -> HalfSlip {
+        let s = self.wrap.slip_angle_rad(&trial.wrap);
+        HalfSlip {
+            drum_slip_rad: s.min(self.drum_wrap_rad),
+            pulley_slip_rad: s.min(self.pulley_wrap_rad),
+            drum_anchor_reached: s >= self.drum_wrap_rad,
+            pulley_neutral_reached: s >= self.pulley_wrap_rad,
+            slip_rad: s,
+        }
+    }
+
+    /// Span tension (N) at which the half's elongation equals `elongation_m` (m), the
+    /// memory left unchanged: the displacement-driven solve of the dynamic plant. Exact
+    /// (closed form on the current stored segment, safeguarded Newton across segments);
+    /// `guess_n` (N, e.g. a tangent-line prediction) picks the segment when the last one
+    /// used does not hold. `None` when no positive tension fits: the span goes slack.
+    #[inline]
+    pub fn tension_for_elongation(&self, elongation_m: f64, guess_n: f64) -> Option<f64> {
+        self.wrap
+            .tension_for_elongation(elongation_m, self.span_m / self.modulus_n, guess_n)
     }
 
     /// Commit the span tension (updates the wrap memory; no-op for the memoryless model).
@@ -108,6 +137,26 @@ impl CableHalf {
     pub fn commit_trial(&mut self, trial: &HalfTrial) {
         if self.remembers {
             self.wrap.commit_trial(&trial.wrap);
+        }
+    }
+
+    /// [`Self::commit_trial`] with the trial's slip zones already known ([`Self::slip`]).
+    pub fn commit_trial_with_slip(&mut self, trial: &HalfTrial, slip: &HalfSlip) {
+        if self.remembers {
+            self.wrap.commit_trial_with_slip(&trial.wrap, slip.slip_rad);
+        }
+    }
+
+    /// [`Self::trial`] with a law held by the caller (see [`WrapRegion::trial_with`]).
+    #[inline]
+    pub(crate) fn trial_with(&self, law: &mut WrapLaw, tension_n: f64) -> HalfTrial {
+        let wrap = self.wrap.trial_with(law, tension_n);
+        let span_per_n = self.span_m / self.modulus_n;
+        HalfTrial {
+            elongation_m: span_per_n * (tension_n - self.preload_n) + wrap.elongation_m,
+            d_elongation_m_per_n: span_per_n + wrap.d_elongation_m_per_n,
+            d2_elongation: wrap.d2_elongation,
+            wrap,
         }
     }
 
