@@ -4,6 +4,7 @@ use serde::{Deserialize, Serialize};
 
 use super::half::{CableHalf, HalfSlip, HalfTrial};
 use super::newton::{solve_increasing_curved, RootError};
+use super::wrap::WrapLaw;
 
 /// How the cable crosses between pulley and drum.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -513,9 +514,15 @@ impl CableDrive {
         let guess = (self.state.tension_upper_n + share * change).max(lower_bound + 1e-3 * pre);
         // Each half's law is iterated on a local copy: it holds across the whole solve
         // unless a slip zone moves onto another stored segment.
-        let mut law_u = self.upper.wrap().cached_law(guess);
-        let mut law_l = self.lower.wrap().cached_law(guess - dt);
+        let mut law_u = self.upper.wrap().law_at(guess);
+        let mut law_l = self.lower.wrap().law_at(guess - dt);
         let mut last = None;
+        let closed = self.solve_closed(&law_u, &law_l, dt, guess);
+        if let Some(tu) = closed {
+            let up = self.upper.trial_with(&mut law_u, tu);
+            let lo = self.lower.trial_with(&mut law_l, tu - dt);
+            last = Some((tu, up, lo));
+        }
         let residual = |tu: f64| {
             let up = self.upper.trial_with(&mut law_u, tu);
             let lo = self.lower.trial_with(&mut law_l, tu - dt);
@@ -526,7 +533,11 @@ impl CableDrive {
                 up.d2_elongation + lo.d2_elongation,
             )
         };
-        let tu = match solve_increasing_curved(residual, lower_bound, guess, pre, TENSION_RTOL) {
+        let solved = match closed {
+            Some(tu) => Ok(tu),
+            None => solve_increasing_curved(residual, lower_bound, guess, pre, TENSION_RTOL),
+        };
+        let tu = match solved {
             Ok(tu) => tu,
             Err(RootError::BelowDomain) => {
                 return Err(DriveFault::Slack {
@@ -552,6 +563,60 @@ impl CableDrive {
             su,
             sl,
         })
+    }
+
+    /// The usual quasi-static solve: both slip zones end on stored segments whose laws are
+    /// `a*T + beta*sqrt(T) + c`, so the length constraint is a scalar equation in `Tu`
+    /// solved by Halley steps on those coefficients alone. `None` (the general solver takes
+    /// over) when a law has another form, an iterate leaves the laws' ranges or the
+    /// iteration does not settle.
+    fn solve_closed(&self, law_u: &WrapLaw, law_l: &WrapLaw, dt: f64, guess: f64) -> Option<f64> {
+        let (au, bu, cu) = law_u.sqrt_form()?;
+        let (al, bl, cl) = law_l.sqrt_form()?;
+        let pre = self.params.preload_n;
+        let span = self.upper.span_m();
+        // E*A * (elong_u(x) + elong_l(x - dt)) = alpha*x + bu*sqrt(x) + bl*sqrt(x - dt) + gamma
+        let alpha = 2.0 * span + au + al;
+        let gamma = cu + cl - al * dt - span * (2.0 * pre + dt);
+        let floor = dt.max(0.0);
+        let mut x = guess;
+        for _ in 0..8 {
+            if !(x > floor) {
+                return None;
+            }
+            let (u, v) = (x.sqrt(), (x - dt).sqrt());
+            // One division serves both reciprocals: the iteration is latency-bound.
+            let w = 1.0 / (u * v);
+            let (iu, iv) = (v * w, u * w);
+            let (ru, rv) = (0.5 * bu * iu, 0.5 * bl * iv);
+            let f = alpha * x + bu * u + bl * v + gamma;
+            let df = alpha + ru + rv;
+            let d2f = -0.5 * (ru * iu * iu + rv * iv * iv);
+            let denominator = 2.0 * df * df - f * d2f;
+            let step = if denominator > df * df {
+                2.0 * f * df / denominator
+            } else {
+                f / df
+            };
+            if !step.is_finite() {
+                return None;
+            }
+            // Halley's error after this step is about K*step^3, K = (f''/f')^2 plus a
+            // third-derivative term of the same order for these square-root laws: when that
+            // is far below the tolerance the step is taken without evaluating again.
+            let curvature = d2f / df;
+            let k = 2.0 * curvature * curvature + curvature.abs() / x;
+            if k * step.abs().powi(3) <= 0.01 * TENSION_RTOL * x.max(pre) {
+                let next = x - step;
+                return (next > floor && law_u.covers(next) && law_l.covers(next - dt))
+                    .then_some(next);
+            }
+            if step.abs() <= TENSION_RTOL * x.max(pre) {
+                return (law_u.covers(x) && law_l.covers(x - dt)).then_some(x);
+            }
+            x -= step;
+        }
+        None
     }
 
     /// Quasi-static step: apply transmitted torque `torque_nm` and commit the new tension

@@ -102,9 +102,20 @@ impl WrapLaw {
         end_factor: 0.0,
     };
 
+    /// `(a, beta, c)` such that `E*A * elongation = a*Tb + beta*sqrt(Tb) + c` on this
+    /// law, when it has that form (sloped segment or slip to the end).
+    #[inline]
+    pub(crate) fn sqrt_form(&self) -> Option<(f64, f64, f64)> {
+        match self.kind {
+            LawKind::Sloped => Some((self.a, self.beta, self.c)),
+            LawKind::End => Some((self.a, 0.0, self.c)),
+            _ => None,
+        }
+    }
+
     /// Whether the law holds at boundary tension `tb_n`.
     #[inline]
-    fn covers(&self, tb_n: f64) -> bool {
+    pub(crate) fn covers(&self, tb_n: f64) -> bool {
         match self.kind {
             LawKind::Invalid => false,
             LawKind::Stuck => tb_n == self.lo,
@@ -521,7 +532,7 @@ impl WrapRegion {
 
     /// The law for `tb_n`: the cached one when it holds there, else a fresh walk (cached).
     #[inline]
-    fn law_at(&self, tb_n: f64) -> WrapLaw {
+    pub(crate) fn law_at(&self, tb_n: f64) -> WrapLaw {
         let slot = &self.laws[usize::from(tb_n > self.boundary_tension_n())];
         let cached = slot.get();
         if cached.generation == self.generation && cached.covers(tb_n) {
@@ -537,13 +548,6 @@ impl WrapRegion {
     #[inline]
     pub fn trial(&self, tb_n: f64) -> WrapTrial {
         self.trial_from(self.law_at(tb_n), tb_n)
-    }
-
-    /// The law a trial at `tb_n` (N) starts from (for callers that iterate on a local
-    /// copy).
-    #[inline]
-    pub(crate) fn cached_law(&self, tb_n: f64) -> WrapLaw {
-        self.laws[usize::from(tb_n > self.boundary_tension_n())].get()
     }
 
     /// [`Self::trial`] with the law held by the caller: reused when it holds at `tb_n`,
