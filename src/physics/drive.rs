@@ -581,7 +581,7 @@ impl CableDrive {
         let floor = dt.max(0.0);
         let mut x = guess;
         for _ in 0..8 {
-            if !(x > floor) {
+            if x.is_nan() || x <= floor {
                 return None;
             }
             let (u, v) = (x.sqrt(), (x - dt).sqrt());
