@@ -297,8 +297,9 @@ pub struct WrapRegion {
     growth_at_cut: f64,
     decay_at_end: f64,
     growth_at_end: f64,
-    /// `integral_0^wrap weight ds`, m rad.
-    total_weight_m_rad: f64,
+    /// `integral_0^wrap weight ds / mu`, m rad: the scale of a wrap's tension integrals
+    /// per newton.
+    slip_weight_per_mu: f64,
     /// Breakpoints ordered from the inner end (`s = wrap`) to the contact point (`s = 0`),
     /// so that a new slip zone pops the wiped breakpoints off the end of the vector. A
     /// breakpoint always sits at `cut_rad`, so every segment has a single weight.
@@ -347,7 +348,8 @@ impl WrapRegion {
             growth_at_cut: (mu * cut_rad).exp(),
             decay_at_end: (-mu * wrap_rad).exp(),
             growth_at_end: (mu * wrap_rad).exp(),
-            total_weight_m_rad: weight_inner_m * cut_rad + weight_outer_m * (wrap_rad - cut_rad),
+            slip_weight_per_mu: (weight_inner_m * cut_rad + weight_outer_m * (wrap_rad - cut_rad))
+                / mu,
             verts: Vec::with_capacity(16),
             generation: 0,
             laws: [Cell::new(WrapLaw::INVALID), Cell::new(WrapLaw::INVALID)],
@@ -581,6 +583,7 @@ impl WrapRegion {
     /// Closed form (a quadratic in `sqrt(Tb)`) while the slip zone ends on one stored
     /// segment; safeguarded Newton otherwise. `None` when no positive tension fits (the
     /// span would go slack).
+    #[inline]
     pub fn tension_for_elongation(
         &self,
         target_m: f64,
@@ -596,28 +599,48 @@ impl WrapRegion {
         // Within rounding of the committed state (where the wrap's stiffness is the free
         // span's alone, so this moves the tension by about 1e-11 of itself at most),
         // nothing slips.
-        let rounding = 1e-12 * top.t * (span + self.total_weight_m_rad / mu);
+        let rounding = 1e-12 * top.t * (span + self.slip_weight_per_mu);
         if (target - stuck).abs() <= rounding {
             return Some(top.t);
         }
         let rising = target > stuck;
+        let cached = self.laws[usize::from(rising)].get();
+        if cached.generation == self.generation {
+            if let Some(t) = cached
+                .solve(target, span, pre, mu, guess_n)
+                .and_then(|t| cached.accept(t))
+            {
+                return Some(t);
+            }
+        }
+        self.tension_for_elongation_search(target, span, rising, guess_n)
+    }
+
+    /// [`Self::tension_for_elongation`] when the cached law does not hold: from the
+    /// guessed segment, then the one its root points to, then safeguarded Newton over
+    /// fresh trials. `target` and `span` are scaled by `E*A` (N m).
+    #[cold]
+    #[inline(never)]
+    fn tension_for_elongation_search(
+        &self,
+        target: f64,
+        span: f64,
+        rising: bool,
+        guess_n: f64,
+    ) -> Option<f64> {
+        let (ea, pre, mu) = (self.modulus_n, self.preload_n, self.mu);
+        let top_t = self.boundary_tension_n();
         let closed = |law: &WrapLaw, start: f64| {
             law.solve(target, span, pre, mu, start)
                 .and_then(|t| law.accept(t))
         };
-        let cached = self.laws[usize::from(rising)].get();
-        if cached.generation == self.generation {
-            if let Some(t) = closed(&cached, guess_n) {
-                return Some(t);
-            }
-        }
         // A guess on the wrong side of the committed tension would pick the other branch.
-        let guess = if guess_n.is_finite() && guess_n > 0.0 && (guess_n > top.t) == rising {
+        let guess = if guess_n.is_finite() && guess_n > 0.0 && (guess_n > top_t) == rising {
             guess_n
         } else if rising {
-            top.t * (1.0 + 1e-9)
+            top_t * (1.0 + 1e-9)
         } else {
-            top.t * (1.0 - 1e-9)
+            top_t * (1.0 - 1e-9)
         };
         let law = self.law_at(guess);
         if let Some(t) = closed(&law, guess) {
@@ -631,6 +654,7 @@ impl WrapRegion {
                 return Some(t);
             }
         }
+        let (span_per_n, target_m) = (span / ea, target / ea);
         super::newton::solve_increasing(
             |tb| {
                 let tr = self.trial(tb);
