@@ -135,12 +135,15 @@ pub struct MetricsAccumulator {
     steps: Vec<StepTrack>,
 }
 
+#[inline]
 fn bin_of(v_mrad: f64) -> Option<usize> {
     if v_mrad < 10f64.powf(DECADES_LO) {
         return None;
     }
-    let b = ((v_mrad.log10() - DECADES_LO) * BINS_PER_DECADE as f64).floor();
-    Some((b.max(0.0) as usize).min(DECADES * BINS_PER_DECADE - 1))
+    // The saturating cast floors non-negative values and sends negative ones to 0, as
+    // `floor` then `max(0)` would; without SSE4.1 `floor` is a library call.
+    let b = (v_mrad.log10() - DECADES_LO) * BINS_PER_DECADE as f64;
+    Some((b as usize).min(DECADES * BINS_PER_DECADE - 1))
 }
 
 fn bin_upper(b: usize) -> f64 {
@@ -190,6 +193,7 @@ impl MetricsAccumulator {
     }
 
     /// Add one sample (in time order). Non-finite values are skipped.
+    #[inline]
     pub fn push(&mut self, s: &Sample) {
         if !(s.t_s >= self.cfg.window_start_s && s.t_s <= self.cfg.window_end_s) {
             return;
@@ -224,6 +228,14 @@ impl MetricsAccumulator {
             *self.cur_sq.get_or_insert(0.0) += c * c;
             self.cur_n += 1;
         }
+        if !self.steps.is_empty() {
+            self.push_steps(s);
+        }
+    }
+
+    // Kept out of line so the common case (no steps) inlines into the caller's loop.
+    #[inline(never)]
+    fn push_steps(&mut self, s: &Sample) {
         let band = self.cfg.settle_band_mrad * 1e-3;
         for st in self
             .steps
