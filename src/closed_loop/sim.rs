@@ -455,8 +455,13 @@ fn run_mode(
         };
         prev_ref = r.value;
         let m_brake = brake_pred.update(delta);
-        let m_pred =
-            m_brake - load.smooth_torque_nm(t, r.value) + coeff.jo * r.accel + coeff.bo * r.rate;
+        // Without smooth loads the torque is exactly +0.0; the sine is not worth paying for.
+        let m_smooth = if coeff.smooth_load {
+            load.smooth_torque_nm(t, r.value)
+        } else {
+            0.0
+        };
+        let m_pred = m_brake - m_smooth + coeff.jo * r.accel + coeff.bo * r.rate;
         let e_cable = comp.as_mut().map_or(0.0, |cp| cp.predict(m_pred));
         let e_pred = match comp_kinematic {
             // The effect error depends on the motor angle it shifts: two fixed-point
