@@ -192,19 +192,7 @@ impl PlantCable {
             PlantCable::Linear {
                 k_n_per_m,
                 preload_n,
-            } => {
-                let tu = preload_n + k_n_per_m * d;
-                let tl = preload_n - k_n_per_m * d;
-                if tu <= 0.0 || tl <= 0.0 {
-                    Err(DriveFault::Slack {
-                        half: if tu <= 0.0 { Half::Upper } else { Half::Lower },
-                        torque_nm: 0.0,
-                        needed_preload_n: k_n_per_m * d.abs(),
-                    })
-                } else {
-                    Ok((tu, tl))
-                }
-            }
+            } => linear_tensions(*k_n_per_m, *preload_n, d),
         }
     }
 
@@ -216,6 +204,22 @@ impl PlantCable {
             let state = drive.state_at(tu, tl, d)?;
             drive.commit_state(state);
         }
+        Ok((tu, tl))
+    }
+}
+
+/// Span tensions `(Tu, Tl)` of the linear cable at displacement `d` (m).
+#[inline]
+fn linear_tensions(k_n_per_m: f64, preload_n: f64, d: f64) -> Result<(f64, f64), DriveFault> {
+    let tu = preload_n + k_n_per_m * d;
+    let tl = preload_n - k_n_per_m * d;
+    if tu <= 0.0 || tl <= 0.0 {
+        Err(DriveFault::Slack {
+            half: if tu <= 0.0 { Half::Upper } else { Half::Lower },
+            torque_nm: 0.0,
+            needed_preload_n: k_n_per_m * d.abs(),
+        })
+    } else {
         Ok((tu, tl))
     }
 }
@@ -431,8 +435,22 @@ impl System<f64, State> for &PeriodRhs<'_> {
         let c = self.c;
         let t = self.t0 + tau * self.h;
         let k = c.kinematics(x, t);
-        let mut warm = self.warm.get();
-        let el = match self.cable.tensions(k.d, &mut warm) {
+        let tensions = match *self.cable {
+            // No warm start to carry: spare the copies through the cell.
+            PlantCable::Linear {
+                k_n_per_m,
+                preload_n,
+            } => linear_tensions(k_n_per_m, preload_n, k.d),
+            PlantCable::Hysteretic(_) => {
+                let mut warm = self.warm.get();
+                let r = self.cable.tensions(k.d, &mut warm);
+                if r.is_ok() {
+                    self.warm.set(warm);
+                }
+                r
+            }
+        };
+        let el = match tensions {
             Ok(t) => t,
             Err(e) => {
                 if self.fault.get().is_none() {
@@ -442,7 +460,6 @@ impl System<f64, State> for &PeriodRhs<'_> {
                 return;
             }
         };
-        self.warm.set(warm);
         let smooth = if c.smooth_load {
             self.load.smooth_torque_nm(t, x[THETA_O])
         } else {
