@@ -372,6 +372,8 @@ pub struct PeriodRhs<'a> {
     pub t0: f64,
     /// Substep length, s.
     pub h: f64,
+    /// Substeps in the period, `N`: the integrator stops once `tau` reaches it.
+    pub steps: f64,
     /// Warm start of the tension solves (and their count).
     pub warm: Cell<WarmStart>,
     /// First fault met inside the period.
@@ -475,6 +477,14 @@ impl System<f64, State> for &PeriodRhs<'_> {
             self.command,
         );
         *dx = dxt * self.h;
+    }
+
+    // Rk4 sizes its result vectors from its end point and grows both for the closing
+    // sample; run towards `2N` and stopped here at `N` it never reallocates, which was the
+    // largest cost of a period outside the cable.
+    #[inline]
+    fn solout(&mut self, tau: f64, _x: &State, _dx: &State) -> bool {
+        tau >= self.steps
     }
 }
 

@@ -535,10 +535,12 @@ fn run_mode(
             command: u,
             t0: t,
             h: ts / f64::from(sub),
+            steps: f64::from(sub),
             warm: std::cell::Cell::new(warm),
             fault: std::cell::Cell::new(None),
         };
-        let mut solver = Rk4::new(&rhs, 0.0, x, f64::from(sub), 1.0);
+        // End point 2N: room for all N + 1 results; `solout` stops the run at N.
+        let mut solver = Rk4::new(&rhs, 0.0, x, 2.0 * f64::from(sub), 1.0);
         // Rk4 never fails; a cable fault is reported through the RHS.
         let st = solver
             .integrate()
