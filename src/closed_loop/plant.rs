@@ -267,6 +267,22 @@ pub struct PlantCoefficients {
     /// Kinematic effects of the plant (runouts, thermal drift); `None` when absent or all
     /// zero, so the plain geometry is used.
     pub effects: Option<EffectsParams>,
+    /// `1/jm`, `1/l`, `1/jo` and `1/wcm`: the right-hand side multiplies, as divisions
+    /// would dominate its latency.
+    pub inv: Reciprocals,
+}
+
+/// Reciprocals of the coefficients the right-hand side divides by.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reciprocals {
+    /// `1/jm`, 1/(kg m^2).
+    pub jm: f64,
+    /// `1/l`, 1/H.
+    pub l: f64,
+    /// `1/jo`, 1/(kg m^2).
+    pub jo: f64,
+    /// `1/wcm`, s/rad.
+    pub wcm: f64,
 }
 
 /// Cable geometry at one state: displacement, its rate and the lever arms through which
@@ -326,6 +342,12 @@ impl PlantCoefficients {
                 || !load.disturbance.is_empty(),
             ratio: drive.ratio(),
             effects: effects.filter(|e| e.has_kinematic()).cloned(),
+            inv: Reciprocals {
+                jm: 1.0 / p.motor.inertia_kg_m2,
+                l: 1.0 / p.motor.inductance_h,
+                jo: 1.0 / p.output.inertia_kg_m2,
+                wcm: 1.0 / p.motor.coulomb_smoothing_rad_s,
+            },
         }
     }
 
@@ -414,10 +436,10 @@ pub fn derivative(
 ) -> State {
     let f = tensions.0 - tensions.1;
     let wm = x[OMEGA_M];
-    let friction = c.bm * wm + c.tcm * (wm / c.wcm).clamp(-1.0, 1.0);
-    let dwm = (c.kt * x[CURRENT] - friction - k.lever_in * f) / c.jm;
+    let friction = c.bm * wm + c.tcm * (wm * c.inv.wcm).clamp(-1.0, 1.0);
+    let dwm = (c.kt * x[CURRENT] - friction - k.lever_in * f) * c.inv.jm;
     let di = if c.voltage_mode {
-        (command - c.r * x[CURRENT] - c.ke * wm) / c.l
+        (command - c.r * x[CURRENT] - c.ke * wm) * c.inv.l
     } else {
         0.0
     };
@@ -425,7 +447,7 @@ pub fn derivative(
         BrakeState::Stuck => (0.0, 0.0),
         BrakeState::Slipping(dir) => (
             x[OMEGA_O],
-            (k.lever_out * f + smooth_load - c.bo * x[OMEGA_O] - c.brake * dir) / c.jo,
+            (k.lever_out * f + smooth_load - c.bo * x[OMEGA_O] - c.brake * dir) * c.inv.jo,
         ),
     };
     State::new(wm, dwm, di, dto, dwo)
