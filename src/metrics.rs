@@ -5,6 +5,8 @@
 //! the same way. Samples are assumed uniformly spaced in time (fractions are sample
 //! fractions).
 
+use std::sync::OnceLock;
+
 use serde::{Deserialize, Serialize};
 
 /// One sample of a record.
@@ -127,6 +129,7 @@ pub struct MetricsAccumulator {
     within: u64,
     hist: Vec<u32>,
     zeros: u64,
+    last_bin: BinRange,
     te_peak: Option<f64>,
     cmd_sq: Option<f64>,
     cur_sq: Option<f64>,
@@ -135,16 +138,75 @@ pub struct MetricsAccumulator {
     steps: Vec<StepTrack>,
 }
 
+#[inline]
 fn bin_of(v_mrad: f64) -> Option<usize> {
     if v_mrad < 10f64.powf(DECADES_LO) {
         return None;
     }
-    let b = ((v_mrad.log10() - DECADES_LO) * BINS_PER_DECADE as f64).floor();
-    Some((b.max(0.0) as usize).min(DECADES * BINS_PER_DECADE - 1))
+    // The saturating cast floors non-negative values and sends negative ones to 0, as
+    // `floor` then `max(0)` would; without SSE4.1 `floor` is a library call.
+    let b = (v_mrad.log10() - DECADES_LO) * BINS_PER_DECADE as f64;
+    Some((b as usize).min(DECADES * BINS_PER_DECADE - 1))
 }
 
 fn bin_upper(b: usize) -> f64 {
     10f64.powf(DECADES_LO + (b + 1) as f64 / BINS_PER_DECADE as f64)
+}
+
+/// Relative distance from a bin's edges inside which [`bin_of`] is certain without its
+/// logarithm: 1e-9 is about 1e-6 of a bin, some 1e5 times the last-place error of any
+/// usable `log10` (and of the edges below), and costs a negligible share of the hits.
+const EDGE_MARGIN: f64 = 1e-9;
+
+/// Lower edge of bin `b` (mrad) to a few ulp, from one table of a decade's edges.
+fn bin_lower(b: usize) -> f64 {
+    static MANTISSA: OnceLock<Vec<f64>> = OnceLock::new();
+    let m = MANTISSA.get_or_init(|| {
+        (0..BINS_PER_DECADE)
+            .map(|j| 10f64.powf(j as f64 / BINS_PER_DECADE as f64))
+            .collect()
+    });
+    m[b % BINS_PER_DECADE] * 10f64.powi((b / BINS_PER_DECADE) as i32 + DECADES_LO as i32)
+}
+
+/// A histogram bin and the values (mrad) that surely fall into it.
+#[derive(Clone, Copy, Debug)]
+struct BinRange {
+    bin: usize,
+    lo: f64,
+    hi: f64,
+}
+
+impl BinRange {
+    const EMPTY: BinRange = BinRange {
+        bin: 0,
+        lo: f64::INFINITY,
+        hi: f64::NEG_INFINITY,
+    };
+
+    fn around(bin: usize) -> Self {
+        let last = DECADES * BINS_PER_DECADE - 1;
+        BinRange {
+            bin,
+            // Below the first edge values count as zeros before a range is consulted,
+            // above the last they are clamped into the last bin.
+            lo: if bin == 0 {
+                0.0
+            } else {
+                bin_lower(bin) * (1.0 + EDGE_MARGIN)
+            },
+            hi: if bin == last {
+                f64::INFINITY
+            } else {
+                bin_lower(bin + 1) * (1.0 - EDGE_MARGIN)
+            },
+        }
+    }
+
+    #[inline]
+    fn holds(&self, v_mrad: f64) -> bool {
+        v_mrad >= self.lo && v_mrad < self.hi
+    }
 }
 
 impl MetricsAccumulator {
@@ -180,6 +242,7 @@ impl MetricsAccumulator {
             within: 0,
             hist: vec![0; DECADES * BINS_PER_DECADE],
             zeros: 0,
+            last_bin: BinRange::EMPTY,
             te_peak: None,
             cmd_sq: None,
             cur_sq: None,
@@ -190,6 +253,7 @@ impl MetricsAccumulator {
     }
 
     /// Add one sample (in time order). Non-finite values are skipped.
+    #[inline]
     pub fn push(&mut self, s: &Sample) {
         if !(s.t_s >= self.cfg.window_start_s && s.t_s <= self.cfg.window_end_s) {
             return;
@@ -209,9 +273,15 @@ impl MetricsAccumulator {
         if a <= self.cfg.target_mrad {
             self.within += 1;
         }
-        match bin_of(a) {
-            Some(b) => self.hist[b] += 1,
-            None => self.zeros += 1,
+        if a < 10f64.powf(DECADES_LO) {
+            self.zeros += 1;
+        } else {
+            let b = if self.last_bin.holds(a) {
+                self.last_bin.bin
+            } else {
+                self.rebin(a)
+            };
+            self.hist[b] += 1;
         }
         if let Some(te) = s.transmission_error_rad.filter(|v| v.is_finite()) {
             self.te_peak = Some(self.te_peak.unwrap_or(0.0).max(te.abs() * 1e3));
@@ -224,6 +294,37 @@ impl MetricsAccumulator {
             *self.cur_sq.get_or_insert(0.0) += c * c;
             self.cur_n += 1;
         }
+        if !self.steps.is_empty() {
+            self.push_steps(s);
+        }
+    }
+
+    /// Bin of `a` (mrad, at least the lowest edge) when it left the last one. Successive
+    /// errors mostly stay in a bin or move to a neighbour, which needs no logarithm.
+    #[inline(never)]
+    fn rebin(&mut self, a: f64) -> usize {
+        let b = self.last_bin.bin;
+        let last = DECADES * BINS_PER_DECADE - 1;
+        let near = [
+            (b < last && a >= self.last_bin.hi).then(|| b + 1),
+            (b > 0 && a < self.last_bin.lo).then(|| b - 1),
+        ];
+        for r in near.into_iter().flatten().map(BinRange::around) {
+            if r.holds(a) {
+                self.last_bin = r;
+                return r.bin;
+            }
+        }
+        // Near an edge `a` may lie outside its bin's sure range: counted by the
+        // logarithm all the same.
+        let exact = bin_of(a).unwrap_or(0);
+        self.last_bin = BinRange::around(exact);
+        exact
+    }
+
+    // Kept out of line so the common case (no steps) inlines into the caller's loop.
+    #[inline(never)]
+    fn push_steps(&mut self, s: &Sample) {
         let band = self.cfg.settle_band_mrad * 1e-3;
         for st in self
             .steps
@@ -378,6 +479,59 @@ mod tests {
         assert!((m.rms_command.unwrap() - 3.0).abs() < 1e-12);
         assert_eq!(m.rms_current_a, None);
         assert_eq!(m.window_s, [1.0, 4.0]);
+    }
+
+    #[test]
+    fn histogram_bins_match_the_logarithm() {
+        // Slow walks, neighbour moves, jumps across decades and values on and next to
+        // the edges, each binned through the cached ranges and directly.
+        let mut v = vec![0.0, 1e-12, 1e-9, 1e-9 * (1.0 - 1e-16), 1e6, 1e300];
+        for b in (0..DECADES * BINS_PER_DECADE).step_by(7) {
+            let e = bin_upper(b);
+            v.extend([
+                e,
+                e.next_up(),
+                e.next_down(),
+                e * (1.0 + 1e-9),
+                e * (1.0 - 1e-9),
+            ]);
+        }
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let mut a = 0.2;
+        for _ in 0..200_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let u = (x >> 11) as f64 / (1u64 << 53) as f64;
+            a = match x % 50 {
+                0 => 10f64.powf(14.0 * u - 10.0),
+                1..=5 => a * (1.0 + 0.01 * (u - 0.5)),
+                _ => a * (1.0 + 1e-4 * (u - 0.5)),
+            };
+            v.push(a);
+        }
+        let samples: Vec<Sample> = v
+            .iter()
+            .enumerate()
+            .map(|(i, &e)| Sample {
+                t_s: i as f64,
+                reference_rad: 0.0,
+                output_rad: e * 1e-3,
+                ..Sample::default()
+            })
+            .collect();
+        let mut acc = MetricsAccumulator::new(cfg(0.0));
+        let mut hist = vec![0u32; DECADES * BINS_PER_DECADE];
+        let mut zeros = 0;
+        for s in &samples {
+            acc.push(s);
+            match bin_of(s.output_rad * 1e3) {
+                Some(b) => hist[b] += 1,
+                None => zeros += 1,
+            }
+        }
+        assert_eq!(acc.zeros, zeros);
+        assert!(acc.hist == hist);
     }
 
     #[test]

@@ -162,19 +162,7 @@ impl PlantCable {
             PlantCable::Linear {
                 k_n_per_m,
                 preload_n,
-            } => {
-                let tu = preload_n + k_n_per_m * d;
-                let tl = preload_n - k_n_per_m * d;
-                if tu <= 0.0 || tl <= 0.0 {
-                    Err(DriveFault::Slack {
-                        half: if tu <= 0.0 { Half::Upper } else { Half::Lower },
-                        torque_nm: 0.0,
-                        needed_preload_n: k_n_per_m * d.abs(),
-                    })
-                } else {
-                    Ok((tu, tl))
-                }
-            }
+            } => linear_tensions(*k_n_per_m, *preload_n, d),
         }
     }
 
@@ -185,6 +173,22 @@ impl PlantCable {
         if let PlantCable::Hysteretic(drive) = self {
             drive.commit_tensions(tu, tl, d)?;
         }
+        Ok((tu, tl))
+    }
+}
+
+/// Span tensions `(Tu, Tl)` of the linear cable at displacement `d` (m).
+#[inline]
+fn linear_tensions(k_n_per_m: f64, preload_n: f64, d: f64) -> Result<(f64, f64), DriveFault> {
+    let tu = preload_n + k_n_per_m * d;
+    let tl = preload_n - k_n_per_m * d;
+    if tu <= 0.0 || tl <= 0.0 {
+        Err(DriveFault::Slack {
+            half: if tu <= 0.0 { Half::Upper } else { Half::Lower },
+            torque_nm: 0.0,
+            needed_preload_n: k_n_per_m * d.abs(),
+        })
+    } else {
         Ok((tu, tl))
     }
 }
@@ -232,6 +236,22 @@ pub struct PlantCoefficients {
     /// Kinematic effects of the plant (runouts, thermal drift); `None` when absent or all
     /// zero, so the plain geometry is used.
     pub effects: Option<EffectsParams>,
+    /// `1/jm`, `1/l`, `1/jo` and `1/wcm`: the right-hand side multiplies, as divisions
+    /// would dominate its latency.
+    pub inv: Reciprocals,
+}
+
+/// Reciprocals of the coefficients the right-hand side divides by.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reciprocals {
+    /// `1/jm`, 1/(kg m^2).
+    pub jm: f64,
+    /// `1/l`, 1/H.
+    pub l: f64,
+    /// `1/jo`, 1/(kg m^2).
+    pub jo: f64,
+    /// `1/wcm`, s/rad.
+    pub wcm: f64,
 }
 
 /// Cable geometry at one state: displacement, its rate and the lever arms through which
@@ -291,6 +311,12 @@ impl PlantCoefficients {
                 || !load.disturbance.is_empty(),
             ratio: drive.ratio(),
             effects: effects.filter(|e| e.has_kinematic()).cloned(),
+            inv: Reciprocals {
+                jm: 1.0 / p.motor.inertia_kg_m2,
+                l: 1.0 / p.motor.inductance_h,
+                jo: 1.0 / p.output.inertia_kg_m2,
+                wcm: 1.0 / p.motor.coulomb_smoothing_rad_s,
+            },
         }
     }
 
@@ -337,6 +363,8 @@ pub struct PeriodRhs<'a> {
     pub t0: f64,
     /// Substep length, s.
     pub h: f64,
+    /// Substeps in the period, `N`: the integrator stops once `tau` reaches it.
+    pub steps: f64,
     /// Warm start of the tension solves (and their count).
     pub warm: Cell<WarmStart>,
     /// First fault met inside the period.
@@ -377,10 +405,10 @@ pub fn derivative(
 ) -> State {
     let f = tensions.0 - tensions.1;
     let wm = x[OMEGA_M];
-    let friction = c.bm * wm + c.tcm * (wm / c.wcm).clamp(-1.0, 1.0);
-    let dwm = (c.kt * x[CURRENT] - friction - k.lever_in * f) / c.jm;
+    let friction = c.bm * wm + c.tcm * (wm * c.inv.wcm).clamp(-1.0, 1.0);
+    let dwm = (c.kt * x[CURRENT] - friction - k.lever_in * f) * c.inv.jm;
     let di = if c.voltage_mode {
-        (command - c.r * x[CURRENT] - c.ke * wm) / c.l
+        (command - c.r * x[CURRENT] - c.ke * wm) * c.inv.l
     } else {
         0.0
     };
@@ -388,7 +416,7 @@ pub fn derivative(
         BrakeState::Stuck => (0.0, 0.0),
         BrakeState::Slipping(dir) => (
             x[OMEGA_O],
-            (k.lever_out * f + smooth_load - c.bo * x[OMEGA_O] - c.brake * dir) / c.jo,
+            (k.lever_out * f + smooth_load - c.bo * x[OMEGA_O] - c.brake * dir) * c.inv.jo,
         ),
     };
     State::new(wm, dwm, di, dto, dwo)
@@ -400,8 +428,22 @@ impl System<f64, State> for &PeriodRhs<'_> {
         let c = self.c;
         let t = self.t0 + tau * self.h;
         let k = c.kinematics(x, t);
-        let mut warm = self.warm.get();
-        let el = match self.cable.tensions(k.d, &mut warm) {
+        let tensions = match *self.cable {
+            // No warm start to carry: spare the copies through the cell.
+            PlantCable::Linear {
+                k_n_per_m,
+                preload_n,
+            } => linear_tensions(k_n_per_m, preload_n, k.d),
+            PlantCable::Hysteretic(_) => {
+                let mut warm = self.warm.get();
+                let r = self.cable.tensions(k.d, &mut warm);
+                if r.is_ok() {
+                    self.warm.set(warm);
+                }
+                r
+            }
+        };
+        let el = match tensions {
             Ok(t) => t,
             Err(e) => {
                 if self.fault.get().is_none() {
@@ -411,7 +453,6 @@ impl System<f64, State> for &PeriodRhs<'_> {
                 return;
             }
         };
-        self.warm.set(warm);
         let smooth = if c.smooth_load {
             self.load.smooth_torque_nm(t, x[THETA_O])
         } else {
@@ -427,6 +468,14 @@ impl System<f64, State> for &PeriodRhs<'_> {
             self.command,
         );
         *dx = dxt * self.h;
+    }
+
+    // Rk4 sizes its result vectors from its end point and grows both for the closing
+    // sample; run towards `2N` and stopped here at `N` it never reallocates, which was the
+    // largest cost of a period outside the cable.
+    #[inline]
+    fn solout(&mut self, tau: f64, _x: &State, _dx: &State) -> bool {
+        tau >= self.steps
     }
 }
 

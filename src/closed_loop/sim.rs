@@ -455,8 +455,13 @@ fn run_mode(
         };
         prev_ref = r.value;
         let m_brake = brake_pred.update(delta);
-        let m_pred =
-            m_brake - load.smooth_torque_nm(t, r.value) + coeff.jo * r.accel + coeff.bo * r.rate;
+        // Without smooth loads the torque is exactly +0.0; the sine is not worth paying for.
+        let m_smooth = if coeff.smooth_load {
+            load.smooth_torque_nm(t, r.value)
+        } else {
+            0.0
+        };
+        let m_pred = m_brake - m_smooth + coeff.jo * r.accel + coeff.bo * r.rate;
         let e_cable = comp.as_mut().map_or(0.0, |cp| cp.predict(m_pred));
         let e_pred = match comp_kinematic {
             // The effect error depends on the motor angle it shifts: two fixed-point
@@ -530,10 +535,12 @@ fn run_mode(
             command: u,
             t0: t,
             h: ts / f64::from(sub),
+            steps: f64::from(sub),
             warm: std::cell::Cell::new(warm),
             fault: std::cell::Cell::new(None),
         };
-        let mut solver = Rk4::new(&rhs, 0.0, x, f64::from(sub), 1.0);
+        // End point 2N: room for all N + 1 results; `solout` stops the run at N.
+        let mut solver = Rk4::new(&rhs, 0.0, x, 2.0 * f64::from(sub), 1.0);
         // Rk4 never fails; a cable fault is reported through the RHS.
         let st = solver
             .integrate()
