@@ -85,13 +85,8 @@ fn solve_half(half: &CableHalf, target: f64, g: &mut HalfGuess, trials: &mut u64
     let guess = g.tension_n + (target - g.elongation_m) * g.stiffness_n_per_m;
     let t = half.tension_for_elongation(target, guess)?;
     *trials += 1;
-    // A chord through the last two solutions keeps the tangent guess current without a
-    // derivative evaluation.
-    let de = target - g.elongation_m;
-    let dt = t - g.tension_n;
-    if de != 0.0 && dt / de > 0.0 && (dt / de).is_finite() {
-        g.stiffness_n_per_m = dt / de;
-    }
+    // The stiffness stays the nominal one: the guess only picks a stored segment when the
+    // cached one no longer holds, and updating it would cost a division per solve.
     g.tension_n = t;
     g.elongation_m = target;
     Some(t)

@@ -86,7 +86,8 @@ impl CableHalf {
                 mu,
                 preload_n,
                 modulus_n,
-            ),
+            )
+            .with_series_span(span_m),
         }
     }
 

@@ -79,6 +79,10 @@ pub(crate) struct WrapLaw {
     c: f64,
     /// `bt * sqrt(q)`, the linear coefficient of the quadratic in `sqrt(Tb)`.
     beta: f64,
+    /// Free-span length in series the law was built for, m, and `1/(2*(span + a))`:
+    /// spares the division in the plant's solves.
+    span_m: f64,
+    inv_two_alpha: f64,
     /// Weight (sum of radii, m) of the segment where the slip zone ends.
     w_seg: f64,
     /// Tension at the inner end of the longest wrap per unit `Tb` (`End` only).
@@ -98,6 +102,8 @@ impl WrapLaw {
         q: 0.0,
         c: 0.0,
         beta: 0.0,
+        span_m: f64::NAN,
+        inv_two_alpha: 0.0,
         w_seg: 0.0,
         end_factor: 0.0,
     };
@@ -206,8 +212,16 @@ impl WrapLaw {
                     return None;
                 }
                 let root = disc.sqrt();
-                let u = if beta <= 0.0 {
-                    (root - beta) / (2.0 * alpha)
+                let inv = if span == self.span_m {
+                    self.inv_two_alpha
+                } else {
+                    0.5 / alpha
+                };
+                let lift = root - beta;
+                // (root - beta)/(2 alpha) loses digits only when root and beta nearly cancel
+                // (beta > 0 and a small 4*alpha*rest); the other form is exact there.
+                let u = if beta <= 0.0 || lift.abs() >= 0.125 * beta {
+                    lift * inv
                 } else {
                     -2.0 * rest / (beta + root)
                 };
@@ -297,6 +311,9 @@ pub struct WrapRegion {
     growth_at_cut: f64,
     decay_at_end: f64,
     growth_at_end: f64,
+    /// Free-span length in series with the wrap (its compliance times `E*A`), m: laws
+    /// precompute their quadratic's leading coefficient for it.
+    series_span_m: f64,
     /// `integral_0^wrap weight ds / mu`, m rad: the scale of a wrap's tension integrals
     /// per newton.
     slip_weight_per_mu: f64,
@@ -348,6 +365,7 @@ impl WrapRegion {
             growth_at_cut: (mu * cut_rad).exp(),
             decay_at_end: (-mu * wrap_rad).exp(),
             growth_at_end: (mu * wrap_rad).exp(),
+            series_span_m: 0.0,
             slip_weight_per_mu: (weight_inner_m * cut_rad + weight_outer_m * (wrap_rad - cut_rad))
                 / mu,
             verts: Vec::with_capacity(16),
@@ -356,6 +374,14 @@ impl WrapRegion {
         };
         region.reset();
         region
+    }
+
+    /// The same region with a free span of length `span_m` (m) in series, for which
+    /// [`Self::tension_for_elongation`] is fastest (any span still works).
+    pub fn with_series_span(mut self, span_m: f64) -> Self {
+        self.series_span_m = span_m;
+        self.reset();
+        self
     }
 
     /// Forget all history: back to the uniform preloaded profile.
@@ -425,6 +451,15 @@ impl WrapRegion {
     /// point inward to the first breakpoint the new slip zone does not lift (rising) or
     /// lower (falling).
     fn build_law(&self, tb_n: f64) -> WrapLaw {
+        let law = self.build_law_shape(tb_n);
+        WrapLaw {
+            span_m: self.series_span_m,
+            inv_two_alpha: 0.5 / (self.series_span_m + law.a),
+            ..law
+        }
+    }
+
+    fn build_law_shape(&self, tb_n: f64) -> WrapLaw {
         let (mu, pre) = (self.mu, self.preload_n);
         let top = self.verts.len() - 1;
         let top_v = self.verts[top];
