@@ -105,7 +105,10 @@ proptest! {
             drive.apply_torque(h).unwrap();
         }
         let after = drive.apply_torque(m).unwrap();
-        prop_assert!((fresh.transmission_error_rad - after.transmission_error_rad).abs() < 1e-15);
+        // Each solve stops within 1e-13 of the tension (about 1e-15 rad of transmission
+        // error on the bench); two solves from different starting points may differ by a few
+        // of those.
+        prop_assert!((fresh.transmission_error_rad - after.transmission_error_rad).abs() < 1e-14);
     }
 }
 
