@@ -46,7 +46,7 @@ pub struct HalfGuess {
 pub struct WarmStart {
     /// Upper and lower half.
     pub half: [HalfGuess; 2],
-    /// Evaluations of a half's elongation law so far (Newton iterations).
+    /// Tension solves of a half so far.
     pub trials: u64,
 }
 

@@ -124,7 +124,7 @@ pub fn write_closed_loop_outputs(
             periods: a.periods + m.stats.periods,
             steps: a.steps + m.stats.steps,
             rhs_evaluations: a.rhs_evaluations + m.stats.rhs_evaluations,
-            newton_evaluations: a.newton_evaluations + m.stats.newton_evaluations,
+            tension_solves: a.tension_solves + m.stats.tension_solves,
             rejected_steps: a.rejected_steps + m.stats.rejected_steps,
             compensator_faults: a.compensator_faults + m.stats.compensator_faults,
             wall_s: a.wall_s + m.stats.wall_s,

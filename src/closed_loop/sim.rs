@@ -103,11 +103,12 @@ pub struct SolverStats {
     pub periods: u64,
     /// RK4 steps taken.
     pub steps: u64,
-    /// Right-hand-side evaluations (each solves both span tensions by Newton).
+    /// Right-hand-side evaluations (each solves both span tensions exactly).
     pub rhs_evaluations: u64,
-    /// Evaluations of a cable half's elongation law inside the right-hand side (Newton
-    /// iterations of the tension solves; 0 for the linear cable).
-    pub newton_evaluations: u64,
+    /// Tension solves of a cable half, in the right-hand side and at period boundaries
+    /// (closed form on the stored segment the slip zone ends on, Newton only across
+    /// segments; 0 for the linear cable).
+    pub tension_solves: u64,
     /// Rejected steps (always 0 with fixed-step RK4; kept for adaptive solvers).
     pub rejected_steps: u64,
     /// Samples at which the compensator's own model faulted and held its prediction.
@@ -581,7 +582,7 @@ fn run_mode(
             x[OMEGA_O] = 0.0;
         }
     }
-    stats.newton_evaluations = warm.trials;
+    stats.tension_solves = warm.trials;
     stats.compensator_faults = comp.as_ref().map_or(0, Compensator::faults);
     stats.wall_s = wall.elapsed().as_secs_f64();
     ModeResult {

@@ -193,39 +193,55 @@ impl WrapLaw {
     /// `target` (N m; `span` is the free span's length in m), on this law's closed form:
     /// a quadratic in `sqrt(Tb)` on a sloped segment, linear past the end, Newton from
     /// `start` on the plateau's virgin curve. `None` when the law has no such root.
-    #[inline]
+    #[inline(always)]
     fn solve(&self, target: f64, span: f64, preload_n: f64, mu: f64, start: f64) -> Option<f64> {
+        if self.kind != LawKind::Sloped {
+            return self.solve_other(target, span, preload_n, mu, start);
+        }
+        let alpha = span + self.a;
+        let rest = self.c - span * preload_n - target;
+        // Quadratic in u = sqrt(Tb): alpha*u^2 + beta*u + rest = 0, on the branch
+        // where the elongation increases (2*alpha*u + beta > 0). Each form avoids
+        // cancellation for its sign of beta.
+        let beta = self.beta;
+        let disc = beta * beta - 4.0 * alpha * rest;
+        if disc.is_nan() || disc < 0.0 {
+            return None;
+        }
+        let root = disc.sqrt();
+        let inv = if span == self.span_m {
+            self.inv_two_alpha
+        } else {
+            0.5 / alpha
+        };
+        let lift = root - beta;
+        // (root - beta)/(2 alpha) loses digits only when root and beta nearly cancel
+        // (beta > 0 and a small 4*alpha*rest); the other form is exact there.
+        let u = if beta <= 0.0 || lift.abs() >= 0.125 * beta {
+            lift * inv
+        } else {
+            -2.0 * rest / (beta + root)
+        };
+        (u.is_finite() && u > 0.0).then_some(u * u)
+    }
+
+    /// [`Self::solve`] off the sloped segments: past the end, on the plateau.
+    #[cold]
+    #[inline(never)]
+    fn solve_other(
+        &self,
+        target: f64,
+        span: f64,
+        preload_n: f64,
+        mu: f64,
+        start: f64,
+    ) -> Option<f64> {
         let alpha = span + self.a;
         let rest = self.c - span * preload_n - target;
         match self.kind {
             LawKind::End => {
                 let t = -rest / alpha;
                 (t > 0.0).then_some(t)
-            }
-            LawKind::Sloped => {
-                // Quadratic in u = sqrt(Tb): alpha*u^2 + beta*u + rest = 0, on the branch
-                // where the elongation increases (2*alpha*u + beta > 0). Each form avoids
-                // cancellation for its sign of beta.
-                let beta = self.beta;
-                let disc = beta * beta - 4.0 * alpha * rest;
-                if disc.is_nan() || disc < 0.0 {
-                    return None;
-                }
-                let root = disc.sqrt();
-                let inv = if span == self.span_m {
-                    self.inv_two_alpha
-                } else {
-                    0.5 / alpha
-                };
-                let lift = root - beta;
-                // (root - beta)/(2 alpha) loses digits only when root and beta nearly cancel
-                // (beta > 0 and a small 4*alpha*rest); the other form is exact there.
-                let u = if beta <= 0.0 || lift.abs() >= 0.125 * beta {
-                    lift * inv
-                } else {
-                    -2.0 * rest / (beta + root)
-                };
-                (u.is_finite() && u > 0.0).then_some(u * u)
             }
             LawKind::Plateau => {
                 // alpha*Tb + bt*s(Tb) + rest with s = +-ln(Tb/Tpre)/mu: increasing, and
@@ -255,7 +271,7 @@ impl WrapLaw {
                 }
                 None
             }
-            LawKind::Stuck | LawKind::Invalid => None,
+            LawKind::Sloped | LawKind::Stuck | LawKind::Invalid => None,
         }
     }
 }
