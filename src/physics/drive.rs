@@ -343,6 +343,9 @@ pub struct CableDrive {
     state: DriveState,
     /// Last non-zero change of `Tu - Tl`, N (its sign tells a reversal).
     last_change: f64,
+    /// Torque of the last committed quasi-static step, N m: the same torque again changes
+    /// nothing (a held brake load, for one), so its state is returned as it is.
+    committed_torque_nm: Option<f64>,
     /// Share of a change of `Tu - Tl` taken by the upper span at the last state.
     upper_share: f64,
 }
@@ -389,6 +392,7 @@ impl CableDrive {
             model,
             state,
             last_change: 0.0,
+            committed_torque_nm: Some(0.0),
             upper_share: 0.5,
         }
     }
@@ -423,6 +427,7 @@ impl CableDrive {
         self.upper.reset();
         self.lower.reset();
         self.last_change = 0.0;
+        self.committed_torque_nm = Some(0.0);
         self.upper_share = 0.5;
         self.state = DriveState {
             tension_upper_n: self.params.preload_n,
@@ -494,6 +499,9 @@ impl CableDrive {
     ///
     /// Solves `Tu - Tl = M/ro` and `elong_u(Tu) + elong_l(Tl) = 0` by safeguarded Newton.
     pub fn trial_torque(&self, torque_nm: f64) -> Result<DriveState, DriveFault> {
+        if self.committed_torque_nm == Some(torque_nm) {
+            return Ok(self.state);
+        }
         self.solve_torque(torque_nm).map(|solved| solved.state)
     }
 
@@ -633,6 +641,9 @@ impl CableDrive {
     /// Quasi-static step: apply transmitted torque `torque_nm` and commit the new tension
     /// profiles. On a fault nothing is committed.
     pub fn apply_torque(&mut self, torque_nm: f64) -> Result<DriveState, DriveFault> {
+        if self.committed_torque_nm == Some(torque_nm) {
+            return Ok(self.state);
+        }
         let Solved {
             state,
             up,
@@ -650,6 +661,7 @@ impl CableDrive {
         self.upper_share =
             lo.d_elongation_m_per_n / (up.d_elongation_m_per_n + lo.d_elongation_m_per_n);
         self.state = state;
+        self.committed_torque_nm = Some(torque_nm);
         Ok(state)
     }
 
@@ -675,6 +687,7 @@ impl CableDrive {
         self.upper.commit(state.tension_upper_n);
         self.lower.commit(state.tension_lower_n);
         self.state = state;
+        self.committed_torque_nm = None;
     }
 
     /// [`Self::state_at`] followed by [`Self::commit_state`], evaluating each half once:
@@ -697,6 +710,7 @@ impl CableDrive {
         self.upper.commit_trial_with_slip(&up, &su);
         self.lower.commit_trial_with_slip(&lo, &sl);
         self.state = state;
+        self.committed_torque_nm = None;
         Ok(state)
     }
 }
