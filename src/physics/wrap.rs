@@ -1114,4 +1114,85 @@ mod tests {
             assert!((sum - shared.elongation_m()).abs() < floor, "{tb}");
         }
     }
+
+    /// Deterministic uniform numbers in [0, 1) for the history tests.
+    fn lcg(state: &mut u64) -> f64 {
+        *state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (*state >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    #[test]
+    fn cached_laws_agree_with_fresh_walks() {
+        let (rd, wd, rp, wp) = (0.1025, 0.9, 0.02, 2.5);
+        let mut region = WrapRegion::with_regions(&[(rd, wd), (rp, wp)], MU, TPRE, G);
+        let mut rng = 99u64;
+        let mut tb = TPRE;
+        for _ in 0..3000 {
+            // Runs of small same-direction moves (the law carries on) broken by reversals
+            // and occasional jumps past earlier extremes.
+            let step = if lcg(&mut rng) < 0.1 { 40.0 } else { 2.0 };
+            tb = (tb + step * (lcg(&mut rng) - 0.45)).clamp(30.0, 260.0);
+            let probe = tb * (1.0 + 0.02 * (lcg(&mut rng) - 0.5));
+            let cached = region.trial(probe);
+            let fresh = region.trial_from(region.build_law(probe), probe);
+            let scale = (rd * wd + rp * wp) * probe / G;
+            assert!((cached.elongation_m - fresh.elongation_m).abs() <= 1e-13 * scale);
+            assert!(
+                (cached.d_elongation_m_per_n - fresh.d_elongation_m_per_n).abs()
+                    <= 1e-12 * fresh.d_elongation_m_per_n.abs() + 1e-18
+            );
+            region.commit(tb);
+        }
+    }
+
+    #[test]
+    fn tension_for_elongation_inverts_the_elongation_law() {
+        // The closed-form (quadratic in sqrt(T)) solve against the independent route: the
+        // trial's elongation at the returned tension, plus the free span in series.
+        let (rd, wd, rp, wp, span) = (0.1025, 0.9, 0.02, 2.5, 0.0777);
+        let mut region =
+            WrapRegion::with_regions(&[(rd, wd), (rp, wp)], MU, TPRE, G).with_series_span(span);
+        let span_per_n = span / G;
+        let total = |t: f64, r: &WrapRegion| span_per_n * (t - TPRE) + r.trial(t).elongation_m;
+        let mut rng = 7u64;
+        let mut tb = TPRE;
+        for k in 0..2000 {
+            tb = (tb + 30.0 * (lcg(&mut rng) - 0.5)).clamp(20.0, 300.0);
+            region.commit(tb);
+            let want = tb * (1.0 + 0.1 * (lcg(&mut rng) - 0.5));
+            let target = total(want, &region);
+            // Guesses from exact to far off: the segment search must not depend on them.
+            let guess = match k % 3 {
+                0 => want,
+                1 => tb,
+                _ => f64::NAN,
+            };
+            let t = region
+                .tension_for_elongation(target, span_per_n, guess)
+                .expect("a positive tension fits");
+            assert!((t - want).abs() <= 1e-12 * want, "k {k}: {t} vs {want}");
+            // The other spans' path (no precomputed leading coefficient) agrees.
+            let other = region
+                .tension_for_elongation(
+                    target + span_per_n * (want - TPRE),
+                    2.0 * span_per_n,
+                    guess,
+                )
+                .expect("a positive tension fits");
+            assert!(
+                (other - want).abs() <= 1e-12 * want,
+                "k {k}: {other} vs {want}"
+            );
+        }
+    }
+
+    #[test]
+    fn tension_for_elongation_reports_slack() {
+        let region = WrapRegion::new(R, 2.0, MU, TPRE, G).with_series_span(0.08);
+        // Shorter than the cable can get with any positive tension.
+        let slack = region.tension_for_elongation(-1.0, 0.08 / G, TPRE);
+        assert_eq!(slack, None);
+    }
 }
