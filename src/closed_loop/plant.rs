@@ -29,15 +29,16 @@ pub const THETA_O: usize = 3;
 /// Index of the output speed.
 pub const OMEGA_O: usize = 4;
 
-/// Where the last tension solve of one half ended: tension, its elongation target and
-/// the local stiffness `dT/d elong`, for a tangent-line first guess.
+/// Where the last tension solve of one half ended, with a stiffness `dT/d elong`: the
+/// tangent-line guess that picks a stored segment when the half's cached one no longer
+/// holds.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HalfGuess {
     /// Span tension, N.
     pub tension_n: f64,
     /// Elongation target it solved, m.
     pub elongation_m: f64,
-    /// Local stiffness, N/m.
+    /// Stiffness of the guess line, N/m (the half's nominal stiffness).
     pub stiffness_n_per_m: f64,
 }
 

@@ -568,7 +568,7 @@ impl CableDrive {
             _ => (self.upper.trial(tu), self.lower.trial(tl)),
         };
         // The general solver stops once its step is within the tolerance, so its last
-        // iterate can be off by that step: one more Newton correction makes it exact.
+        // iterate can be off by that step: one more Newton correction brings it to rounding.
         let off = (up.elongation_m + lo.elongation_m)
             / (up.d_elongation_m_per_n + lo.d_elongation_m_per_n);
         if off.abs() > 0.01 * TENSION_RTOL * tu.max(pre) && tu - off > lower_bound {
