@@ -479,25 +479,36 @@ impl CableDrive {
         Ok(())
     }
 
-    /// Full state of both halves at span tensions `(tu, tl)`, with the gross-slip check.
-    fn checked_state(
-        &self,
-        tu: f64,
-        tl: f64,
-        up: &HalfTrial,
-        lo: &HalfTrial,
-    ) -> Result<DriveState, DriveFault> {
-        let su = self.upper.slip(up);
-        let sl = self.lower.slip(lo);
+    /// Full state of both halves at span tensions `(tu, tl)` from their trials, with the
+    /// gross-slip check, and what a commit of it needs.
+    fn solved(&self, tu: f64, tl: f64, up: HalfTrial, lo: HalfTrial) -> Result<Solved, DriveFault> {
+        let su = self.upper.slip(&up);
+        let sl = self.lower.slip(&lo);
         self.check_pulley(Half::Upper, tu, &su)?;
         self.check_pulley(Half::Lower, tl, &sl)?;
-        Ok(self.state_from(tu, tl, up, lo, (&su, &sl)))
+        Ok(Solved {
+            state: self.state_from(tu, tl, &up, &lo, (&su, &sl)),
+            up,
+            lo,
+            su,
+            sl,
+        })
+    }
+
+    /// [`Self::solved`] for tensions solved elsewhere for the displacement
+    /// `displacement_m` (m), which the state then reports as it is.
+    fn solved_at(&self, tu: f64, tl: f64, displacement_m: f64) -> Result<Solved, DriveFault> {
+        let mut solved = self.solved(tu, tl, self.upper.trial(tu), self.lower.trial(tl))?;
+        solved.state.surface_displacement_m = displacement_m;
+        solved.state.transmission_error_rad = -displacement_m / self.params.drum_radius_m;
+        Ok(solved)
     }
 
     /// Quasi-static state when the cable transmits torque `torque_nm` (N m, `M = -Ml`,
     /// positive tightens the upper span), without committing it to memory.
     ///
-    /// Solves `Tu - Tl = M/ro` and `elong_u(Tu) + elong_l(Tl) = 0` by safeguarded Newton.
+    /// Solves `Tu - Tl = M/ro` and `elong_u(Tu) + elong_l(Tl) = 0`: Halley steps on the
+    /// halves' closed-form laws, safeguarded Newton when a slip zone changes segment.
     pub fn trial_torque(&self, torque_nm: f64) -> Result<DriveState, DriveFault> {
         if self.committed_torque_nm == Some(torque_nm) {
             return Ok(self.state);
@@ -577,17 +588,7 @@ impl CableDrive {
             up = self.upper.trial(tu);
             lo = self.lower.trial(tl);
         }
-        let su = self.upper.slip(&up);
-        let sl = self.lower.slip(&lo);
-        self.check_pulley(Half::Upper, tu, &su)?;
-        self.check_pulley(Half::Lower, tl, &sl)?;
-        Ok(Solved {
-            state: self.state_from(tu, tl, &up, &lo, (&su, &sl)),
-            up,
-            lo,
-            su,
-            sl,
-        })
+        self.solved(tu, tl, up, lo)
     }
 
     /// The usual quasi-static solve: both slip zones end on stored segments whose laws are
@@ -644,15 +645,8 @@ impl CableDrive {
         if self.committed_torque_nm == Some(torque_nm) {
             return Ok(self.state);
         }
-        let Solved {
-            state,
-            up,
-            lo,
-            su,
-            sl,
-        } = self.solve_torque(torque_nm)?;
-        self.upper.commit_trial_with_slip(&up, &su);
-        self.lower.commit_trial_with_slip(&lo, &sl);
+        let solved = self.solve_torque(torque_nm)?;
+        let (state, up, lo) = (solved.state, solved.up, solved.lo);
         let change = (state.tension_upper_n - state.tension_lower_n)
             - (self.state.tension_upper_n - self.state.tension_lower_n);
         if change != 0.0 {
@@ -660,7 +654,7 @@ impl CableDrive {
         }
         self.upper_share =
             lo.d_elongation_m_per_n / (up.d_elongation_m_per_n + lo.d_elongation_m_per_n);
-        self.state = state;
+        self.commit_solved(&solved);
         self.committed_torque_nm = Some(torque_nm);
         Ok(state)
     }
@@ -674,12 +668,8 @@ impl CableDrive {
         tl: f64,
         displacement_m: f64,
     ) -> Result<DriveState, DriveFault> {
-        let up = self.upper.trial(tu);
-        let lo = self.lower.trial(tl);
-        let mut state = self.checked_state(tu, tl, &up, &lo)?;
-        state.surface_displacement_m = displacement_m;
-        state.transmission_error_rad = -displacement_m / self.params.drum_radius_m;
-        Ok(state)
+        self.solved_at(tu, tl, displacement_m)
+            .map(|solved| solved.state)
     }
 
     /// Commit a state (from a trial) to the wrap memory.
@@ -698,19 +688,16 @@ impl CableDrive {
         tl: f64,
         displacement_m: f64,
     ) -> Result<DriveState, DriveFault> {
-        let up = self.upper.trial(tu);
-        let lo = self.lower.trial(tl);
-        let su = self.upper.slip(&up);
-        let sl = self.lower.slip(&lo);
-        self.check_pulley(Half::Upper, tu, &su)?;
-        self.check_pulley(Half::Lower, tl, &sl)?;
-        let mut state = self.state_from(tu, tl, &up, &lo, (&su, &sl));
-        state.surface_displacement_m = displacement_m;
-        state.transmission_error_rad = -displacement_m / self.params.drum_radius_m;
-        self.upper.commit_trial_with_slip(&up, &su);
-        self.lower.commit_trial_with_slip(&lo, &sl);
-        self.state = state;
+        let solved = self.solved_at(tu, tl, displacement_m)?;
+        self.commit_solved(&solved);
         self.committed_torque_nm = None;
-        Ok(state)
+        Ok(solved.state)
+    }
+
+    /// Commit both halves' profiles and the state of a solve on the current memory.
+    fn commit_solved(&mut self, solved: &Solved) {
+        self.upper.commit_trial_with_slip(&solved.up, &solved.su);
+        self.lower.commit_trial_with_slip(&solved.lo, &solved.sl);
+        self.state = solved.state;
     }
 }

@@ -94,7 +94,12 @@ impl CableHalf {
     /// Elongation if the span tension became `tension_n` (> 0), nothing committed.
     #[inline]
     pub fn trial(&self, tension_n: f64) -> HalfTrial {
-        let wrap = self.wrap.trial(tension_n);
+        self.with_span(self.wrap.trial(tension_n), tension_n)
+    }
+
+    /// A wrap trial at `tension_n` with the free span added.
+    #[inline]
+    fn with_span(&self, wrap: WrapTrial, tension_n: f64) -> HalfTrial {
         let span_per_n = self.span_m / self.modulus_n;
         HalfTrial {
             elongation_m: span_per_n * (tension_n - self.preload_n) + wrap.elongation_m,
@@ -151,14 +156,7 @@ impl CableHalf {
     /// [`Self::trial`] with a law held by the caller (see [`WrapRegion::trial_with`]).
     #[inline]
     pub(crate) fn trial_with(&self, law: &mut WrapLaw, tension_n: f64) -> HalfTrial {
-        let wrap = self.wrap.trial_with(law, tension_n);
-        let span_per_n = self.span_m / self.modulus_n;
-        HalfTrial {
-            elongation_m: span_per_n * (tension_n - self.preload_n) + wrap.elongation_m,
-            d_elongation_m_per_n: span_per_n + wrap.d_elongation_m_per_n,
-            d2_elongation: wrap.d2_elongation,
-            wrap,
-        }
+        self.with_span(self.wrap.trial_with(law, tension_n), tension_n)
     }
 
     /// Forget all history.
