@@ -11,14 +11,15 @@
 //! Along a segment of log-slope `-mu` the product `T*exp(mu*s)` is constant, along one of
 //! slope `+mu` the product `T*exp(-mu*s)`. Keeping both products at every breakpoint makes
 //! the search for where a new slip zone meets the stored profile a walk of comparisons,
-//! and the meeting tension a square root (`T* = sqrt(Tb * T_a*exp(-+mu*s_a))`): no
-//! logarithm or exponential on the hot path, except on the untouched preload plateau,
-//! whose elongation law is the virgin curve with its logarithm.
+//! and the meeting tension a square root (`T* = sqrt(Tb * T_a*exp(-+mu*s_a))`): trials
+//! need no logarithm or exponential, except on the untouched preload plateau, whose
+//! elongation law is the virgin curve with its logarithm. Only the slip angle, which a
+//! commit stores as the new breakpoint's position, costs one logarithm.
 //!
 //! The elongation as a function of `Tb` is one closed form for as long as the slip zone
-//! ends on the same stored segment ([`WrapLaw`]). The region keeps the law it used last;
-//! a load that keeps rising (or falling) across commits keeps the same law, so most trials
-//! skip the walk altogether.
+//! ends on the same stored segment (`WrapLaw`). The region keeps the last law for loading
+//! and the last for unloading; a load that keeps rising (or falling) across commits keeps
+//! the same law, so most trials skip the walk altogether.
 
 use std::cell::Cell;
 
