@@ -255,7 +255,7 @@ pub struct Spec {
 /// Parameters of a fitted model.
 #[derive(Clone, Debug)]
 pub struct Fitted {
-    /// Nonlinear parameters (layout of [`Spec::nonlinear`]).
+    /// Nonlinear parameters (layout of `Spec::nonlinear`).
     pub x: Vec<f64>,
     /// Linear coefficients.
     pub coef: Vec<f64>,
