@@ -194,6 +194,17 @@ impl Signal {
             }
         };
         // Angles and rates beyond any pointing motion; also keeps derivatives finite.
+        // A period or frequency: finite and above zero.
+        let positive = |name: &str, v: f64, what: &str, unit: &str| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(format!(
+                    "{name} = {} must be a finite {what} > 0 {unit}",
+                    crate::number(v)
+                ))
+            }
+        };
         let angle = |name: &str, v: f64| {
             finite(name, v)?;
             if v.abs() <= MAX_ANGLE_RAD {
@@ -236,12 +247,7 @@ impl Signal {
                 steps_per_sweep,
             } => {
                 angle("amplitude_rad", *amplitude_rad)?;
-                if !(period_s.is_finite() && *period_s > 0.0) {
-                    return Err(format!(
-                        "period_s = {} must be a finite time > 0 s",
-                        crate::number(*period_s)
-                    ));
-                }
+                positive("period_s", *period_s, "time", "s")?;
                 if *steps_per_sweep == 0 {
                     return Err("steps_per_sweep = 0 must be at least 1".into());
                 }
@@ -272,12 +278,7 @@ impl Signal {
                 turn_fraction,
             } => {
                 angle("amplitude_rad", *amplitude_rad)?;
-                if !(frequency_hz.is_finite() && *frequency_hz > 0.0) {
-                    return Err(format!(
-                        "frequency_hz = {} must be a finite frequency > 0 Hz",
-                        crate::number(*frequency_hz)
-                    ));
-                }
+                positive("frequency_hz", *frequency_hz, "frequency", "Hz")?;
                 if !(*turn_fraction >= 1e-3 && *turn_fraction < 1.0) {
                     return Err(format!(
                         "turn_fraction = {} must be in [0.001, 1)",

@@ -64,15 +64,6 @@ impl WarmStart {
             trials: 0,
         }
     }
-
-    /// Re-anchor at committed tensions `(Tu, Tl)` for displacement `d`, keeping the
-    /// stiffnesses.
-    pub fn anchor(&mut self, d: f64, tensions: (f64, f64)) {
-        self.half[0].tension_n = tensions.0;
-        self.half[0].elongation_m = d;
-        self.half[1].tension_n = tensions.1;
-        self.half[1].elongation_m = -d;
-    }
 }
 
 /// Tension of one half whose elongation must equal `target` (m), exact.

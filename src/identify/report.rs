@@ -98,37 +98,31 @@ pub(crate) fn parameters(
         let sp = std_of(cov, &[(i, -b / (h * h)), (j, a / (h * h))]);
         Some((amp, s, ph, sp))
     };
-    if let Some((v, s, ph, sp)) = pair(EffectName::InputPulleyRunout, ic) {
+    // A runout is fitted as two quadrature terms; it is reported as amplitude and phase.
+    let mut push_runout = |name: &str, (v, s, ph, sp): (f64, f64, f64, f64)| {
+        out.push(ParamEstimate {
+            name: name.into(),
+            value: v,
+            std: s,
+            unit: "1 (eccentricity/radius)".into(),
+        });
+        out.push(ParamEstimate {
+            name: format!("{name}_phase"),
+            value: ph,
+            std: sp,
+            unit: "rad".into(),
+        });
+        (v, ph)
+    };
+    if let Some(fit) = pair(EffectName::InputPulleyRunout, ic) {
+        let (v, ph) = push_runout("input_pulley_runout", fit);
         eff.input_pulley_runout = Some(v);
         eff.input_pulley_runout_phase_rad = Some(ph);
-        out.push(ParamEstimate {
-            name: "input_pulley_runout".into(),
-            value: v,
-            std: s,
-            unit: "1 (eccentricity/radius)".into(),
-        });
-        out.push(ParamEstimate {
-            name: "input_pulley_runout_phase".into(),
-            value: ph,
-            std: sp,
-            unit: "rad".into(),
-        });
     }
-    if let Some((v, s, ph, sp)) = pair(EffectName::OutputDrumRunout, 1.0) {
+    if let Some(fit) = pair(EffectName::OutputDrumRunout, 1.0) {
+        let (v, ph) = push_runout("output_drum_runout", fit);
         eff.output_drum_runout = Some(v);
         eff.output_drum_runout_phase_rad = Some(ph);
-        out.push(ParamEstimate {
-            name: "output_drum_runout".into(),
-            value: v,
-            std: s,
-            unit: "1 (eccentricity/radius)".into(),
-        });
-        out.push(ParamEstimate {
-            name: "output_drum_runout_phase".into(),
-            value: ph,
-            std: sp,
-            unit: "rad".into(),
-        });
     }
     for (e, unit) in [
         (EffectName::EncoderDelay, "s"),

@@ -659,29 +659,10 @@ impl CableDrive {
         Ok(state)
     }
 
-    /// Full state for span tensions `tu`, `tl` (N) solved elsewhere for the displacement
-    /// `displacement_m` (e.g. by a warm-started dynamic solve): slip angles, anchor flags
-    /// and the gross-slip check. Nothing is committed.
-    pub fn state_at(
-        &self,
-        tu: f64,
-        tl: f64,
-        displacement_m: f64,
-    ) -> Result<DriveState, DriveFault> {
-        self.solved_at(tu, tl, displacement_m)
-            .map(|solved| solved.state)
-    }
-
-    /// Commit a state (from a trial) to the wrap memory.
-    pub fn commit_state(&mut self, state: DriveState) {
-        self.upper.commit(state.tension_upper_n);
-        self.lower.commit(state.tension_lower_n);
-        self.state = state;
-        self.committed_torque_nm = None;
-    }
-
-    /// [`Self::state_at`] followed by [`Self::commit_state`], evaluating each half once:
-    /// the period-boundary step of the dynamic plant. On a fault nothing is committed.
+    /// Commit span tensions `tu`, `tl` (N) solved elsewhere for the displacement
+    /// `displacement_m` (m), e.g. by the dynamic plant at a period boundary: the state
+    /// with slip angles, anchor flags and the gross-slip check, then both profiles. On a
+    /// fault nothing is committed.
     pub fn commit_tensions(
         &mut self,
         tu: f64,
