@@ -320,8 +320,9 @@ pub struct DriveState {
     pub elongation_upper_m: f64,
     /// Elongation of the lower half, m (equals `-D` at equilibrium).
     pub elongation_lower_m: f64,
-    /// Slip-zone lengths, rad: `[upper drum, upper pulley, lower drum, lower pulley]`.
-    pub slip_angles_rad: [f64; 4],
+    /// Slip growth `exp(mu*s)` of `[upper, lower]` for a slip zone of length `s` over the
+    /// stored profile (1 = none): [`CableDrive::slip_angles_rad`] turns it into angles.
+    pub slip_growth: [f64; 2],
     /// Whether the drum slip zone of `[upper, lower]` reaches the anchor (profile cut there).
     pub anchor_reached: [bool; 2],
 }
@@ -348,19 +349,33 @@ pub struct CableDrive {
     committed_torque_nm: Option<f64>,
     /// Share of a change of `Tu - Tl` taken by the upper span at the last state.
     upper_share: f64,
+    /// `1/ro`, 1/m: the step's first and last operations multiply by it.
+    inv_drum_radius: f64,
 }
 
-/// A solved quasi-static state with the trials and slip zones its commit needs.
+/// A solved quasi-static state with the trials its commit needs.
 struct Solved {
     state: DriveState,
     up: HalfTrial,
     lo: HalfTrial,
-    su: HalfSlip,
-    sl: HalfSlip,
 }
 
 /// Relative tolerance on span tensions of every solve (far below any measurable effect).
 const TENSION_RTOL: f64 = 1e-13;
+
+/// Stored segments the closed-form quasi-static solve may move through before the
+/// general solver takes over (a step of a smooth load history crosses one or two).
+const MAX_SEGMENT_HOPS: usize = 4;
+
+/// Outcome of the closed-form quasi-static solve on a pair of laws.
+enum ClosedRoot {
+    /// The root, within both laws' ranges.
+    Found(f64),
+    /// The laws' root lies outside one of their ranges: the upper tension there, N.
+    Outside(f64),
+    /// A law without the square-root form, or no convergence.
+    NotClosed,
+}
 
 impl CableDrive {
     /// A preloaded drive in its virgin state. `params` should have passed
@@ -385,6 +400,7 @@ impl CableDrive {
             tension_lower_n: params.preload_n,
             ..DriveState::default()
         };
+        let inv_drum_radius = 1.0 / params.drum_radius_m;
         CableDrive {
             upper: half(),
             lower: half(),
@@ -394,6 +410,7 @@ impl CableDrive {
             last_change: 0.0,
             committed_torque_nm: Some(0.0),
             upper_share: 0.5,
+            inv_drum_radius,
         }
     }
 
@@ -451,16 +468,26 @@ impl CableDrive {
             tension_upper_n: tu,
             tension_lower_n: tl,
             surface_displacement_m: d,
-            transmission_error_rad: -d / self.params.drum_radius_m,
+            transmission_error_rad: -d * self.inv_drum_radius,
             elongation_upper_m: up.elongation_m,
             elongation_lower_m: lo.elongation_m,
-            slip_angles_rad: [
-                su.drum_slip_rad,
-                su.pulley_slip_rad,
-                sl.drum_slip_rad,
-                sl.pulley_slip_rad,
-            ],
+            slip_growth: [su.growth, sl.growth],
             anchor_reached: [su.drum_anchor_reached, sl.drum_anchor_reached],
+        }
+    }
+
+    /// Slip-zone lengths of a state, rad: `[upper drum, upper pulley, lower drum, lower
+    /// pulley]`, each at most its region's wrap (0 to pi on the bench drum).
+    pub fn slip_angles_rad(&self, state: &DriveState) -> [f64; 4] {
+        let (ud, up) = self.upper.slip_angles_rad(state.slip_growth[0]);
+        let (ld, lp) = self.lower.slip_angles_rad(state.slip_growth[1]);
+        [ud, up, ld, lp]
+    }
+
+    fn half(&self, half: Half) -> &CableHalf {
+        match half {
+            Half::Upper => &self.upper,
+            Half::Lower => &self.lower,
         }
     }
 
@@ -471,7 +498,7 @@ impl CableDrive {
                 (tension_n / self.params.preload_n).ln().abs() / self.params.friction_coefficient;
             return Err(DriveFault::GrossSlip {
                 half,
-                slip_angle_rad: demanded.max(slip.pulley_slip_rad),
+                slip_angle_rad: demanded.max(self.half(half).slip_angles_rad(slip.growth).1),
                 available_rad: 0.5 * self.params.pulley_wrap_rad,
                 tension_n,
             });
@@ -490,8 +517,6 @@ impl CableDrive {
             state: self.state_from(tu, tl, &up, &lo, (&su, &sl)),
             up,
             lo,
-            su,
-            sl,
         })
     }
 
@@ -500,7 +525,7 @@ impl CableDrive {
     fn solved_at(&self, tu: f64, tl: f64, displacement_m: f64) -> Result<Solved, DriveFault> {
         let mut solved = self.solved(tu, tl, self.upper.trial(tu), self.lower.trial(tl))?;
         solved.state.surface_displacement_m = displacement_m;
-        solved.state.transmission_error_rad = -displacement_m / self.params.drum_radius_m;
+        solved.state.transmission_error_rad = -displacement_m * self.inv_drum_radius;
         Ok(solved)
     }
 
@@ -516,8 +541,9 @@ impl CableDrive {
         self.solve_torque(torque_nm).map(|solved| solved.state)
     }
 
+    #[inline(always)]
     fn solve_torque(&self, torque_nm: f64) -> Result<Solved, DriveFault> {
-        let dt = torque_nm / self.params.drum_radius_m;
+        let dt = torque_nm * self.inv_drum_radius;
         let pre = self.params.preload_n;
         // Tl = Tu - dt > 0 and Tu > 0.
         let lower_bound = dt.max(0.0);
@@ -535,20 +561,55 @@ impl CableDrive {
         // unless a slip zone moves onto another stored segment.
         let mut law_u = self.upper.wrap().law_at(guess);
         let mut law_l = self.lower.wrap().law_at(guess - dt);
-        let mut last = None;
-        let mut closed = self.solve_closed(&law_u, &law_l, dt, guess);
-        if let Some(tu) = closed {
-            let up = self.upper.trial_with(&mut law_u, tu);
-            let lo = self.lower.trial_with(&mut law_l, tu - dt);
-            // The length constraint's residual, as a tension error, within the tolerance?
-            let residual = (up.elongation_m + lo.elongation_m)
-                / (up.d_elongation_m_per_n + lo.d_elongation_m_per_n);
-            if residual.abs() <= 0.01 * TENSION_RTOL * tu.max(pre) {
-                last = Some((tu, up, lo));
-            } else {
-                closed = None;
+        let mut start = guess;
+        // A root past a law's range lies on a neighbouring stored segment: the laws there
+        // give it in closed form too (the elongation is monotone, so the segments holding
+        // the root are reached in a few hops).
+        for _ in 0..MAX_SEGMENT_HOPS {
+            match self.solve_closed(&law_u, &law_l, dt, start) {
+                ClosedRoot::Found(tu) => {
+                    let up = self.upper.trial_with(&mut law_u, tu);
+                    let lo = self.lower.trial_with(&mut law_l, tu - dt);
+                    // The length constraint's residual, as a tension error, within the
+                    // tolerance?
+                    let residual = (up.elongation_m + lo.elongation_m)
+                        / (up.d_elongation_m_per_n + lo.d_elongation_m_per_n);
+                    if residual.abs() <= 0.1 * TENSION_RTOL * tu.max(pre) {
+                        return self.solved(tu, tu - dt, up, lo);
+                    }
+                    break;
+                }
+                ClosedRoot::Outside(tu) => {
+                    if !law_u.covers(tu) {
+                        law_u = self.upper.wrap().law_at(tu);
+                    }
+                    if !law_l.covers(tu - dt) {
+                        law_l = self.lower.wrap().law_at(tu - dt);
+                    }
+                    start = tu;
+                }
+                ClosedRoot::NotClosed => break,
             }
         }
+        self.solve_torque_general(torque_nm, guess, law_u, law_l)
+    }
+
+    /// [`Self::solve_torque`] when the closed form does not settle it (a slip zone on the
+    /// untouched plateau, or crossing more segments than the hops allow): safeguarded
+    /// Halley iteration over the halves' trials, then one Newton correction.
+    #[cold]
+    #[inline(never)]
+    fn solve_torque_general(
+        &self,
+        torque_nm: f64,
+        guess: f64,
+        mut law_u: WrapLaw,
+        mut law_l: WrapLaw,
+    ) -> Result<Solved, DriveFault> {
+        let dt = torque_nm * self.inv_drum_radius;
+        let pre = self.params.preload_n;
+        let lower_bound = dt.max(0.0);
+        let mut last = None;
         let residual = |tu: f64| {
             let up = self.upper.trial_with(&mut law_u, tu);
             let lo = self.lower.trial_with(&mut law_l, tu - dt);
@@ -559,11 +620,7 @@ impl CableDrive {
                 up.d2_elongation + lo.d2_elongation,
             )
         };
-        let solved = match closed {
-            Some(tu) => Ok(tu),
-            None => solve_increasing_curved(residual, lower_bound, guess, pre, TENSION_RTOL),
-        };
-        let tu = match solved {
+        let tu = match solve_increasing_curved(residual, lower_bound, guess, pre, TENSION_RTOL) {
             Ok(tu) => tu,
             Err(RootError::BelowDomain) => {
                 return Err(DriveFault::Slack {
@@ -582,7 +639,7 @@ impl CableDrive {
         // iterate can be off by that step: one more Newton correction brings it to rounding.
         let off = (up.elongation_m + lo.elongation_m)
             / (up.d_elongation_m_per_n + lo.d_elongation_m_per_n);
-        if off.abs() > 0.01 * TENSION_RTOL * tu.max(pre) && tu - off > lower_bound {
+        if off.abs() > 0.1 * TENSION_RTOL * tu.max(pre) && tu - off > lower_bound {
             tu -= off;
             tl = tu - dt;
             up = self.upper.trial(tu);
@@ -593,12 +650,14 @@ impl CableDrive {
 
     /// The usual quasi-static solve: both slip zones end on stored segments whose laws are
     /// `a*T + beta*sqrt(T) + c`, so the length constraint is a scalar equation in `Tu`
-    /// solved by Halley steps on those coefficients alone. `None` (the general solver takes
-    /// over) when a law has another form, an iterate leaves the laws' ranges or the
-    /// iteration does not settle.
-    fn solve_closed(&self, law_u: &WrapLaw, law_l: &WrapLaw, dt: f64, guess: f64) -> Option<f64> {
-        let (au, bu, cu) = law_u.sqrt_form()?;
-        let (al, bl, cl) = law_l.sqrt_form()?;
+    /// solved by Halley steps on those coefficients alone. The root is reported outside
+    /// when it leaves a law's range (the caller moves to the segment there), not closed
+    /// when a law has another form or the iteration does not settle.
+    fn solve_closed(&self, law_u: &WrapLaw, law_l: &WrapLaw, dt: f64, guess: f64) -> ClosedRoot {
+        let (Some((au, bu, cu)), Some((al, bl, cl))) = (law_u.sqrt_form(), law_l.sqrt_form())
+        else {
+            return ClosedRoot::NotClosed;
+        };
         let pre = self.params.preload_n;
         let span = self.upper.span_m();
         // E*A * (elong_u(x) + elong_l(x - dt)) = alpha*x + bu*sqrt(x) + bl*sqrt(x - dt) + gamma
@@ -608,35 +667,38 @@ impl CableDrive {
         let mut x = guess;
         for _ in 0..8 {
             if x.is_nan() || x <= floor {
-                return None;
+                return ClosedRoot::NotClosed;
             }
             let (u, v) = (x.sqrt(), (x - dt).sqrt());
-            // One division serves both reciprocals: the iteration is latency-bound.
-            let w = 1.0 / (u * v);
-            let (iu, iv) = (v * w, u * w);
-            let (ru, rv) = (0.5 * bu * iu, 0.5 * bl * iv);
+            let p = u * v;
             let f = alpha * x + bu * u + bl * v + gamma;
-            let df = alpha + ru + rv;
-            let d2f = -0.5 * (ru * iu * iu + rv * iv * iv);
-            let denominator = 2.0 * df * df - f * d2f;
-            let step = if denominator > df * df {
-                2.0 * f * df / denominator
+            // The derivatives scaled by p and p^3 (f' = d/p, f'' = d2/p^3) leave Halley's
+            // step a single division: the iteration is latency-bound.
+            let d = alpha * p + 0.5 * (bu * v + bl * u);
+            let d2 = -0.25 * (bu * v * v * v + bl * u * u * u);
+            let step = if d * d * p - f * d2 > 0.0 {
+                2.0 * f * d * p * p / (2.0 * d * d * p - f * d2)
             } else {
-                f / df
+                f * p / d
             };
             if !step.is_finite() {
-                return None;
+                return ClosedRoot::NotClosed;
             }
             // Once the step is small Halley's next iterate is exact to far below the
             // tolerance; the caller verifies it with the trials it needs anyway.
-            if step.abs() <= 1e-3 * x {
+            if step.abs() <= 1e-6 * x {
                 let next = x - step;
-                return (next > floor && law_u.covers(next) && law_l.covers(next - dt))
-                    .then_some(next);
+                return if next <= floor {
+                    ClosedRoot::NotClosed
+                } else if law_u.covers(next) && law_l.covers(next - dt) {
+                    ClosedRoot::Found(next)
+                } else {
+                    ClosedRoot::Outside(next)
+                };
             }
             x -= step;
         }
-        None
+        ClosedRoot::NotClosed
     }
 
     /// Quasi-static step: apply transmitted torque `torque_nm` and commit the new tension
@@ -677,8 +739,9 @@ impl CableDrive {
 
     /// Commit both halves' profiles and the state of a solve on the current memory.
     fn commit_solved(&mut self, solved: &Solved) {
-        self.upper.commit_trial_with_slip(&solved.up, &solved.su);
-        self.lower.commit_trial_with_slip(&solved.lo, &solved.sl);
+        // Solved on the current memory, with nothing committed since.
+        self.upper.commit_current(&solved.up);
+        self.lower.commit_current(&solved.lo);
         self.state = solved.state;
     }
 }

@@ -18,16 +18,14 @@ pub struct HalfTrial {
 /// Where the slip zones of a half end for a trial tension.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HalfSlip {
-    /// Slip-zone length on the drum (at most the drum wrap), rad.
-    pub drum_slip_rad: f64,
-    /// Slip-zone length on the pulley (at most the half's pulley wrap), rad.
-    pub pulley_slip_rad: f64,
+    /// `exp(mu*s)` for the slip zone's length `s` over the stored profile (1 = no slip
+    /// zone; about 1.1 for a 0.5 rad zone at mu = 0.2): the angles follow from it with a
+    /// logarithm only when asked for ([`CableHalf::slip_angles_rad`]).
+    pub growth: f64,
     /// The drum slip zone reaches the anchor (the profile is cut there).
     pub drum_anchor_reached: bool,
     /// The pulley slip zone reaches the neutral point: gross slip.
     pub pulley_neutral_reached: bool,
-    /// Slip zone over the stored profile, rad (for the commit).
-    slip_rad: f64,
 }
 
 /// A cable half: free span of length `span_m`, a wrap on the drum and a wrap on the pulley.
@@ -44,6 +42,11 @@ pub struct CableHalf {
     pulley_wrap_rad: f64,
     drum_radius_m: f64,
     pulley_radius_m: f64,
+    mu: f64,
+    /// `exp(mu*drum_wrap)` and `exp(mu*pulley_wrap)`: the slip growths that reach the
+    /// anchor and the neutral point.
+    drum_growth: f64,
+    pulley_growth: f64,
     /// Whether committed tensions are remembered (memory model) or every state is computed
     /// from the virgin preloaded cable (memoryless model).
     remembers: bool,
@@ -77,6 +80,9 @@ impl CableHalf {
             pulley_wrap_rad: pulley_half_wrap_rad,
             drum_radius_m,
             pulley_radius_m,
+            mu,
+            drum_growth: (mu * drum_wrap_rad).exp(),
+            pulley_growth: (mu * pulley_half_wrap_rad).exp(),
             remembers,
             wrap: WrapRegion::with_regions(
                 &[
@@ -110,15 +116,21 @@ impl CableHalf {
     }
 
     /// Slip zones of a trial on the drum and on the pulley.
+    #[inline]
     pub fn slip(&self, trial: &HalfTrial) -> HalfSlip {
-        let s = self.wrap.slip_angle_rad(&trial.wrap);
+        let g = self.wrap.slip_growth(&trial.wrap);
         HalfSlip {
-            drum_slip_rad: s.min(self.drum_wrap_rad),
-            pulley_slip_rad: s.min(self.pulley_wrap_rad),
-            drum_anchor_reached: s >= self.drum_wrap_rad,
-            pulley_neutral_reached: s >= self.pulley_wrap_rad,
-            slip_rad: s,
+            growth: g,
+            drum_anchor_reached: g >= self.drum_growth,
+            pulley_neutral_reached: g >= self.pulley_growth,
         }
+    }
+
+    /// Slip-zone lengths `(drum, pulley)`, rad, for a slip growth `exp(mu*s)` (see
+    /// [`HalfSlip::growth`]): each at most its region's wrap.
+    pub fn slip_angles_rad(&self, growth: f64) -> (f64, f64) {
+        let s = (growth.max(1.0).ln() / self.mu).min(self.wrap.wrap_rad());
+        (s.min(self.drum_wrap_rad), s.min(self.pulley_wrap_rad))
     }
 
     /// Span tension (N) at which the half's elongation equals `elongation_m` (m), the
@@ -146,10 +158,11 @@ impl CableHalf {
         }
     }
 
-    /// [`Self::commit_trial`] with the trial's slip zones already known ([`Self::slip`]).
-    pub fn commit_trial_with_slip(&mut self, trial: &HalfTrial, slip: &HalfSlip) {
+    /// [`Self::commit_trial`] for a trial known to be computed since the last commit.
+    #[inline]
+    pub(crate) fn commit_current(&mut self, trial: &HalfTrial) {
         if self.remembers {
-            self.wrap.commit_trial_with_slip(&trial.wrap, slip.slip_rad);
+            self.wrap.commit_current(&trial.wrap);
         }
     }
 

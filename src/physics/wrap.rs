@@ -13,8 +13,9 @@
 //! the search for where a new slip zone meets the stored profile a walk of comparisons,
 //! and the meeting tension a square root (`T* = sqrt(Tb * T_a*exp(-+mu*s_a))`): trials
 //! need no logarithm or exponential, except on the untouched preload plateau, whose
-//! elongation law is the virgin curve with its logarithm. Only the slip angle, which a
-//! commit stores as the new breakpoint's position, costs one logarithm.
+//! elongation law is the virgin curve with its logarithm. A commit needs no logarithm
+//! either: integrals along segments of log-slope `+-mu` follow from their end tensions,
+//! so a new breakpoint's angle is left to be computed when a report asks for it.
 //!
 //! The elongation as a function of `Tb` is one closed form for as long as the slip zone
 //! ends on the same stored segment (`WrapLaw`). The region keeps the last law for loading
@@ -26,7 +27,9 @@ use std::cell::Cell;
 /// One breakpoint of the tension profile.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Vertex {
-    /// Wrap angle from the contact point, rad.
+    /// Wrap angle from the contact point, rad; NaN where a slip zone met a sloped segment,
+    /// as nothing on the hot path needs it there (it follows from `ln(p/m)/(2*mu)`, see
+    /// [`WrapRegion::angle`]), which spares a commit its logarithm.
     s: f64,
     /// Tension `T(s)`, N.
     t: f64,
@@ -34,9 +37,13 @@ struct Vertex {
     p: f64,
     /// `T*exp(-mu*s)`, N: constant along a segment of log-slope `+mu`.
     m: f64,
-    /// `sum_regions r * integral_s^wrap (T - Tpre) ds`, N m: lets a trial profile reuse the
-    /// stuck part.
+    /// `sum_regions r * integral_s^wrap T ds`, N m: lets a trial profile reuse the stuck
+    /// part. The preload's share is left out, so that sloped segments add to it without
+    /// their lengths.
     tail: f64,
+    /// Beyond the shorter wrap (`s > cut_rad`): the segment ending here, inward, has the
+    /// longer region's weight only.
+    outer: bool,
 }
 
 /// Shape of the elongation law of a wrap around a boundary tension.
@@ -334,6 +341,9 @@ pub struct WrapRegion {
     /// `integral_0^wrap weight ds / mu`, m rad: the scale of a wrap's tension integrals
     /// per newton.
     slip_weight_per_mu: f64,
+    /// `integral_0^wrap weight ds`, m rad: the preload's share of a whole profile's
+    /// integral, which the stored tails leave out.
+    weight_total_m: f64,
     /// Breakpoints ordered from the inner end (`s = wrap`) to the contact point (`s = 0`),
     /// so that a new slip zone pops the wiped breakpoints off the end of the vector. A
     /// breakpoint always sits at `cut_rad`, so every segment has a single weight.
@@ -385,6 +395,7 @@ impl WrapRegion {
             series_span_m: 0.0,
             slip_weight_per_mu: (weight_inner_m * cut_rad + weight_outer_m * (wrap_rad - cut_rad))
                 / mu,
+            weight_total_m: weight_inner_m * cut_rad + weight_outer_m * (wrap_rad - cut_rad),
             verts: Vec::with_capacity(16),
             generation: 0,
             laws: [Cell::new(WrapLaw::INVALID), Cell::new(WrapLaw::INVALID)],
@@ -412,7 +423,8 @@ impl WrapRegion {
                     t,
                     p: t * (self.mu * s).exp(),
                     m: t * (-self.mu * s).exp(),
-                    tail: 0.0,
+                    tail: t * (self.weight_total_m - self.weighted_length(s)),
+                    outer: s > self.cut_rad,
                 });
             }
         }
@@ -434,13 +446,24 @@ impl WrapRegion {
         self.verts[self.verts.len() - 1].t
     }
 
-    /// Weight (sum of radii, m) of the segment ending at wrap angle `s_end`.
+    /// Weight (sum of radii, m) of the segment ending at breakpoint `v` inward.
     #[inline]
-    fn weight(&self, s_end: f64) -> f64 {
-        if s_end <= self.cut_rad {
-            self.weight_inner_m
-        } else {
+    fn weight(&self, v: &Vertex) -> f64 {
+        if v.outer {
             self.weight_outer_m
+        } else {
+            self.weight_inner_m
+        }
+    }
+
+    /// Wrap angle of breakpoint `v`, rad: stored, or from its two invariants when the
+    /// commit left it out (`p/m = exp(2*mu*s)`).
+    #[inline]
+    fn angle(&self, v: &Vertex) -> f64 {
+        if v.s.is_nan() {
+            ((v.p / v.m).ln() / (2.0 * self.mu)).clamp(0.0, self.wrap_rad)
+        } else {
+            v.s
         }
     }
 
@@ -486,7 +509,7 @@ impl WrapRegion {
                 generation: self.generation,
                 lo: tb_n,
                 hi: tb_n,
-                c: top_v.tail,
+                c: top_v.tail - pre * self.weight_total_m,
                 ..WrapLaw::INVALID
             };
         }
@@ -502,14 +525,14 @@ impl WrapRegion {
             let b = self.verts[k - 1];
             if (rising && b.p >= tb_n) || (!rising && b.m <= tb_n) {
                 let a = self.verts[k];
-                let w_seg = self.weight(b.s);
-                let slip_a = if b.s <= self.cut_rad {
+                let w_seg = self.weight(&b);
+                let slip_a = if !b.outer {
                     sign * self.weight_inner_m / mu
                 } else {
                     self.slip_coefficient(rising, at_cut, 0.0)
                 };
                 let (lo, hi) = if rising { (a.p, b.p) } else { (b.m, a.m) };
-                let base = b.tail - pre * self.weighted_length(b.s);
+                let base = b.tail - pre * self.weight_total_m;
                 let law = WrapLaw {
                     rising,
                     generation: self.generation,
@@ -525,7 +548,7 @@ impl WrapRegion {
                     WrapLaw {
                         kind: LawKind::Plateau,
                         bt: -w_seg * pre,
-                        c: -sign * w_seg * pre / mu + w_seg * pre * b.s + base,
+                        c: -sign * w_seg * pre / mu + w_seg * pre * self.angle(&b) + base,
                         ..law
                     }
                 } else if (b.t > a.t) == rising {
@@ -577,7 +600,7 @@ impl WrapRegion {
             lo: if rising { deepest.p } else { 0.0 },
             hi: if rising { f64::INFINITY } else { deepest.m },
             a: self.slip_coefficient(rising, at_cut, at_end),
-            c: -pre * self.weighted_length(self.wrap_rad),
+            c: -pre * self.weight_total_m,
             w_seg: self.weight_outer_m,
             end_factor: at_end,
             ..WrapLaw::INVALID
@@ -647,7 +670,7 @@ impl WrapRegion {
         let top = self.verts[self.verts.len() - 1];
         // The committed state splits loading from unloading: which way the boundary
         // tension moves follows from the target alone.
-        let stuck = span * (top.t - pre) + top.tail;
+        let stuck = span * (top.t - pre) + top.tail - pre * self.weight_total_m;
         // Within rounding of the committed state (where the wrap's stiffness is the free
         // span's alone, so this moves the tension by about 1e-11 of itself at most),
         // nothing slips.
@@ -723,19 +746,35 @@ impl WrapRegion {
         .ok()
     }
 
+    /// `exp(mu*s*)` for the slip zone of a trial of length `s*` (at most the longest
+    /// wrap; 1 when the boundary tension is unchanged): the ratio of the boundary tension
+    /// to the tension where the zone meets the stored profile. Comparing it with
+    /// `exp(mu*wrap)` tells whether a zone reaches a region's end without a logarithm.
+    #[inline]
+    pub fn slip_growth(&self, trial: &WrapTrial) -> f64 {
+        let law = &trial.law;
+        match law.kind {
+            LawKind::End => self.growth_at_end,
+            LawKind::Stuck | LawKind::Invalid => 1.0,
+            LawKind::Sloped | LawKind::Plateau => {
+                let ts = law.meeting_tension(trial.tb_n, self.preload_n);
+                let g = if law.rising {
+                    trial.tb_n / ts
+                } else {
+                    ts / trial.tb_n
+                };
+                g.clamp(1.0, self.growth_at_end)
+            }
+        }
+    }
+
     /// Length of the slip zone of a trial (wrap angle where the new branch meets the old
     /// profile), rad, at most the longest wrap; zero when the boundary tension is
     /// unchanged.
     pub fn slip_angle_rad(&self, trial: &WrapTrial) -> f64 {
-        let law = &trial.law;
-        match law.kind {
+        match trial.law.kind {
             LawKind::End => self.wrap_rad,
-            LawKind::Stuck | LawKind::Invalid => 0.0,
-            LawKind::Sloped | LawKind::Plateau => {
-                let ts = law.meeting_tension(trial.tb_n, self.preload_n);
-                let s = (trial.tb_n / ts).ln().abs() / self.mu;
-                s.min(self.wrap_rad)
-            }
+            _ => (self.slip_growth(trial).ln() / self.mu).min(self.wrap_rad),
         }
     }
 
@@ -746,34 +785,26 @@ impl WrapRegion {
         self.commit_trial(&trial);
     }
 
-    /// Commit a trial computed on the current profile (saves searching the crossing again;
-    /// a trial from an older profile is recomputed).
+    /// Commit a trial: directly when computed on the current profile (no second search
+    /// for the crossing), recomputed when the profile has changed since.
     pub fn commit_trial(&mut self, trial: &WrapTrial) {
-        let fresh = self.fresh(trial);
-        let s_star = self.slip_angle_rad(&fresh);
-        self.commit_fresh(&fresh, s_star);
-    }
-
-    /// [`Self::commit_trial`] when the caller already has the trial's slip angle
-    /// ([`Self::slip_angle_rad`], rad): spares computing it again.
-    pub fn commit_trial_with_slip(&mut self, trial: &WrapTrial, slip_angle_rad: f64) {
         if trial.law.generation == self.generation && trial.law.covers(trial.tb_n) {
-            self.commit_fresh(trial, slip_angle_rad);
+            self.commit_fresh(trial);
         } else {
-            self.commit_trial(trial);
+            let fresh = self.trial_from(self.build_law(trial.tb_n), trial.tb_n);
+            self.commit_fresh(&fresh);
         }
     }
 
-    /// The trial itself when computed on the current profile, else recomputed.
-    fn fresh(&self, trial: &WrapTrial) -> WrapTrial {
-        if trial.law.generation == self.generation && trial.law.covers(trial.tb_n) {
-            *trial
-        } else {
-            self.trial_from(self.build_law(trial.tb_n), trial.tb_n)
-        }
+    /// Commit a trial known to be computed on the current profile (since its last
+    /// commit): skips the check [`Self::commit_trial`] makes.
+    #[inline]
+    pub(crate) fn commit_current(&mut self, trial: &WrapTrial) {
+        debug_assert!(trial.law.generation == self.generation);
+        self.commit_fresh(trial);
     }
 
-    fn commit_fresh(&mut self, trial: &WrapTrial, s_star: f64) {
+    fn commit_fresh(&mut self, trial: &WrapTrial) {
         let tb = trial.tb_n;
         let law = trial.law;
         if law.kind == LawKind::Stuck || law.kind == LawKind::Invalid {
@@ -784,84 +815,103 @@ impl WrapRegion {
         let sign = if rising { 1.0 } else { -1.0 };
         // A point of the new slip zone `Tb*exp(-+mu*s)` with tension `t`: along it
         // `T*exp(+-mu*s)` is Tb.
-        let on_line = |s: f64, t: f64, tail: f64| {
+        let on_line = |s: f64, t: f64, tail: f64, outer: bool| {
             let other = t * t / tb;
             let (p, m) = if rising { (tb, other) } else { (other, tb) };
-            Vertex { s, t, p, m, tail }
+            Vertex {
+                s,
+                t,
+                p,
+                m,
+                tail,
+                outer,
+            }
         };
+        // `integral w*T ds` along a segment of log-slope `-+mu` (the slip zone's, or a
+        // stored one of the opposite slope walked the other way) from its end tensions.
+        let sign_per_mu = sign / mu;
+        let along = |w: f64, t_out: f64, t_in: f64| w * sign_per_mu * (t_out - t_in);
         let ts = law.meeting_tension(tb, pre);
         // Whether the slip zone ends on a stored segment that survives (so a further load
-        // the same way still ends on it).
+        // the same way still ends on it), and whether it meets the profile at the contact
+        // point itself (zero length).
         let mut continues = true;
+        let mut at_contact = false;
+        // A crossing at an existing breakpoint would leave a zero-length segment.
+        let min_length = 1e-14 * self.wrap_rad.max(1.0);
         if law.kind == LawKind::End {
             self.verts.clear();
-            self.verts.push(on_line(self.wrap_rad, ts, 0.0));
+            self.verts.push(on_line(
+                self.wrap_rad,
+                ts,
+                0.0,
+                self.wrap_rad > self.cut_rad,
+            ));
         } else {
             self.verts.truncate(law.index + 1);
             let b = self.verts[law.index];
-            // A crossing at an existing breakpoint would leave a zero-length segment.
-            if b.s - s_star > 1e-14 * self.wrap_rad.max(1.0) {
-                let h = b.s - s_star;
-                let old = if law.kind == LawKind::Plateau {
-                    pre * h
+            if law.kind == LawKind::Plateau {
+                // On the flat plateau the length matters, and the angle is a logarithm.
+                let s_star = sign * (tb / pre).ln() / mu;
+                if b.s - s_star > min_length {
+                    let tail = law.w_seg * pre * (b.s - s_star) + b.tail;
+                    self.verts
+                        .push(on_line(s_star, pre, tail, s_star > self.cut_rad));
+                    at_contact = s_star <= 0.0;
                 } else {
-                    sign * (b.t - ts) / mu
-                };
-                let tail = law.w_seg * (old - pre * h) + b.tail;
-                let v = match law.kind {
-                    // On the plateau the stored side is flat: keep the line's invariant.
-                    LawKind::Plateau => on_line(s_star, pre, tail),
-                    _ => {
-                        let (p, m) = if rising { (tb, law.q) } else { (law.q, tb) };
-                        Vertex {
-                            s: s_star,
-                            t: ts,
-                            p,
-                            m,
-                            tail,
-                        }
-                    }
-                };
-                self.verts.push(v);
+                    continues = false;
+                }
+            } else if (b.t - ts).abs() > mu * min_length * ts {
+                // Sloped: the stored side keeps its invariant `q`, the slip zone's is Tb.
+                let (p, m) = if rising { (tb, law.q) } else { (law.q, tb) };
+                at_contact = ts == tb;
+                self.verts.push(Vertex {
+                    s: f64::NAN,
+                    t: ts,
+                    p,
+                    m,
+                    tail: along(law.w_seg, b.t, ts) + b.tail,
+                    outer: b.outer && !at_contact,
+                });
             } else {
                 continues = false;
             }
         }
-        // integral over [s0, s0 + h] of the slip zone minus preload, from its end tensions.
-        let line_integral = |t_out: f64, t_in: f64, h: f64| sign * (t_out - t_in) / mu - pre * h;
         let last = self.verts[self.verts.len() - 1];
-        if s_star > self.cut_rad && last.s > self.cut_rad {
-            // Keep the breakpoint at the shorter wrap's end: segments must not straddle it.
+        if last.outer {
+            // The slip zone passes the shorter wrap's end: keep a breakpoint there, as
+            // segments must not straddle it.
             let t_cut = tb
                 * if rising {
                     self.decay_at_cut
                 } else {
                     self.growth_at_cut
                 };
-            let tail = self.weight_outer_m * line_integral(t_cut, last.t, last.s - self.cut_rad)
-                + last.tail;
-            self.verts.push(on_line(self.cut_rad, t_cut, tail));
+            let tail = along(self.weight_outer_m, t_cut, last.t) + last.tail;
+            self.verts.push(on_line(self.cut_rad, t_cut, tail, false));
         }
         let last = self.verts[self.verts.len() - 1];
-        if last.s > 0.0 {
-            let tail = self.weight(last.s) * line_integral(tb, last.t, last.s) + last.tail;
-            self.verts.push(Vertex {
-                s: 0.0,
-                t: tb,
-                p: tb,
-                m: tb,
-                tail,
-            });
-        } else {
-            // Zero-length slip zone (only when the crossing is at s = 0).
+        if at_contact {
+            // Zero-length slip zone: the new breakpoint is the contact point.
             let top = self.verts.len() - 1;
             self.verts[top] = Vertex {
+                s: 0.0,
                 t: tb,
                 p: tb,
                 m: tb,
                 ..last
             };
             continues = false;
+        } else {
+            let tail = along(self.weight(&last), tb, last.t) + last.tail;
+            self.verts.push(Vertex {
+                s: 0.0,
+                t: tb,
+                p: tb,
+                m: tb,
+                tail,
+                outer: false,
+            });
         }
         self.generation = self.generation.wrapping_add(1);
         // The same law carries on for a load that keeps going the same way: the segment it
@@ -882,22 +932,23 @@ impl WrapRegion {
 
     /// Elongation of the wrapped cable as committed, relative to the preloaded state, m.
     pub fn elongation_m(&self) -> f64 {
-        self.verts[self.verts.len() - 1].tail / self.modulus_n
+        (self.verts[self.verts.len() - 1].tail - self.preload_n * self.weight_total_m)
+            / self.modulus_n
     }
 
     /// Tension at wrap angle `s_rad` (clamped to the wrap), N.
     pub fn tension_at(&self, s_rad: f64) -> f64 {
         let s = s_rad.clamp(0.0, self.wrap_rad);
         for k in (1..self.verts.len()).rev() {
-            let a = self.verts[k];
-            let b = self.verts[k - 1];
-            if s <= b.s {
-                let h = b.s - a.s;
+            let (a, b) = (self.verts[k], self.verts[k - 1]);
+            let (sa, sb) = (self.angle(&a), self.angle(&b));
+            if s <= sb {
+                let h = sb - sa;
                 if h <= 0.0 || a.t == b.t {
                     return b.t;
                 }
                 // Log-linear between breakpoints.
-                return a.t * ((b.t / a.t).ln() * (s - a.s) / h).exp();
+                return a.t * ((b.t / a.t).ln() * (s - sa) / h).exp();
             }
         }
         self.verts[0].t
@@ -912,8 +963,8 @@ impl WrapRegion {
             .verts
             .iter()
             .rev()
-            .filter(|v| v.s < end)
-            .map(|v| (v.s, v.t))
+            .map(|v| (self.angle(v), v.t))
+            .filter(|v| v.0 < end)
             .collect();
         out.push((end, self.tension_at(end)));
         out
@@ -944,8 +995,9 @@ impl WrapRegion {
     pub fn max_log_slope(&self) -> f64 {
         self.verts
             .windows(2)
-            .filter(|w| w[0].s - w[1].s > 1e-12)
-            .map(|w| ((w[0].t / w[1].t).ln() / (w[0].s - w[1].s)).abs())
+            .map(|w| (self.angle(&w[0]) - self.angle(&w[1]), w[0].t / w[1].t))
+            .filter(|(h, _)| *h > 1e-12)
+            .map(|(h, ratio)| (ratio.ln() / h).abs())
             .fold(0.0, f64::max)
     }
 }

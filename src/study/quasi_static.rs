@@ -203,7 +203,7 @@ pub fn run_model(
                     tension_upper_n: state.tension_upper_n,
                     tension_lower_n: state.tension_lower_n,
                     transmission_error_rad: error,
-                    slip_angles_rad: state.slip_angles_rad,
+                    slip_angles_rad: drive.slip_angles_rad(&state),
                 });
                 max_breakpoints = max_breakpoints
                     .max(drive.upper().wrap().breakpoint_count())
