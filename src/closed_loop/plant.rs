@@ -12,7 +12,7 @@ use ode_solvers::System;
 
 use super::params::{Amplifier, CableModel, ClosedLoopParams};
 use crate::identify::effects::EffectsParams;
-use crate::physics::half::CableHalf;
+use crate::physics::half::{CableHalf, HalfSolution};
 use crate::physics::{CableDrive, DriveFault, DriveParams, Half, HysteresisModel, LoadParams};
 
 /// Plant state vector.
@@ -72,16 +72,22 @@ impl WarmStart {
 /// time, which holds for most of a period and across periods of monotone loading. The
 /// tangent line through the last solution is the guess that picks the segment when that
 /// one no longer holds. `None` = no positive tension fits (slack).
-#[inline]
-fn solve_half(half: &CableHalf, target: f64, g: &mut HalfGuess, trials: &mut u64) -> Option<f64> {
+// Always inlined: the right-hand side keeps only the tension, so the law's copy vanishes.
+#[inline(always)]
+fn solve_half(
+    half: &CableHalf,
+    target: f64,
+    g: &mut HalfGuess,
+    trials: &mut u64,
+) -> Option<HalfSolution> {
     let guess = g.tension_n + (target - g.elongation_m) * g.stiffness_n_per_m;
-    let t = half.tension_for_elongation(target, guess)?;
+    let solution = half.solve_for_elongation(target, guess)?;
     *trials += 1;
     // The stiffness stays the nominal one: the guess only picks a stored segment when the
     // cached one no longer holds, and updating it would cost a division per solve.
-    g.tension_n = t;
+    g.tension_n = solution.tension_n;
     g.elongation_m = target;
-    Some(t)
+    Some(solution)
 }
 
 /// Whether the powder brake holds the drum.
@@ -129,22 +135,7 @@ impl PlantCable {
     pub fn tensions(&self, d: f64, warm: &mut WarmStart) -> Result<(f64, f64), DriveFault> {
         match self {
             PlantCable::Hysteretic(drive) => {
-                let pre = drive.params().preload_n;
-                let tu = solve_half(drive.upper(), d, &mut warm.half[0], &mut warm.trials).ok_or(
-                    DriveFault::Slack {
-                        half: Half::Upper,
-                        torque_nm: 0.0,
-                        needed_preload_n: pre,
-                    },
-                )?;
-                let tl = solve_half(drive.lower(), -d, &mut warm.half[1], &mut warm.trials).ok_or(
-                    DriveFault::Slack {
-                        half: Half::Lower,
-                        torque_nm: 0.0,
-                        needed_preload_n: pre,
-                    },
-                )?;
-                Ok((tu, tl))
+                hysteretic_solutions(drive, d, warm).map(|(u, l)| (u.tension_n, l.tension_n))
             }
             PlantCable::Linear {
                 k_n_per_m,
@@ -156,12 +147,38 @@ impl PlantCable {
     /// Full check at a period boundary (slack and gross slip on the pulley) and commit of
     /// the memory, warm-started like the right-hand side. Returns the elastic tensions.
     pub fn commit(&mut self, d: f64, warm: &mut WarmStart) -> Result<(f64, f64), DriveFault> {
-        let (tu, tl) = self.tensions(d, warm)?;
-        if let PlantCable::Hysteretic(drive) = self {
-            drive.commit_tensions(tu, tl, d)?;
+        match self {
+            PlantCable::Hysteretic(drive) => {
+                let (u, l) = hysteretic_solutions(drive, d, warm)?;
+                drive.commit_solutions(&u, &l, d)?;
+                Ok((u.tension_n, l.tension_n))
+            }
+            PlantCable::Linear {
+                k_n_per_m,
+                preload_n,
+            } => linear_tensions(*k_n_per_m, *preload_n, d),
         }
-        Ok((tu, tl))
     }
+}
+
+/// Both halves of the hysteretic cable solved for displacement `d` (m) on the current
+/// memory, warm-started from `warm` (updated).
+#[inline(always)]
+fn hysteretic_solutions(
+    drive: &CableDrive,
+    d: f64,
+    warm: &mut WarmStart,
+) -> Result<(HalfSolution, HalfSolution), DriveFault> {
+    let slack = |half| DriveFault::Slack {
+        half,
+        torque_nm: 0.0,
+        needed_preload_n: drive.params().preload_n,
+    };
+    let u = solve_half(drive.upper(), d, &mut warm.half[0], &mut warm.trials)
+        .ok_or_else(|| slack(Half::Upper))?;
+    let l = solve_half(drive.lower(), -d, &mut warm.half[1], &mut warm.trials)
+        .ok_or_else(|| slack(Half::Lower))?;
+    Ok((u, l))
 }
 
 /// Span tensions `(Tu, Tl)` of the linear cable at displacement `d` (m).

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::half::{CableHalf, HalfSlip, HalfTrial};
+use super::half::{CableHalf, HalfSlip, HalfSolution, HalfTrial};
 use super::newton::{solve_increasing_curved, RootError};
 use super::wrap::WrapLaw;
 
@@ -520,15 +520,6 @@ impl CableDrive {
         })
     }
 
-    /// [`Self::solved`] for tensions solved elsewhere for the displacement
-    /// `displacement_m` (m), which the state then reports as it is.
-    fn solved_at(&self, tu: f64, tl: f64, displacement_m: f64) -> Result<Solved, DriveFault> {
-        let mut solved = self.solved(tu, tl, self.upper.trial(tu), self.lower.trial(tl))?;
-        solved.state.surface_displacement_m = displacement_m;
-        solved.state.transmission_error_rad = -displacement_m * self.inv_drum_radius;
-        Ok(solved)
-    }
-
     /// Quasi-static state when the cable transmits torque `torque_nm` (N m, `M = -Ml`,
     /// positive tightens the upper span), without committing it to memory.
     ///
@@ -721,20 +712,35 @@ impl CableDrive {
         Ok(state)
     }
 
-    /// Commit span tensions `tu`, `tl` (N) solved elsewhere for the displacement
-    /// `displacement_m` (m), e.g. by the dynamic plant at a period boundary: the state
-    /// with slip angles, anchor flags and the gross-slip check, then both profiles. On a
+    /// Commit span tensions solved by the dynamic plant for the displacement
+    /// `displacement_m` (m) at a period boundary, each half's by elongation on the current
+    /// memory ([`CableHalf::solve_for_elongation`]): the gross-slip check, then both
+    /// profiles and the state (whose elongations are `D` and `-D` by construction). On a
     /// fault nothing is committed.
-    pub fn commit_tensions(
+    pub(crate) fn commit_solutions(
         &mut self,
-        tu: f64,
-        tl: f64,
+        upper: &HalfSolution,
+        lower: &HalfSolution,
         displacement_m: f64,
-    ) -> Result<DriveState, DriveFault> {
-        let solved = self.solved_at(tu, tl, displacement_m)?;
-        self.commit_solved(&solved);
+    ) -> Result<(), DriveFault> {
+        let su = self.upper.solution_slip(upper);
+        let sl = self.lower.solution_slip(lower);
+        self.check_pulley(Half::Upper, upper.tension_n, &su)?;
+        self.check_pulley(Half::Lower, lower.tension_n, &sl)?;
+        self.upper.commit_solution(upper);
+        self.lower.commit_solution(lower);
+        self.state = DriveState {
+            tension_upper_n: upper.tension_n,
+            tension_lower_n: lower.tension_n,
+            surface_displacement_m: displacement_m,
+            transmission_error_rad: -displacement_m * self.inv_drum_radius,
+            elongation_upper_m: displacement_m,
+            elongation_lower_m: -displacement_m,
+            slip_growth: [su.growth, sl.growth],
+            anchor_reached: [su.drum_anchor_reached, sl.drum_anchor_reached],
+        };
         self.committed_torque_nm = None;
-        Ok(solved.state)
+        Ok(())
     }
 
     /// Commit both halves' profiles and the state of a solve on the current memory.

@@ -28,6 +28,15 @@ pub struct HalfSlip {
     pub pulley_neutral_reached: bool,
 }
 
+/// Span tension of a half solved for a prescribed elongation, with the wrap law that
+/// holds there (valid until the next commit).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct HalfSolution {
+    /// Span tension, N.
+    pub tension_n: f64,
+    law: WrapLaw,
+}
+
 /// A cable half: free span of length `span_m`, a wrap on the drum and a wrap on the pulley.
 ///
 /// Both wraps start at the free span and see the same boundary tension, so their tension
@@ -118,7 +127,11 @@ impl CableHalf {
     /// Slip zones of a trial on the drum and on the pulley.
     #[inline]
     pub fn slip(&self, trial: &HalfTrial) -> HalfSlip {
-        let g = self.wrap.slip_growth(&trial.wrap);
+        self.slip_for_growth(self.wrap.slip_growth(&trial.wrap))
+    }
+
+    #[inline]
+    fn slip_for_growth(&self, g: f64) -> HalfSlip {
         HalfSlip {
             growth: g,
             drum_anchor_reached: g >= self.drum_growth,
@@ -142,6 +155,33 @@ impl CableHalf {
     pub fn tension_for_elongation(&self, elongation_m: f64, guess_n: f64) -> Option<f64> {
         self.wrap
             .tension_for_elongation(elongation_m, self.span_m / self.modulus_n, guess_n)
+    }
+
+    /// [`Self::tension_for_elongation`] with what committing its result needs.
+    #[inline(always)]
+    pub(crate) fn solve_for_elongation(
+        &self,
+        elongation_m: f64,
+        guess_n: f64,
+    ) -> Option<HalfSolution> {
+        self.wrap
+            .solve_for_elongation(elongation_m, self.span_m / self.modulus_n, guess_n)
+            .map(|(tension_n, law)| HalfSolution { tension_n, law })
+    }
+
+    /// Slip growth of a solution (see [`HalfSlip::growth`]), and whether its slip zones
+    /// reach the drum anchor and the pulley's neutral point.
+    #[inline]
+    pub(crate) fn solution_slip(&self, solution: &HalfSolution) -> HalfSlip {
+        self.slip_for_growth(self.wrap.slip_growth_on(solution.tension_n, &solution.law))
+    }
+
+    /// Commit a solution found on the current profile (no-op for the memoryless model).
+    #[inline]
+    pub(crate) fn commit_solution(&mut self, solution: &HalfSolution) {
+        if self.remembers {
+            self.wrap.commit_fresh(solution.tension_n, &solution.law);
+        }
     }
 
     /// Commit the span tension (updates the wrap memory; no-op for the memoryless model).

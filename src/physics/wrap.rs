@@ -91,6 +91,12 @@ pub(crate) struct WrapLaw {
     /// spares the division in the plant's solves.
     span_m: f64,
     inv_two_alpha: f64,
+    /// For that span, the quadratic's discriminant as `disc0 + disc1 * target_m` (N^2 m^2,
+    /// N^2 m) and its constant term as `rest0 - E*A * target_m` (N m): a prescribed
+    /// elongation `target_m` (m) is one multiply-add from the square root.
+    disc0: f64,
+    disc1: f64,
+    rest0: f64,
     /// Weight (sum of radii, m) of the segment where the slip zone ends.
     w_seg: f64,
     /// Tension at the inner end of the longest wrap per unit `Tb` (`End` only).
@@ -112,6 +118,9 @@ impl WrapLaw {
         beta: 0.0,
         span_m: f64::NAN,
         inv_two_alpha: 0.0,
+        disc0: f64::NAN,
+        disc1: 0.0,
+        rest0: 0.0,
         w_seg: 0.0,
         end_factor: 0.0,
     };
@@ -233,6 +242,25 @@ impl WrapLaw {
         (u.is_finite() && u > 0.0).then_some(u * u)
     }
 
+    /// [`Self::solve`] on a sloped law for the free span it was built for, with the
+    /// elongation `target_m` (m) and `E*A` (`modulus_n`, N) unscaled.
+    #[inline(always)]
+    fn solve_series(&self, target_m: f64, modulus_n: f64) -> Option<f64> {
+        let disc = self.disc0 + self.disc1 * target_m;
+        if disc.is_nan() || disc < 0.0 {
+            return None;
+        }
+        let root = disc.sqrt();
+        let beta = self.beta;
+        let lift = root - beta;
+        let u = if beta <= 0.0 || lift.abs() >= 0.125 * beta {
+            lift * self.inv_two_alpha
+        } else {
+            -2.0 * (self.rest0 - modulus_n * target_m) / (beta + root)
+        };
+        (u.is_finite() && u > 0.0).then_some(u * u)
+    }
+
     /// [`Self::solve`] off the sloped segments: past the end, on the plateau.
     #[cold]
     #[inline(never)]
@@ -338,6 +366,15 @@ pub struct WrapRegion {
     /// Free-span length in series with the wrap (its compliance times `E*A`), m: laws
     /// precompute their quadratic's leading coefficient for it.
     series_span_m: f64,
+    /// Its compliance `span/E*A`, m/N, as a cable half computes it: solves for this
+    /// span take the fast path.
+    series_span_per_n: f64,
+    /// Elongation of wrap and series span as committed, m, and the band around it within
+    /// which nothing slips (rounding), m; the committed boundary tension, N. Kept with
+    /// every commit for the series span's solves.
+    stuck_m: f64,
+    stuck_band_m: f64,
+    committed_n: f64,
     /// `integral_0^wrap weight ds / mu`, m rad: the scale of a wrap's tension integrals
     /// per newton.
     slip_weight_per_mu: f64,
@@ -393,6 +430,10 @@ impl WrapRegion {
             decay_at_end: (-mu * wrap_rad).exp(),
             growth_at_end: (mu * wrap_rad).exp(),
             series_span_m: 0.0,
+            series_span_per_n: 0.0,
+            stuck_m: 0.0,
+            stuck_band_m: 0.0,
+            committed_n: preload_n,
             slip_weight_per_mu: (weight_inner_m * cut_rad + weight_outer_m * (wrap_rad - cut_rad))
                 / mu,
             weight_total_m: weight_inner_m * cut_rad + weight_outer_m * (wrap_rad - cut_rad),
@@ -408,6 +449,7 @@ impl WrapRegion {
     /// [`Self::tension_for_elongation`] is fastest (any span still works).
     pub fn with_series_span(mut self, span_m: f64) -> Self {
         self.series_span_m = span_m;
+        self.series_span_per_n = span_m / self.modulus_n;
         self.reset();
         self
     }
@@ -429,6 +471,17 @@ impl WrapRegion {
             }
         }
         self.generation = self.generation.wrapping_add(1);
+        self.refresh_committed();
+    }
+
+    /// The committed state as the series span's solves see it (after every change).
+    fn refresh_committed(&mut self) {
+        let (per_ea, pre) = (1.0 / self.modulus_n, self.preload_n);
+        let top = self.verts[self.verts.len() - 1];
+        let span = self.series_span_m;
+        self.committed_n = top.t;
+        self.stuck_m = (span * (top.t - pre) + top.tail - pre * self.weight_total_m) * per_ea;
+        self.stuck_band_m = 1e-12 * top.t * (span + self.slip_weight_per_mu) * per_ea;
     }
 
     /// Longest wrap angle, rad.
@@ -492,9 +545,15 @@ impl WrapRegion {
     /// lower (falling).
     fn build_law(&self, tb_n: f64) -> WrapLaw {
         let law = self.build_law_shape(tb_n);
+        let span = self.series_span_m;
+        let alpha = span + law.a;
+        let rest0 = law.c - span * self.preload_n;
         WrapLaw {
-            span_m: self.series_span_m,
-            inv_two_alpha: 0.5 / (self.series_span_m + law.a),
+            span_m: span,
+            inv_two_alpha: 0.5 / alpha,
+            disc0: law.beta * law.beta - 4.0 * alpha * rest0,
+            disc1: 4.0 * alpha * self.modulus_n,
+            rest0,
             ..law
         }
     }
@@ -504,14 +563,7 @@ impl WrapRegion {
         let top = self.verts.len() - 1;
         let top_v = self.verts[top];
         if tb_n == top_v.t {
-            return WrapLaw {
-                kind: LawKind::Stuck,
-                generation: self.generation,
-                lo: tb_n,
-                hi: tb_n,
-                c: top_v.tail - pre * self.weight_total_m,
-                ..WrapLaw::INVALID
-            };
+            return self.stuck_law();
         }
         let rising = tb_n > top_v.t;
         let sign = if rising { 1.0 } else { -1.0 };
@@ -665,6 +717,83 @@ impl WrapRegion {
         span_per_n: f64,
         guess_n: f64,
     ) -> Option<f64> {
+        self.solve_for_elongation(target_m, span_per_n, guess_n)
+            .map(|(t, _)| t)
+    }
+
+    /// [`Self::tension_for_elongation`] with the law that holds at the tension found, for
+    /// committing it ([`Self::commit_fresh`]) without searching again.
+    #[inline(always)]
+    pub(crate) fn solve_for_elongation(
+        &self,
+        target_m: f64,
+        span_per_n: f64,
+        guess_n: f64,
+    ) -> Option<(f64, WrapLaw)> {
+        if span_per_n == self.series_span_per_n {
+            // The plant's case: everything about the committed state is at hand.
+            let off = target_m - self.stuck_m;
+            if off.abs() <= self.stuck_band_m {
+                return Some((self.committed_n, self.stuck_law()));
+            }
+            let rising = off > 0.0;
+            let cached = self.laws[usize::from(rising)].get();
+            if cached.generation == self.generation && cached.kind == LawKind::Sloped {
+                if let Some(t) = cached
+                    .solve_series(target_m, self.modulus_n)
+                    .and_then(|t| cached.accept(t))
+                {
+                    return Some((t, cached));
+                }
+            }
+            if let Some(found) = self.solve_series_from(target_m, rising, guess_n) {
+                return Some(found);
+            }
+        }
+        self.solve_for_elongation_any(target_m, span_per_n, guess_n)
+    }
+
+    /// The series span's solve when the cached law does not hold (a commit the other way
+    /// replaced it, or the root lies on another segment): from the law at the guess, then
+    /// the laws where each root points, as long as they are sloped.
+    #[inline(never)]
+    fn solve_series_from(
+        &self,
+        target_m: f64,
+        rising: bool,
+        guess_n: f64,
+    ) -> Option<(f64, WrapLaw)> {
+        let top = self.committed_n;
+        // A guess on the wrong side of the committed tension would pick the other branch.
+        let mut at = if guess_n.is_finite() && guess_n > 0.0 && (guess_n > top) == rising {
+            guess_n
+        } else if rising {
+            top * (1.0 + 1e-9)
+        } else {
+            top * (1.0 - 1e-9)
+        };
+        for _ in 0..3 {
+            let law = self.law_at(at);
+            if law.kind != LawKind::Sloped || law.rising != rising {
+                return None;
+            }
+            let t = law.solve_series(target_m, self.modulus_n)?;
+            if let Some(t) = law.accept(t) {
+                return Some((t, law));
+            }
+            at = t;
+        }
+        None
+    }
+
+    /// [`Self::solve_for_elongation`] for any series span and any kind of law.
+    #[inline(never)]
+    fn solve_for_elongation_any(
+        &self,
+        target_m: f64,
+        span_per_n: f64,
+        guess_n: f64,
+    ) -> Option<(f64, WrapLaw)> {
         let (ea, pre, mu) = (self.modulus_n, self.preload_n, self.mu);
         let (target, span) = (target_m * ea, span_per_n * ea);
         let top = self.verts[self.verts.len() - 1];
@@ -676,7 +805,7 @@ impl WrapRegion {
         // nothing slips.
         let rounding = 1e-12 * top.t * (span + self.slip_weight_per_mu);
         if (target - stuck).abs() <= rounding {
-            return Some(top.t);
+            return Some((top.t, self.stuck_law()));
         }
         let rising = target > stuck;
         let cached = self.laws[usize::from(rising)].get();
@@ -685,10 +814,23 @@ impl WrapRegion {
                 .solve(target, span, pre, mu, guess_n)
                 .and_then(|t| cached.accept(t))
             {
-                return Some(t);
+                return Some((t, cached));
             }
         }
         self.tension_for_elongation_search(target, span, rising, guess_n)
+    }
+
+    /// The law of an unchanged boundary tension: nothing slips.
+    fn stuck_law(&self) -> WrapLaw {
+        let top = self.verts[self.verts.len() - 1];
+        WrapLaw {
+            kind: LawKind::Stuck,
+            generation: self.generation,
+            lo: top.t,
+            hi: top.t,
+            c: top.tail - self.preload_n * self.weight_total_m,
+            ..WrapLaw::INVALID
+        }
     }
 
     /// [`Self::tension_for_elongation`] when the cached law does not hold: from the
@@ -702,7 +844,7 @@ impl WrapRegion {
         span: f64,
         rising: bool,
         guess_n: f64,
-    ) -> Option<f64> {
+    ) -> Option<(f64, WrapLaw)> {
         let (ea, pre, mu) = (self.modulus_n, self.preload_n, self.mu);
         let top_t = self.boundary_tension_n();
         let closed = |law: &WrapLaw, start: f64| {
@@ -719,14 +861,14 @@ impl WrapRegion {
         };
         let law = self.law_at(guess);
         if let Some(t) = closed(&law, guess) {
-            return Some(t);
+            return Some((t, law));
         }
         if let Some(t) = law.solve(target, span, pre, mu, guess) {
             // The root of the guessed segment's law lies beyond it: start over from there
             // (one more segment is all a smooth motion crosses in a step).
             let law = self.law_at(t);
             if let Some(t) = closed(&law, t) {
-                return Some(t);
+                return Some((t, law));
             }
         }
         let (span_per_n, target_m) = (span / ea, target / ea);
@@ -744,6 +886,7 @@ impl WrapRegion {
             1e-13,
         )
         .ok()
+        .map(|t| (t, self.law_at(t)))
     }
 
     /// `exp(mu*s*)` for the slip zone of a trial of length `s*` (at most the longest
@@ -752,17 +895,18 @@ impl WrapRegion {
     /// `exp(mu*wrap)` tells whether a zone reaches a region's end without a logarithm.
     #[inline]
     pub fn slip_growth(&self, trial: &WrapTrial) -> f64 {
-        let law = &trial.law;
+        self.slip_growth_on(trial.tb_n, &trial.law)
+    }
+
+    /// [`Self::slip_growth`] for boundary tension `tb_n` (N) on `law`.
+    #[inline]
+    pub(crate) fn slip_growth_on(&self, tb_n: f64, law: &WrapLaw) -> f64 {
         match law.kind {
             LawKind::End => self.growth_at_end,
             LawKind::Stuck | LawKind::Invalid => 1.0,
             LawKind::Sloped | LawKind::Plateau => {
-                let ts = law.meeting_tension(trial.tb_n, self.preload_n);
-                let g = if law.rising {
-                    trial.tb_n / ts
-                } else {
-                    ts / trial.tb_n
-                };
+                let ts = law.meeting_tension(tb_n, self.preload_n);
+                let g = if law.rising { tb_n / ts } else { ts / tb_n };
                 g.clamp(1.0, self.growth_at_end)
             }
         }
@@ -789,10 +933,10 @@ impl WrapRegion {
     /// for the crossing), recomputed when the profile has changed since.
     pub fn commit_trial(&mut self, trial: &WrapTrial) {
         if trial.law.generation == self.generation && trial.law.covers(trial.tb_n) {
-            self.commit_fresh(trial);
+            self.commit_fresh(trial.tb_n, &trial.law);
         } else {
-            let fresh = self.trial_from(self.build_law(trial.tb_n), trial.tb_n);
-            self.commit_fresh(&fresh);
+            let law = self.build_law(trial.tb_n);
+            self.commit_fresh(trial.tb_n, &law);
         }
     }
 
@@ -800,13 +944,13 @@ impl WrapRegion {
     /// commit): skips the check [`Self::commit_trial`] makes.
     #[inline]
     pub(crate) fn commit_current(&mut self, trial: &WrapTrial) {
-        debug_assert!(trial.law.generation == self.generation);
-        self.commit_fresh(trial);
+        self.commit_fresh(trial.tb_n, &trial.law);
     }
 
-    fn commit_fresh(&mut self, trial: &WrapTrial) {
-        let tb = trial.tb_n;
-        let law = trial.law;
+    /// Commit boundary tension `tb` (N) on `law`, which must hold there and be built on
+    /// the current profile (as the laws [`Self::solve_for_elongation`] returns are).
+    pub(crate) fn commit_fresh(&mut self, tb: f64, law: &WrapLaw) {
+        debug_assert!(law.generation == self.generation || law.kind == LawKind::Stuck);
         if law.kind == LawKind::Stuck || law.kind == LawKind::Invalid {
             return;
         }
@@ -914,20 +1058,33 @@ impl WrapRegion {
             });
         }
         self.generation = self.generation.wrapping_add(1);
+        self.refresh_committed();
         // The same law carries on for a load that keeps going the same way: the segment it
         // ends on is still there, now starting at the new breakpoint.
-        let next = if continues {
-            let (lo, hi) = if rising { (tb, law.hi) } else { (law.lo, tb) };
-            WrapLaw {
-                generation: self.generation,
+        let generation = self.generation;
+        let slot = self.laws[usize::from(rising)].get_mut();
+        if !continues {
+            *slot = WrapLaw::INVALID;
+            return;
+        }
+        let (lo, hi) = if rising { (tb, law.hi) } else { (law.lo, tb) };
+        if slot.generation.wrapping_add(1) == generation
+            && slot.index == law.index
+            && slot.kind == law.kind
+            && slot.rising == rising
+        {
+            // The cached law is the one committed: only its range and generation move.
+            slot.generation = generation;
+            slot.lo = lo;
+            slot.hi = hi;
+        } else {
+            *slot = WrapLaw {
+                generation,
                 lo,
                 hi,
-                ..law
-            }
-        } else {
-            WrapLaw::INVALID
-        };
-        self.laws[usize::from(rising)].set(next);
+                ..*law
+            };
+        }
     }
 
     /// Elongation of the wrapped cable as committed, relative to the preloaded state, m.
@@ -1238,6 +1395,46 @@ mod tests {
                 (other - want).abs() <= 1e-12 * want,
                 "k {k}: {other} vs {want}"
             );
+        }
+    }
+
+    #[test]
+    fn committing_a_solved_law_equals_committing_its_tension() {
+        // The plant commits the law its displacement solve ended on; the quasi-static
+        // route searches the law again from the tension. Both must leave the same memory.
+        let (rd, wd, rp, wp, span) = (0.1025, 0.9, 0.02, 2.5, 0.0777);
+        let fresh =
+            || WrapRegion::with_regions(&[(rd, wd), (rp, wp)], MU, TPRE, G).with_series_span(span);
+        let (mut solved, mut searched) = (fresh(), fresh());
+        let span_per_n = span / G;
+        let mut rng = 11u64;
+        let mut target = 0.0;
+        for k in 0..3000 {
+            // Small steps with frequent reversals, and now and then a held displacement.
+            if k % 7 != 0 {
+                target += 2e-5 * (lcg(&mut rng) - 0.5);
+            }
+            let (t, law) = solved
+                .solve_for_elongation(target, span_per_n, f64::NAN)
+                .expect("a positive tension fits");
+            solved.commit_fresh(t, &law);
+            searched.commit(t);
+            assert_eq!(
+                solved.breakpoint_count(),
+                searched.breakpoint_count(),
+                "k {k}"
+            );
+            for (a, b) in solved.verts.iter().zip(&searched.verts) {
+                assert_eq!(
+                    (a.t, a.p, a.m, a.tail, a.outer),
+                    (b.t, b.p, b.m, b.tail, b.outer)
+                );
+            }
+            // The next solve sees the committed state as the stored profile has it, to far
+            // within the band it treats as unchanged.
+            let stuck = span_per_n * (t - TPRE) + searched.elongation_m();
+            let off = (solved.stuck_m - stuck).abs();
+            assert!(off <= 1e-3 * solved.stuck_band_m, "k {k}: {off:e}");
         }
     }
 
