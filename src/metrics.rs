@@ -158,15 +158,24 @@ fn bin_upper(b: usize) -> f64 {
 /// usable `log10` (and of the edges below), and costs a negligible share of the hits.
 const EDGE_MARGIN: f64 = 1e-9;
 
-/// Lower edge of bin `b` (mrad) to a few ulp, from one table of a decade's edges.
+/// Lower edge of bin `b` (mrad) to a few ulp, from one table of a decade's edges and one
+/// of the decades' powers of ten (a closed-loop run looks edges up whenever the error moves
+/// to another bin, up to once per sample).
 fn bin_lower(b: usize) -> f64 {
-    static MANTISSA: OnceLock<Vec<f64>> = OnceLock::new();
-    let m = MANTISSA.get_or_init(|| {
-        (0..BINS_PER_DECADE)
+    struct Edges {
+        mantissa: Vec<f64>,
+        decade: Vec<f64>,
+    }
+    static EDGES: OnceLock<Edges> = OnceLock::new();
+    let e = EDGES.get_or_init(|| Edges {
+        mantissa: (0..BINS_PER_DECADE)
             .map(|j| 10f64.powf(j as f64 / BINS_PER_DECADE as f64))
-            .collect()
+            .collect(),
+        decade: (0..=DECADES)
+            .map(|d| 10f64.powi(d as i32 + DECADES_LO as i32))
+            .collect(),
     });
-    m[b % BINS_PER_DECADE] * 10f64.powi((b / BINS_PER_DECADE) as i32 + DECADES_LO as i32)
+    e.mantissa[b % BINS_PER_DECADE] * e.decade[(b / BINS_PER_DECADE).min(DECADES)]
 }
 
 /// A histogram bin and the values (mrad) that surely fall into it.

@@ -12,7 +12,7 @@ use ode_solvers::System;
 
 use super::params::{Amplifier, CableModel, ClosedLoopParams};
 use crate::identify::effects::EffectsParams;
-use crate::physics::half::{CableHalf, HalfSolution};
+use crate::physics::half::HalfSolution;
 use crate::physics::{CableDrive, DriveFault, DriveParams, Half, HysteresisModel, LoadParams};
 
 /// Plant state vector.
@@ -28,67 +28,6 @@ pub const CURRENT: usize = 2;
 pub const THETA_O: usize = 3;
 /// Index of the output speed.
 pub const OMEGA_O: usize = 4;
-
-/// Where the last tension solve of one half ended, with a stiffness `dT/d elong`: the
-/// tangent-line guess that picks a stored segment when the half's cached one no longer
-/// holds.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct HalfGuess {
-    /// Span tension, N.
-    pub tension_n: f64,
-    /// Elongation target it solved, m.
-    pub elongation_m: f64,
-    /// Stiffness of the guess line, N/m (the half's nominal stiffness).
-    pub stiffness_n_per_m: f64,
-}
-
-/// Warm start of the tension solves, carried from one evaluation to the next.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct WarmStart {
-    /// Upper and lower half.
-    pub half: [HalfGuess; 2],
-    /// Tension solves of a half so far.
-    pub trials: u64,
-}
-
-impl WarmStart {
-    /// Starting from the preload with stiffness `k` (N/m).
-    pub fn new(preload_n: f64, k: f64) -> Self {
-        let g = HalfGuess {
-            tension_n: preload_n,
-            elongation_m: 0.0,
-            stiffness_n_per_m: k,
-        };
-        WarmStart {
-            half: [g, g],
-            trials: 0,
-        }
-    }
-}
-
-/// Tension of one half whose elongation must equal `target` (m), exact.
-///
-/// The half solves it in closed form on the stored segment its slip zone ended on last
-/// time, which holds for most of a period and across periods of monotone loading. The
-/// tangent line through the last solution is the guess that picks the segment when that
-/// one no longer holds. `None` = no positive tension fits (slack).
-// Always inlined: the right-hand side keeps only the tension, so the law's copy vanishes.
-#[inline(always)]
-fn solve_half(
-    half: &CableHalf,
-    target: f64,
-    g: &mut HalfGuess,
-    trials: &mut u64,
-) -> Option<HalfSolution> {
-    let guess = g.tension_n + (target - g.elongation_m) * g.stiffness_n_per_m;
-    let solution = half.solve_for_elongation(target, guess)?;
-    *trials += 1;
-    // The stiffness stays the nominal one: the guess only picks a stored segment when the
-    // cached one no longer holds, and updating it would cost a division per solve.
-    g.tension_n = solution.tension_n;
-    g.elongation_m = target;
-    Some(solution)
-}
 
 /// Whether the powder brake holds the drum.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -129,13 +68,12 @@ impl PlantCable {
         }
     }
 
-    /// Elastic span tensions `(Tu, Tl)` for displacement `D` (m), warm-started from
-    /// `warm` (updated); memory not committed.
+    /// Elastic span tensions `(Tu, Tl)` for displacement `D` (m); memory not committed.
     #[inline]
-    pub fn tensions(&self, d: f64, warm: &mut WarmStart) -> Result<(f64, f64), DriveFault> {
+    pub fn tensions(&self, d: f64) -> Result<(f64, f64), DriveFault> {
         match self {
             PlantCable::Hysteretic(drive) => {
-                hysteretic_solutions(drive, d, warm).map(|(u, l)| (u.tension_n, l.tension_n))
+                hysteretic_solutions(drive, d).map(|(u, l)| (u.tension_n, l.tension_n))
             }
             PlantCable::Linear {
                 k_n_per_m,
@@ -145,11 +83,11 @@ impl PlantCable {
     }
 
     /// Full check at a period boundary (slack and gross slip on the pulley) and commit of
-    /// the memory, warm-started like the right-hand side. Returns the elastic tensions.
-    pub fn commit(&mut self, d: f64, warm: &mut WarmStart) -> Result<(f64, f64), DriveFault> {
+    /// the memory. Returns the elastic tensions.
+    pub fn commit(&mut self, d: f64) -> Result<(f64, f64), DriveFault> {
         match self {
             PlantCable::Hysteretic(drive) => {
-                let (u, l) = hysteretic_solutions(drive, d, warm)?;
+                let (u, l) = hysteretic_solutions(drive, d)?;
                 drive.commit_solutions(&u, &l, d)?;
                 Ok((u.tension_n, l.tension_n))
             }
@@ -162,21 +100,27 @@ impl PlantCable {
 }
 
 /// Both halves of the hysteretic cable solved for displacement `d` (m) on the current
-/// memory, warm-started from `warm` (updated).
+/// memory. Exact: closed form on the stored segment each slip zone ended on last time,
+/// which holds for most of a period and across periods of monotone loading; the halves
+/// search from their committed state when it does not. Always inlined: the right-hand
+/// side keeps only the tensions, so the laws' copies vanish.
 #[inline(always)]
 fn hysteretic_solutions(
     drive: &CableDrive,
     d: f64,
-    warm: &mut WarmStart,
 ) -> Result<(HalfSolution, HalfSolution), DriveFault> {
     let slack = |half| DriveFault::Slack {
         half,
         torque_nm: 0.0,
         needed_preload_n: drive.params().preload_n,
     };
-    let u = solve_half(drive.upper(), d, &mut warm.half[0], &mut warm.trials)
+    let u = drive
+        .upper()
+        .solve_for_elongation(d, f64::NAN)
         .ok_or_else(|| slack(Half::Upper))?;
-    let l = solve_half(drive.lower(), -d, &mut warm.half[1], &mut warm.trials)
+    let l = drive
+        .lower()
+        .solve_for_elongation(-d, f64::NAN)
         .ok_or_else(|| slack(Half::Lower))?;
     Ok((u, l))
 }
@@ -369,8 +313,6 @@ pub struct PeriodRhs<'a> {
     pub h: f64,
     /// Substeps in the period, `N`: the integrator stops once `tau` reaches it.
     pub steps: f64,
-    /// Warm start of the tension solves (and their count).
-    pub warm: Cell<WarmStart>,
     /// First fault met inside the period.
     pub fault: Cell<Option<DriveFault>>,
 }
@@ -432,22 +374,7 @@ impl System<f64, State> for &PeriodRhs<'_> {
         let c = self.c;
         let t = self.t0 + tau * self.h;
         let k = c.kinematics(x, t);
-        let tensions = match *self.cable {
-            // No warm start to carry: spare the copies through the cell.
-            PlantCable::Linear {
-                k_n_per_m,
-                preload_n,
-            } => linear_tensions(k_n_per_m, preload_n, k.d),
-            PlantCable::Hysteretic(_) => {
-                let mut warm = self.warm.get();
-                let r = self.cable.tensions(k.d, &mut warm);
-                if r.is_ok() {
-                    self.warm.set(warm);
-                }
-                r
-            }
-        };
-        let el = match tensions {
+        let el = match self.cable.tensions(k.d) {
             Ok(t) => t,
             Err(e) => {
                 if self.fault.get().is_none() {

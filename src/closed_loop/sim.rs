@@ -10,7 +10,7 @@ use super::controller::{BrakePredictor, Compensator, Pid, Sensors};
 use super::params::{Amplifier, ClosedLoopParams, CompensationMode, Feedback};
 use super::plant::{
     damped, load_torque, update_brake, BrakeState, Forces, PeriodRhs, PlantCable,
-    PlantCoefficients, State, WarmStart, CURRENT, OMEGA_O, THETA_M, THETA_O,
+    PlantCoefficients, State, CURRENT, OMEGA_O, THETA_M, THETA_O,
 };
 use crate::metrics::{Metrics, MetricsAccumulator, MetricsConfig, Sample, StepEvent};
 use crate::physics::{DriveFault, Half};
@@ -408,15 +408,13 @@ fn run_mode(
     let mut completion = Completion::Complete;
     let mut reached = 0.0;
     let mut last_torque = 0.0;
-    let mut warm = WarmStart::new(
-        drive.preload_n,
-        ClosedLoopParams::half_stiffness_n_per_m(drive),
-    );
+    let mut boundary_solves = 0u64;
 
     for k in 0..=n {
         let t = k as f64 * ts;
         let kin = coeff.kinematics(&x, t);
-        let el = match cable.commit(kin.d, &mut warm) {
+        boundary_solves += 1;
+        let el = match cable.commit(kin.d) {
             Ok(el) => el,
             Err(f) => {
                 completion = Completion::Incomplete {
@@ -537,7 +535,6 @@ fn run_mode(
             t0: t,
             h: ts / f64::from(sub),
             steps: f64::from(sub),
-            warm: std::cell::Cell::new(warm),
             fault: std::cell::Cell::new(None),
         };
         // End point 2N: room for all N + 1 results; `solout` stops the run at N.
@@ -562,7 +559,6 @@ fn run_mode(
             reached = t + ts;
             break;
         }
-        warm = rhs.warm.get();
         if let Some(y) = solver.y_out().last() {
             x = *y;
         }
@@ -582,7 +578,10 @@ fn run_mode(
             x[OMEGA_O] = 0.0;
         }
     }
-    stats.tension_solves = warm.trials;
+    // Every right-hand side and every boundary solves both halves.
+    if let PlantCable::Hysteretic(_) = cable {
+        stats.tension_solves = 2 * (stats.rhs_evaluations + boundary_solves);
+    }
     stats.compensator_faults = comp.as_ref().map_or(0, Compensator::faults);
     stats.wall_s = wall.elapsed().as_secs_f64();
     ModeResult {

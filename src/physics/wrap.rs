@@ -764,6 +764,14 @@ impl WrapRegion {
         guess_n: f64,
     ) -> Option<(f64, WrapLaw)> {
         let top = self.committed_n;
+        // Without a guess, the tangent at the committed state, where only the free span
+        // stretches (a slip zone starts with zero length): it overshoots, and the laws
+        // where the roots point lead back.
+        let guess_n = if guess_n.is_finite() {
+            guess_n
+        } else {
+            top + (target_m - self.stuck_m) / self.series_span_per_n
+        };
         // A guess on the wrong side of the committed tension would pick the other branch.
         let mut at = if guess_n.is_finite() && guess_n > 0.0 && (guess_n > top) == rising {
             guess_n
