@@ -220,22 +220,28 @@ impl WrapLaw {
         // Quadratic in u = sqrt(Tb): alpha*u^2 + beta*u + rest = 0, on the branch
         // where the elongation increases (2*alpha*u + beta > 0). Each form avoids
         // cancellation for its sign of beta.
-        let beta = self.beta;
-        let disc = beta * beta - 4.0 * alpha * rest;
-        if disc.is_nan() || disc < 0.0 {
-            return None;
-        }
-        let root = disc.sqrt();
         let inv = if span == self.span_m {
             self.inv_two_alpha
         } else {
             0.5 / alpha
         };
+        let disc = self.beta * self.beta - 4.0 * alpha * rest;
+        Self::root_squared(disc, self.beta, inv, rest)
+    }
+
+    /// `u^2` for the root `u > 0` of `alpha*u^2 + beta*u + rest` on the branch where it
+    /// increases, from its discriminant and `1/(2*alpha)`; `None` when there is none.
+    #[inline(always)]
+    fn root_squared(disc: f64, beta: f64, inv_two_alpha: f64, rest: f64) -> Option<f64> {
+        if disc.is_nan() || disc < 0.0 {
+            return None;
+        }
+        let root = disc.sqrt();
         let lift = root - beta;
         // (root - beta)/(2 alpha) loses digits only when root and beta nearly cancel
         // (beta > 0 and a small 4*alpha*rest); the other form is exact there.
         let u = if beta <= 0.0 || lift.abs() >= 0.125 * beta {
-            lift * inv
+            lift * inv_two_alpha
         } else {
             -2.0 * rest / (beta + root)
         };
@@ -246,19 +252,12 @@ impl WrapLaw {
     /// elongation `target_m` (m) and `E*A` (`modulus_n`, N) unscaled.
     #[inline(always)]
     fn solve_series(&self, target_m: f64, modulus_n: f64) -> Option<f64> {
-        let disc = self.disc0 + self.disc1 * target_m;
-        if disc.is_nan() || disc < 0.0 {
-            return None;
-        }
-        let root = disc.sqrt();
-        let beta = self.beta;
-        let lift = root - beta;
-        let u = if beta <= 0.0 || lift.abs() >= 0.125 * beta {
-            lift * self.inv_two_alpha
-        } else {
-            -2.0 * (self.rest0 - modulus_n * target_m) / (beta + root)
-        };
-        (u.is_finite() && u > 0.0).then_some(u * u)
+        Self::root_squared(
+            self.disc0 + self.disc1 * target_m,
+            self.beta,
+            self.inv_two_alpha,
+            self.rest0 - modulus_n * target_m,
+        )
     }
 
     /// [`Self::solve`] off the sloped segments: past the end, on the plateau.
@@ -350,6 +349,8 @@ pub struct WrapRegion {
     mu: f64,
     preload_n: f64,
     modulus_n: f64,
+    /// `1/(E*A)`, 1/N: every trial and commit scales by it.
+    inv_modulus: f64,
     /// Shorter wrap, rad (equal to `wrap_rad` for a single region).
     cut_rad: f64,
     /// Longest wrap, where the stored profile ends, rad.
@@ -375,12 +376,12 @@ pub struct WrapRegion {
     stuck_m: f64,
     stuck_band_m: f64,
     committed_n: f64,
-    /// `integral_0^wrap weight ds / mu`, m rad: the scale of a wrap's tension integrals
-    /// per newton.
-    slip_weight_per_mu: f64,
     /// `integral_0^wrap weight ds`, m rad: the preload's share of a whole profile's
     /// integral, which the stored tails leave out.
     weight_total_m: f64,
+    /// The same over `mu`, m rad: the scale of a wrap's tension integrals per newton
+    /// (kept, as every commit needs it).
+    slip_weight_per_mu: f64,
     /// Breakpoints ordered from the inner end (`s = wrap`) to the contact point (`s = 0`),
     /// so that a new slip zone pops the wiped breakpoints off the end of the vector. A
     /// breakpoint always sits at `cut_rad`, so every segment has a single weight.
@@ -421,6 +422,7 @@ impl WrapRegion {
             mu,
             preload_n,
             modulus_n,
+            inv_modulus: 1.0 / modulus_n,
             cut_rad,
             wrap_rad,
             weight_inner_m,
@@ -434,9 +436,9 @@ impl WrapRegion {
             stuck_m: 0.0,
             stuck_band_m: 0.0,
             committed_n: preload_n,
+            weight_total_m: weight_inner_m * cut_rad + weight_outer_m * (wrap_rad - cut_rad),
             slip_weight_per_mu: (weight_inner_m * cut_rad + weight_outer_m * (wrap_rad - cut_rad))
                 / mu,
-            weight_total_m: weight_inner_m * cut_rad + weight_outer_m * (wrap_rad - cut_rad),
             verts: Vec::with_capacity(16),
             generation: 0,
             laws: [Cell::new(WrapLaw::INVALID), Cell::new(WrapLaw::INVALID)],
@@ -474,14 +476,23 @@ impl WrapRegion {
         self.refresh_committed();
     }
 
+    /// Band around the committed elongation times `E*A` (N m) for committed tension
+    /// `top_n` (N) and a series span `span_m` (m), within which a solve returns the
+    /// committed tension: there the wrap's stiffness is the free span's alone, so this
+    /// moves the tension by about 1e-11 of itself at most.
+    #[inline]
+    fn stuck_band(&self, top_n: f64, span_m: f64) -> f64 {
+        1e-12 * top_n * (span_m + self.slip_weight_per_mu)
+    }
+
     /// The committed state as the series span's solves see it (after every change).
     fn refresh_committed(&mut self) {
-        let (per_ea, pre) = (1.0 / self.modulus_n, self.preload_n);
+        let (per_ea, pre) = (self.inv_modulus, self.preload_n);
         let top = self.verts[self.verts.len() - 1];
         let span = self.series_span_m;
         self.committed_n = top.t;
         self.stuck_m = (span * (top.t - pre) + top.tail - pre * self.weight_total_m) * per_ea;
-        self.stuck_band_m = 1e-12 * top.t * (span + self.slip_weight_per_mu) * per_ea;
+        self.stuck_band_m = self.stuck_band(top.t, span) * per_ea;
     }
 
     /// Longest wrap angle, rad.
@@ -692,7 +703,7 @@ impl WrapRegion {
     #[inline]
     fn trial_from(&self, law: WrapLaw, tb_n: f64) -> WrapTrial {
         let (e, de, d2e) = law.eval(tb_n, self.mu, self.preload_n);
-        let inv = 1.0 / self.modulus_n;
+        let inv = self.inv_modulus;
         WrapTrial {
             elongation_m: e * inv,
             d_elongation_m_per_n: de * inv,
@@ -808,10 +819,8 @@ impl WrapRegion {
         // The committed state splits loading from unloading: which way the boundary
         // tension moves follows from the target alone.
         let stuck = span * (top.t - pre) + top.tail - pre * self.weight_total_m;
-        // Within rounding of the committed state (where the wrap's stiffness is the free
-        // span's alone, so this moves the tension by about 1e-11 of itself at most),
-        // nothing slips.
-        let rounding = 1e-12 * top.t * (span + self.slip_weight_per_mu);
+        // Within rounding of the committed state nothing slips.
+        let rounding = self.stuck_band(top.t, span);
         if (target - stuck).abs() <= rounding {
             return Some((top.t, self.stuck_law()));
         }
