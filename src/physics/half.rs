@@ -115,7 +115,7 @@ impl CableHalf {
     /// A wrap trial at `tension_n` with the free span added.
     #[inline]
     fn with_span(&self, wrap: WrapTrial, tension_n: f64) -> HalfTrial {
-        let span_per_n = self.span_m / self.modulus_n;
+        let span_per_n = self.wrap.series_span_per_n();
         HalfTrial {
             elongation_m: span_per_n * (tension_n - self.preload_n) + wrap.elongation_m,
             d_elongation_m_per_n: span_per_n + wrap.d_elongation_m_per_n,
@@ -154,7 +154,7 @@ impl CableHalf {
     #[inline]
     pub fn tension_for_elongation(&self, elongation_m: f64, guess_n: f64) -> Option<f64> {
         self.wrap
-            .tension_for_elongation(elongation_m, self.span_m / self.modulus_n, guess_n)
+            .tension_for_elongation(elongation_m, self.wrap.series_span_per_n(), guess_n)
     }
 
     /// [`Self::tension_for_elongation`] with what committing its result needs.
@@ -165,7 +165,7 @@ impl CableHalf {
         guess_n: f64,
     ) -> Option<HalfSolution> {
         self.wrap
-            .solve_for_elongation(elongation_m, self.span_m / self.modulus_n, guess_n)
+            .solve_for_elongation(elongation_m, self.wrap.series_span_per_n(), guess_n)
             .map(|(tension_n, law)| HalfSolution { tension_n, law })
     }
 

@@ -456,6 +456,13 @@ impl WrapRegion {
         self
     }
 
+    /// Compliance of the free span in series, `span/E*A`, m/N (0 when none was given):
+    /// solves by elongation for it take the fast path.
+    #[inline]
+    pub fn series_span_per_n(&self) -> f64 {
+        self.series_span_per_n
+    }
+
     /// Forget all history: back to the uniform preloaded profile.
     pub fn reset(&mut self) {
         let t = self.preload_n;
