@@ -193,7 +193,6 @@ impl Signal {
                 ))
             }
         };
-        // Angles and rates beyond any pointing motion; also keeps derivatives finite.
         // A period or frequency: finite and above zero.
         let positive = |name: &str, v: f64, what: &str, unit: &str| {
             if v.is_finite() && v > 0.0 {
@@ -205,6 +204,7 @@ impl Signal {
                 ))
             }
         };
+        // Angles and rates beyond any pointing motion; also keeps derivatives finite.
         let angle = |name: &str, v: f64| {
             finite(name, v)?;
             if v.abs() <= MAX_ANGLE_RAD {

@@ -116,11 +116,11 @@ fn hysteretic_solutions(
     };
     let u = drive
         .upper()
-        .solve_for_elongation(d, f64::NAN)
+        .solve_for_elongation(d)
         .ok_or_else(|| slack(Half::Upper))?;
     let l = drive
         .lower()
-        .solve_for_elongation(-d, f64::NAN)
+        .solve_for_elongation(-d)
         .ok_or_else(|| slack(Half::Lower))?;
     Ok((u, l))
 }

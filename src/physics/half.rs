@@ -157,15 +157,12 @@ impl CableHalf {
             .tension_for_elongation(elongation_m, self.wrap.series_span_per_n(), guess_n)
     }
 
-    /// [`Self::tension_for_elongation`] with what committing its result needs.
+    /// [`Self::tension_for_elongation`] with what committing its result needs; a search,
+    /// when one is needed, starts from the committed state.
     #[inline(always)]
-    pub(crate) fn solve_for_elongation(
-        &self,
-        elongation_m: f64,
-        guess_n: f64,
-    ) -> Option<HalfSolution> {
+    pub(crate) fn solve_for_elongation(&self, elongation_m: f64) -> Option<HalfSolution> {
         self.wrap
-            .solve_for_elongation(elongation_m, self.wrap.series_span_per_n(), guess_n)
+            .solve_for_elongation(elongation_m, self.wrap.series_span_per_n(), f64::NAN)
             .map(|(tension_n, law)| HalfSolution { tension_n, law })
     }
 

@@ -764,52 +764,9 @@ impl WrapRegion {
                     return Some((t, cached));
                 }
             }
-            if let Some(found) = self.solve_series_from(target_m, rising, guess_n) {
-                return Some(found);
-            }
+            return self.tension_for_elongation_search(target_m, span_per_n, rising, guess_n);
         }
         self.solve_for_elongation_any(target_m, span_per_n, guess_n)
-    }
-
-    /// The series span's solve when the cached law does not hold (a commit the other way
-    /// replaced it, or the root lies on another segment): from the law at the guess, then
-    /// the laws where each root points, as long as they are sloped.
-    #[inline(never)]
-    fn solve_series_from(
-        &self,
-        target_m: f64,
-        rising: bool,
-        guess_n: f64,
-    ) -> Option<(f64, WrapLaw)> {
-        let top = self.committed_n;
-        // Without a guess, the tangent at the committed state, where only the free span
-        // stretches (a slip zone starts with zero length): it overshoots, and the laws
-        // where the roots point lead back.
-        let guess_n = if guess_n.is_finite() {
-            guess_n
-        } else {
-            top + (target_m - self.stuck_m) / self.series_span_per_n
-        };
-        // A guess on the wrong side of the committed tension would pick the other branch.
-        let mut at = if guess_n.is_finite() && guess_n > 0.0 && (guess_n > top) == rising {
-            guess_n
-        } else if rising {
-            top * (1.0 + 1e-9)
-        } else {
-            top * (1.0 - 1e-9)
-        };
-        for _ in 0..3 {
-            let law = self.law_at(at);
-            if law.kind != LawKind::Sloped || law.rising != rising {
-                return None;
-            }
-            let t = law.solve_series(target_m, self.modulus_n)?;
-            if let Some(t) = law.accept(t) {
-                return Some((t, law));
-            }
-            at = t;
-        }
-        None
     }
 
     /// [`Self::solve_for_elongation`] for any series span and any kind of law.
@@ -841,7 +798,7 @@ impl WrapRegion {
                 return Some((t, cached));
             }
         }
-        self.tension_for_elongation_search(target, span, rising, guess_n)
+        self.tension_for_elongation_search(target_m, span_per_n, rising, guess_n)
     }
 
     /// The law of an unchanged boundary tension: nothing slips.
@@ -857,23 +814,36 @@ impl WrapRegion {
         }
     }
 
-    /// [`Self::tension_for_elongation`] when the cached law does not hold: from the
-    /// guessed segment, then the one its root points to, then safeguarded Newton over
-    /// fresh trials. `target` and `span` are scaled by `E*A` (N m).
+    /// [`Self::solve_for_elongation`] when the cached law does not give the root: from the
+    /// law at the guess, then the laws where each root points (a smooth motion crosses a
+    /// segment or two in a step), then safeguarded Newton over fresh trials. For the
+    /// series span without a guess, the guess is the tangent at the committed state, where
+    /// only the free span stretches (a slip zone starts with zero length): it overshoots,
+    /// and the laws where the roots point lead back.
     #[cold]
     #[inline(never)]
     fn tension_for_elongation_search(
         &self,
-        target: f64,
-        span: f64,
+        target_m: f64,
+        span_per_n: f64,
         rising: bool,
         guess_n: f64,
     ) -> Option<(f64, WrapLaw)> {
         let (ea, pre, mu) = (self.modulus_n, self.preload_n, self.mu);
-        let top_t = self.boundary_tension_n();
-        let closed = |law: &WrapLaw, start: f64| {
-            law.solve(target, span, pre, mu, start)
-                .and_then(|t| law.accept(t))
+        let (target, span) = (target_m * ea, span_per_n * ea);
+        let series = span_per_n == self.series_span_per_n;
+        let top_t = self.committed_n;
+        let root_on = |law: &WrapLaw, start: f64| {
+            if series && law.kind == LawKind::Sloped {
+                law.solve_series(target_m, ea)
+            } else {
+                law.solve(target, span, pre, mu, start)
+            }
+        };
+        let guess_n = if series && !guess_n.is_finite() {
+            top_t + (target_m - self.stuck_m) / span_per_n
+        } else {
+            guess_n
         };
         // A guess on the wrong side of the committed tension would pick the other branch.
         let guess = if guess_n.is_finite() && guess_n > 0.0 && (guess_n > top_t) == rising {
@@ -883,19 +853,18 @@ impl WrapRegion {
         } else {
             top_t * (1.0 - 1e-9)
         };
-        let law = self.law_at(guess);
-        if let Some(t) = closed(&law, guess) {
-            return Some((t, law));
-        }
-        if let Some(t) = law.solve(target, span, pre, mu, guess) {
-            // The root of the guessed segment's law lies beyond it: start over from there
-            // (one more segment is all a smooth motion crosses in a step).
-            let law = self.law_at(t);
-            if let Some(t) = closed(&law, t) {
+        let mut at = guess;
+        for _ in 0..3 {
+            let law = self.law_at(at);
+            let Some(t) = root_on(&law, at) else {
+                break;
+            };
+            // Any root a law accepts within its range solves the monotone equation.
+            if let Some(t) = law.accept(t) {
                 return Some((t, law));
             }
+            at = t;
         }
-        let (span_per_n, target_m) = (span / ea, target / ea);
         super::newton::solve_increasing(
             |tb| {
                 let tr = self.trial(tb);
