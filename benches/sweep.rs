@@ -8,9 +8,11 @@
 //! on two threads; run it alone with `cargo bench --bench sweep -- closed_loop`. Rows go to
 //! a sink that only counts them, so the figures exclude file output.
 
-use cable_servo::run::{BacklashRunner, ClosedLoopRunner, QuasiStaticRunner};
+use cable_servo::run::{
+    run_one_case, BacklashRunner, CaseRunner, ClosedLoopRunner, QuasiStaticRunner,
+};
 use cable_servo::scenario::{builtin, Scenario};
-use cable_servo::sweep::engine::{expand, run_cases, CaseRunner, Plan};
+use cable_servo::sweep::engine::{expand, run_cases, Plan};
 use cable_servo::sweep::vary::SweepOverrides;
 use cable_servo::sweep::{Case, Shard};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
@@ -27,17 +29,15 @@ fn prepared(name: &str, overrides: &SweepOverrides) -> (toml::Table, Vec<Case>) 
 
 fn run(base: &toml::Table, cases: &[Case], runner: &dyn CaseRunner, threads: usize) -> usize {
     let plan = Plan {
-        base,
-        default_name: "bench",
         cases,
         shard: Shard::ALL,
         threads,
-        case_files: None,
     };
     let mut rows = 0;
     run_cases(
         &plan,
-        runner,
+        runner.columns().len(),
+        &|case| run_one_case(base, "bench", case, runner, None),
         &mut |_, _| {
             rows += 1;
             Ok(())

@@ -9,7 +9,7 @@ use serde::Serialize;
 use crate::closed_loop::{self, CompensationMode, RunOptions};
 use crate::scenario::Scenario;
 use crate::signal::Signal;
-use crate::sweep::answers::largest_passing;
+use crate::study::answers::largest_passing;
 
 /// What a design question varies.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]

@@ -7,7 +7,8 @@ use clap::{Parser, Subcommand};
 
 use cable_servo::run::{self, OutputOptions, RunError, RunReport, SweepOptions};
 use cable_servo::scenario::{Scenario, DEFAULT_SCENARIO};
-use cable_servo::sweep::{answers, vary, Shard};
+use cable_servo::study::answers;
+use cable_servo::sweep::{vary, Shard};
 
 /// Print a line to stdout; a closed pipe (`| head`) is not an error worth a panic.
 macro_rules! say {
@@ -513,7 +514,7 @@ fn main() -> ExitCode {
             }
         }
         Command::Merge { out, shards, force } => {
-            match cable_servo::sweep::merge::merge_files(&shards, &out, force) {
+            match cable_servo::io::merge::merge_files(&shards, &out, force) {
                 Ok(rows) => {
                     say!("{rows} cases merged into {}", out.display());
                     ExitCode::SUCCESS

@@ -8,7 +8,10 @@ use crate::io::output::{OutputError, StagedDir};
 use crate::report::{self, ReportError};
 use crate::scenario::{Scenario, ScenarioError, Study};
 use crate::study::quasi_static::{self, BacklashResult};
-use crate::sweep::engine::{self, Case, CaseRunner, Cell, Shard, SweepError};
+use crate::sweep::engine::{self, Case, Cell, Shard, SweepError};
+
+mod case;
+pub use case::{case_dir, case_scenario, run_one_case, CaseRunner};
 
 /// Why a run produced no (complete) results.
 #[derive(Debug, thiserror::Error)]
@@ -165,9 +168,9 @@ fn run_closed_loop(
     warnings: &mut Vec<String>,
 ) -> Result<(String, Option<String>), RunError> {
     let result = closed_loop::run_closed_loop(scenario, &closed_loop::RunOptions::default())?;
-    closed_loop::write_closed_loop_outputs(dir, scenario, &result)?;
+    report::closed_loop::write_closed_loop_outputs(dir, scenario, &result)?;
     let target = scenario.closed_loop.as_ref().map_or(0.1, |c| c.target_mrad);
-    if let Err(e) = closed_loop::plot_closed_loop(dir, &result, target) {
+    if let Err(e) = report::closed_loop::plot_closed_loop(dir, &result, target) {
         warnings.push(format!("plots incomplete: {e}"));
     }
     let failure = result.modes.iter().find_map(|m| match &m.completion {
@@ -177,7 +180,7 @@ fn run_closed_loop(
             m.mode.name()
         )),
     });
-    Ok((closed_loop::format_table(&result), failure))
+    Ok((report::closed_loop::format_table(&result), failure))
 }
 
 fn run_backlash(
@@ -423,7 +426,7 @@ pub fn run_sweep(
     let runner = runner_for(scenario)?;
     // Validate every case before anything is written: bad input leaves no results.
     for case in cases.iter().filter(|c| options.shard.owns(c.index)) {
-        engine::case_scenario(&base, case, scenario.name()).map_err(|e| SweepError::Case {
+        case_scenario(&base, case, scenario.name()).map_err(|e| SweepError::Case {
             index: case.index,
             source: Box::new(e),
         })?;
@@ -452,16 +455,15 @@ pub fn run_sweep(
         &figure_columns,
     )?;
     let plan = engine::Plan {
-        base: &base,
-        default_name: scenario.name(),
         cases: &cases,
         shard: options.shard,
         threads: options.threads,
-        case_files: options.case_timeseries.then_some(dir.as_path()),
     };
+    let case_files = options.case_timeseries.then_some(dir.as_path());
     let outcome = engine::run_cases(
         &plan,
-        runner.as_ref(),
+        runner.columns().len(),
+        &|case| run_one_case(&base, scenario.name(), case, runner.as_ref(), case_files),
         &mut |case, cells| table.push(case, cells),
         progress,
     );
@@ -550,13 +552,13 @@ fn design_answers(
             })
             .collect();
         let limit = report::quasi_static::free_span_backlash_mrad(&scenario.drive, load);
-        let threshold = crate::sweep::answers::flattening_preload(&pts, limit, TOLERANCE);
+        let threshold = crate::study::answers::flattening_preload(&pts, limit, TOLERANCE);
         let model = scenario
             .backlash
             .as_ref()
             .map(|b| b.model)
             .unwrap_or_default();
-        let least = crate::sweep::answers::least_preload_at_load(
+        let least = crate::study::answers::least_preload_at_load(
             &scenario.drive,
             load,
             model,
@@ -585,7 +587,7 @@ fn design_answers(
                 "per_load": json_rows,
             },
             "least_preload": {
-                "definition": crate::sweep::answers::LEAST_PRELOAD_DEFINITION,
+                "definition": crate::study::answers::LEAST_PRELOAD_DEFINITION,
                 "tolerance_n": 0.01,
                 "search_range_n": [0.01, 1e5],
             },

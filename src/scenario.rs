@@ -8,8 +8,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::closed_loop::ClosedLoopParams;
 use crate::identify::{EffectsParams, IdentifyParams};
-use crate::physics::{DriveParams, HysteresisModel, LoadParams};
+use crate::physics::{DriveParams, LoadParams};
 use crate::signal::Signal;
+pub use crate::study::quasi_static::{BacklashParams, QuasiStaticParams};
 use crate::sweep::SweepSpec;
 
 /// What a scenario computes.
@@ -31,44 +32,6 @@ pub const MAX_QS_SAMPLES: f64 = 2e6;
 
 /// Fewest samples per period of the fastest motion or load component.
 pub const SAMPLES_PER_PERIOD: f64 = 10.0;
-
-/// Prescribed-motion quasi-static study.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct QuasiStaticParams {
-    /// Simulated time, s (20 for two periods of the bench's 0.1 Hz sine).
-    pub duration_s: f64,
-    /// Samples per second, Hz (200 is plenty at 0.1 Hz).
-    #[serde(default = "default_qs_rate")]
-    pub sample_rate_hz: f64,
-    /// Input (motor pulley) angle against time.
-    pub motion: Signal,
-    /// Models to run side by side.
-    #[serde(default = "default_models")]
-    pub models: Vec<HysteresisModel>,
-    /// Instants at which tension profiles along the wraps are recorded and plotted, s.
-    #[serde(default)]
-    pub profile_times_s: Vec<f64>,
-}
-
-fn default_qs_rate() -> f64 {
-    200.0
-}
-
-fn default_models() -> Vec<HysteresisModel> {
-    vec![HysteresisModel::Memory, HysteresisModel::Memoryless]
-}
-
-/// Backlash protocol parameters.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct BacklashParams {
-    /// Magnitude of the transmitted torque `M`, N m (0.72 on the bench).
-    pub load_nm: f64,
-    /// History model.
-    #[serde(default)]
-    pub model: HysteresisModel,
-}
 
 /// A complete run description.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -976,5 +939,34 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(!err.contains('\n'), "{err}");
+    }
+}
+
+impl Study {
+    /// The name a scenario file uses for this study.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Study::QuasiStatic => "quasi_static",
+            Study::Backlash => "backlash",
+            Study::ClosedLoop => "closed_loop",
+        }
+    }
+}
+
+impl crate::closed_loop::ClosedLoopSource for Scenario {
+    fn closed_loop_setup(
+        &self,
+    ) -> Result<crate::closed_loop::ClosedLoopSetup<'_>, crate::closed_loop::ClosedLoopError> {
+        match (&self.study, &self.closed_loop) {
+            (Study::ClosedLoop, Some(params)) => Ok(crate::closed_loop::ClosedLoopSetup {
+                drive: &self.drive,
+                load: &self.load,
+                effects: self.effects.as_ref(),
+                params,
+            }),
+            (study, _) => Err(crate::closed_loop::ClosedLoopError::NotClosedLoop {
+                study: format!("\"{}\"", study.as_str()),
+            }),
+        }
     }
 }

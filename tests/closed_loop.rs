@@ -3,6 +3,9 @@
 use cable_servo::closed_loop::*;
 use cable_servo::identify::EffectsParams;
 use cable_servo::physics::{CableDrive, HysteresisModel};
+use cable_servo::report::closed_loop::{
+    closed_loop_charts, format_table, plot_closed_loop, write_closed_loop_outputs,
+};
 use cable_servo::scenario::Scenario;
 use cable_servo::signal::Signal;
 use nalgebra::{SMatrix, SVector};

@@ -5,7 +5,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::identify::effects::EffectsParams;
+use crate::physics::EffectsParams;
 use crate::physics::{CableDrive, DriveParams, HysteresisModel, Routing};
 use crate::signal::Signal;
 

@@ -11,8 +11,8 @@ use nalgebra::SVector;
 use ode_solvers::System;
 
 use super::params::{Amplifier, CableModel, ClosedLoopParams};
-use crate::identify::effects::EffectsParams;
 use crate::physics::half::HalfSolution;
+use crate::physics::EffectsParams;
 use crate::physics::{CableDrive, DriveFault, DriveParams, Half, HysteresisModel, LoadParams};
 
 /// Plant state vector.

@@ -13,8 +13,7 @@ use super::plant::{
     PlantCoefficients, State, CURRENT, OMEGA_O, THETA_M, THETA_O,
 };
 use crate::metrics::{Metrics, MetricsAccumulator, MetricsConfig, Sample, StepEvent};
-use crate::physics::{DriveFault, Half};
-use crate::scenario::{Scenario, Study};
+use crate::physics::{DriveFault, DriveParams, EffectsParams, Half, LoadParams};
 use crate::signal::Signal;
 
 /// What to keep from a run.
@@ -52,10 +51,10 @@ impl RunOptions {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ClosedLoopError {
     /// The scenario is not a closed-loop study.
-    #[error("scenario study is {study:?}: a closed-loop run needs study = \"closed_loop\" and a [closed_loop] section")]
+    #[error("scenario study is {study}: a closed-loop run needs study = \"closed_loop\" and a [closed_loop] section")]
     NotClosedLoop {
-        /// The scenario's study.
-        study: Study,
+        /// The scenario's study, as named in its file.
+        study: String,
     },
     /// A parameter out of range or inconsistent.
     #[error("{key}: {message}")]
@@ -201,10 +200,30 @@ pub struct ClosedLoopResult {
     pub complete: bool,
 }
 
-fn closed_loop_params(scenario: &Scenario) -> Result<&ClosedLoopParams, ClosedLoopError> {
-    match (&scenario.study, &scenario.closed_loop) {
-        (Study::ClosedLoop, Some(p)) => Ok(p),
-        (study, _) => Err(ClosedLoopError::NotClosedLoop { study: *study }),
+/// Everything a closed-loop run reads: the drive, the loads on its drum, the effects the
+/// plant carries and the loop itself.
+#[derive(Clone, Copy, Debug)]
+pub struct ClosedLoopSetup<'a> {
+    /// The cable drive.
+    pub drive: &'a DriveParams,
+    /// Loads on the output drum.
+    pub load: &'a LoadParams,
+    /// Effects beyond the base model that the plant carries (runout, drift, bearing friction).
+    pub effects: Option<&'a EffectsParams>,
+    /// Motor, controller, sensors, compensation, reference and timing.
+    pub params: &'a ClosedLoopParams,
+}
+
+/// Anything a closed-loop setup can be read from: a setup itself, or a scenario (which
+/// implements this at the edge, so this module never learns what a scenario file is).
+pub trait ClosedLoopSource {
+    /// The setup, or why this source holds none.
+    fn closed_loop_setup(&self) -> Result<ClosedLoopSetup<'_>, ClosedLoopError>;
+}
+
+impl ClosedLoopSource for ClosedLoopSetup<'_> {
+    fn closed_loop_setup(&self) -> Result<ClosedLoopSetup<'_>, ClosedLoopError> {
+        Ok(*self)
     }
 }
 
@@ -252,10 +271,12 @@ pub fn step_events(signal: &Signal, duration_s: f64) -> Vec<StepEvent> {
 
 /// Run the closed loop of a scenario for every selected compensation mode.
 pub fn run_closed_loop(
-    scenario: &Scenario,
+    source: &(impl ClosedLoopSource + ?Sized),
     options: &RunOptions,
 ) -> Result<ClosedLoopResult, ClosedLoopError> {
-    let p = closed_loop_params(scenario)?;
+    let setup = source.closed_loop_setup()?;
+    let scenario = &setup;
+    let p = setup.params;
     p.validate(&scenario.drive)
         .map_err(|(key, message)| ClosedLoopError::Invalid { key, message })?;
     scenario
@@ -272,14 +293,14 @@ pub fn run_closed_loop(
             key: format!("load.{k}"),
             message,
         })?;
-    if let Some(fx) = &scenario.effects {
+    if let Some(fx) = scenario.effects {
         fx.validate()
             .map_err(|(k, message)| ClosedLoopError::Invalid {
                 key: format!("effects.{k}"),
                 message,
             })?;
     }
-    p.validate_effects(scenario.effects.as_ref())
+    p.validate_effects(scenario.effects)
         .map_err(|(key, message)| ClosedLoopError::Invalid { key, message })?;
     check_tables(&p.reference)?;
     if let (Some(path), true) = (
@@ -304,7 +325,7 @@ pub fn run_closed_loop(
     }
     let results: Vec<ModeResult> = modes
         .iter()
-        .map(|&m| run_mode(scenario, p, m, options))
+        .map(|&m| run_mode(&setup, m, options))
         .collect();
     Ok(ClosedLoopResult {
         complete: results.iter().all(|r| r.completion == Completion::Complete),
@@ -314,8 +335,10 @@ pub fn run_closed_loop(
 }
 
 /// Metrics of every mode without time series: the cheap call for one sweep case.
-pub fn run_closed_loop_metrics(scenario: &Scenario) -> Result<ClosedLoopResult, ClosedLoopError> {
-    run_closed_loop(scenario, &RunOptions::metrics_only())
+pub fn run_closed_loop_metrics(
+    source: &(impl ClosedLoopSource + ?Sized),
+) -> Result<ClosedLoopResult, ClosedLoopError> {
+    run_closed_loop(source, &RunOptions::metrics_only())
 }
 
 /// Fault message with time and mode. A slack span found while solving by displacement
@@ -353,19 +376,19 @@ fn describe(
 }
 
 fn run_mode(
-    scenario: &Scenario,
-    p: &ClosedLoopParams,
+    scenario: &ClosedLoopSetup<'_>,
     mode: CompensationMode,
     options: &RunOptions,
 ) -> ModeResult {
     let wall = Instant::now();
-    let drive = &scenario.drive;
-    let load = &scenario.load;
+    let p = scenario.params;
+    let drive = scenario.drive;
+    let load = scenario.load;
     let ic = drive.ratio();
     let ts = 1.0 / p.controller.sample_rate_hz;
     let n = p.periods();
     let sub = p.rk4_substeps;
-    let coeff = PlantCoefficients::new(p, drive, load, scenario.effects.as_ref());
+    let coeff = PlantCoefficients::new(p, drive, load, scenario.effects);
     let mut cable = PlantCable::new(p.cable, drive);
     let mut sensors = Sensors::new(&p.sensors);
     let mut pid = Pid::new(&p.controller, p.motor.command_limit());
@@ -374,7 +397,7 @@ fn run_mode(
         .map(|m| Compensator::new(p.compensator_params(drive), m));
     // Effects the compensator predicts (only modes with a compensator use them).
     let comp_fx = p
-        .compensator_effects(scenario.effects.as_ref())
+        .compensator_effects(scenario.effects)
         .filter(|_| comp.is_some());
     let comp_kinematic = comp_fx.filter(|fx| fx.has_kinematic());
     let comp_bearing = comp_fx.map_or(0.0, |fx| fx.bearing_friction());

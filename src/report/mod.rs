@@ -1,6 +1,7 @@
 //! Result files and plots. CSV and JSON are written first; plots come after and can never
 //! break a run (their failures are reported as warnings).
 
+pub mod closed_loop;
 pub mod quasi_static;
 pub mod sweep;
 

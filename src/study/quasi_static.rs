@@ -3,10 +3,48 @@
 //! The drive is stepped through the load history sample by sample; each step solves both
 //! span tensions from equilibrium and the length constraint and commits the wrap memory.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::physics::{CableDrive, DriveFault, DriveParams, Half, HysteresisModel, LoadParams};
-use crate::scenario::{BacklashParams, QuasiStaticParams};
+use crate::signal::Signal;
+
+/// Prescribed-motion quasi-static study.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct QuasiStaticParams {
+    /// Simulated time, s (20 for two periods of the bench's 0.1 Hz sine).
+    pub duration_s: f64,
+    /// Samples per second, Hz (200 is plenty at 0.1 Hz).
+    #[serde(default = "default_qs_rate")]
+    pub sample_rate_hz: f64,
+    /// Input (motor pulley) angle against time.
+    pub motion: Signal,
+    /// Models to run side by side.
+    #[serde(default = "default_models")]
+    pub models: Vec<HysteresisModel>,
+    /// Instants at which tension profiles along the wraps are recorded and plotted, s.
+    #[serde(default)]
+    pub profile_times_s: Vec<f64>,
+}
+
+fn default_qs_rate() -> f64 {
+    200.0
+}
+
+fn default_models() -> Vec<HysteresisModel> {
+    vec![HysteresisModel::Memory, HysteresisModel::Memoryless]
+}
+
+/// Backlash protocol parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BacklashParams {
+    /// Magnitude of the transmitted torque `M`, N m (0.72 on the bench).
+    pub load_nm: f64,
+    /// History model.
+    #[serde(default)]
+    pub model: HysteresisModel,
+}
 
 /// One quasi-static sample.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]

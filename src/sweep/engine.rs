@@ -1,14 +1,12 @@
 //! Running the cases of a sweep in parallel and streaming one row per case, in case order.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
 use std::sync::mpsc;
 
 use rayon::prelude::*;
 
 use super::sample::{self, Draw};
 use super::spec::{DistKind, SweepMode, SweepParameter, SweepSpec};
-use crate::scenario::{set_path, Scenario, ScenarioError};
 
 /// One case: the scenario keys it sets.
 #[derive(Clone, Debug, PartialEq)]
@@ -253,83 +251,31 @@ pub fn render_value(v: &toml::Value) -> String {
     }
 }
 
-/// What a sweep computes per case.
-pub trait CaseRunner: Sync {
-    /// Names of the figures, in order (units in the names).
-    fn columns(&self) -> Vec<String>;
-    /// Figures of one resolved case scenario; must return one cell per column. Failures of
-    /// the physics are results (a regime column), not errors.
-    fn run(&self, scenario: &Scenario, case: &Case) -> Vec<Cell>;
-
-    /// Whether [`CaseRunner::run_case`] writes anything into a case folder (per-case time
-    /// series); when false, asking for them only earns a warning.
-    fn writes_case_files(&self) -> bool {
-        false
-    }
-
-    /// Figures of one case, also writing its own files (time series) into `dir` when
-    /// given. Runners with per-case files override this so the case is computed once.
-    fn run_case(
-        &self,
-        scenario: &Scenario,
-        case: &Case,
-        dir: Option<&Path>,
-    ) -> std::io::Result<Vec<Cell>> {
-        let _ = dir;
-        Ok(self.run(scenario, case))
-    }
-}
-
-/// Folder of one case's own files under a sweep's results directory:
-/// `cases/case-000123`.
-pub fn case_dir(results: &Path, index: usize) -> PathBuf {
-    results.join("cases").join(format!("case-{index:06}"))
-}
-
-/// Build the scenario of one case from the base scenario table.
-pub fn case_scenario(
-    base: &toml::Table,
-    case: &Case,
-    default_name: &str,
-) -> Result<Scenario, ScenarioError> {
-    let mut table = base.clone();
-    table.remove("sweep");
-    for (key, _, value) in &case.assignments {
-        let path: Vec<String> = key.split('.').map(str::to_string).collect();
-        set_path(&mut table, &path, value.clone()).map_err(|message| ScenarioError::Override {
-            arg: format!("{key}={}", render_value(value)),
-            message,
-        })?;
-    }
-    Scenario::from_table(table, &format!("sweep case {}", case.index), default_name)
-}
-
 /// The cases to run and where.
 pub struct Plan<'a> {
-    /// Base scenario table (the sweep's own section is dropped per case).
-    pub base: &'a toml::Table,
-    /// Scenario name used when the table sets none.
-    pub default_name: &'a str,
     /// All cases of the sweep.
     pub cases: &'a [Case],
     /// The part this process runs.
     pub shard: Shard,
     /// Worker threads (0 = all cores).
     pub threads: usize,
-    /// Results directory under which each case writes `cases/case-NNNNNN/` (time series);
-    /// `None` keeps only the sweep table.
-    pub case_files: Option<&'a Path>,
 }
 
-/// Run the plan's cases on its threads and hand each row to `sink` in case order as soon
-/// as it and all earlier rows are done. `progress` is called after every case.
+/// What a sweep computes for one case: the caller resolves the case into whatever its
+/// study needs, runs it and returns one cell per column. Physical stops are results (a
+/// status cell), not errors; an error ends the sweep.
+pub type CaseFn<'a> = dyn Fn(&Case) -> Result<Vec<Cell>, SweepError> + Sync + 'a;
+
+/// Run the plan's cases on its threads and hand each row of `n_cols` cells to `sink` in
+/// case order as soon as it and all earlier rows are done. `progress` is called after
+/// every case.
 pub fn run_cases(
     plan: &Plan<'_>,
-    runner: &dyn CaseRunner,
+    n_cols: usize,
+    run_one: &CaseFn<'_>,
     sink: &mut dyn FnMut(&Case, Vec<Cell>) -> std::io::Result<()>,
     progress: &(dyn Fn() + Sync),
 ) -> Result<(), SweepError> {
-    let (base, default_name) = (plan.base, plan.default_name);
     let mine: Vec<&Case> = plan
         .cases
         .iter()
@@ -339,9 +285,7 @@ pub fn run_cases(
         .num_threads(plan.threads)
         .build()
         .map_err(|e| SweepError::Threads(e.to_string()))?;
-    let case_files = plan.case_files;
     let (tx, rx) = mpsc::sync_channel::<(usize, Result<Vec<Cell>, SweepError>)>(256);
-    let n_cols = runner.columns().len();
     let mut outcome = Ok(());
     std::thread::scope(|scope| {
         let mine_ref = &mine;
@@ -351,7 +295,7 @@ pub fn run_cases(
                     .par_iter()
                     .enumerate()
                     .for_each_with(tx, |tx, (pos, case)| {
-                        let row = one_case(base, default_name, case, runner, case_files);
+                        let row = run_one(case);
                         progress();
                         // The receiver only stops early on a write error; then the rest is moot.
                         let _ = tx.send((pos, row));
@@ -386,47 +330,16 @@ pub fn run_cases(
     outcome
 }
 
-/// Resolve, run and (when asked) write the files of one case.
-fn one_case(
-    base: &toml::Table,
-    default_name: &str,
-    case: &Case,
-    runner: &dyn CaseRunner,
-    case_files: Option<&Path>,
-) -> Result<Vec<Cell>, SweepError> {
-    let scenario = case_scenario(base, case, default_name).map_err(|e| SweepError::Case {
-        index: case.index,
-        source: Box::new(e),
-    })?;
-    let dir = match case_files {
-        Some(root) if runner.writes_case_files() => {
-            let dir = case_dir(root, case.index);
-            std::fs::create_dir_all(&dir).map_err(|source| SweepError::CaseFiles {
-                index: case.index,
-                source,
-            })?;
-            Some(dir)
-        }
-        _ => None,
-    };
-    runner
-        .run_case(&scenario, case, dir.as_deref())
-        .map_err(|source| SweepError::CaseFiles {
-            index: case.index,
-            source,
-        })
-}
-
 /// A sweep that could not finish.
 #[derive(Debug, thiserror::Error)]
 pub enum SweepError {
-    /// A case's scenario is invalid (e.g. a varied value out of range).
+    /// A case's description is invalid (e.g. a varied value out of range).
     #[error("sweep case {index}: {source}")]
     Case {
         /// Case index.
         index: usize,
         /// Why.
-        source: Box<ScenarioError>,
+        source: Box<dyn std::error::Error + Send + Sync>,
     },
     /// Writing the table failed.
     #[error("writing the sweep table: {0}")]
@@ -556,80 +469,6 @@ mod tests {
         let (key, msg) = expand(&spec, &toml::Table::new()).unwrap_err();
         assert_eq!(key, "sweep.parameters[0].key");
         assert!(msg.contains("drive.preload_n"), "{msg}");
-    }
-
-    #[test]
-    fn rows_do_not_depend_on_threads_or_shards() {
-        let scenario = Scenario::from_toml(
-            crate::scenario::builtin("paper_fig11").unwrap(),
-            "f",
-            "f",
-            &[],
-        )
-        .unwrap();
-        let base = scenario.to_table();
-        let spec = SweepSpec {
-            mode: SweepMode::Random,
-            samples: Some(40),
-            seed: Some(17),
-            parameters: vec![
-                uniform("drive.preload_n", 5.0, 150.0),
-                SweepParameter {
-                    key: "backlash.load_nm".into(),
-                    dist: Some(DistKind::TruncatedNormal),
-                    mean: Some(0.7),
-                    std: Some(0.3),
-                    min: Some(0.1),
-                    max: Some(2.0),
-                    ..SweepParameter::default()
-                },
-            ],
-        };
-        let cases = expand(&spec, &base).unwrap();
-        let run = |threads: usize, shard: Shard| {
-            let plan = Plan {
-                base: &base,
-                default_name: "f",
-                cases: &cases,
-                shard,
-                threads,
-                case_files: None,
-            };
-            let mut rows = Vec::new();
-            run_cases(
-                &plan,
-                &crate::run::BacklashRunner,
-                &mut |case, cells| {
-                    rows.push(crate::report::sweep::row_line(case, &cells));
-                    Ok(())
-                },
-                &|| {},
-            )
-            .unwrap();
-            rows
-        };
-        let one = run(1, Shard::ALL);
-        assert_eq!(one.len(), 40);
-        assert_eq!(one, run(2, Shard::ALL));
-        let mut sharded: Vec<String> = (1..=3).flat_map(|k| run(2, Shard { k, n: 3 })).collect();
-        sharded.sort_by_key(|r| r.split(',').next().unwrap().parse::<usize>().unwrap());
-        assert_eq!(one, sharded);
-        // A fresh expansion draws the same values.
-        assert_eq!(cases, expand(&spec, &base).unwrap());
-    }
-
-    #[test]
-    fn tolerance_scenario_file_expands() {
-        let text = include_str!("../../scenarios/paper_bench_tolerance.toml");
-        let scenario = Scenario::from_toml(text, "t", "t", &[]).unwrap();
-        let base = scenario.to_table();
-        let cases = expand(scenario.sweep.as_ref().unwrap(), &base).unwrap();
-        assert_eq!(cases.len(), 200);
-        for c in &cases {
-            let preload = num(&c.assignments[0].2);
-            assert!((85.0..=115.0).contains(&preload), "{preload}");
-            case_scenario(&base, c, "t").unwrap();
-        }
     }
 
     #[test]

@@ -110,7 +110,7 @@ pub fn least_preload_at_load(
     use crate::study::quasi_static::{backlash, Regime};
     // Preloads beyond the strain the model accepts are not candidates, not failures.
     let hi_n = hi_n.min(crate::physics::drive::MAX_PRELOAD_STRAIN * drive.cable_modulus_n);
-    let params = crate::scenario::BacklashParams { load_nm, model };
+    let params = crate::study::quasi_static::BacklashParams { load_nm, model };
     let ok = |p: f64| {
         let d = crate::physics::DriveParams {
             preload_n: p,
@@ -181,7 +181,7 @@ mod tests {
                     preload_n,
                     ..drive.clone()
                 },
-                &crate::scenario::BacklashParams {
+                &crate::study::quasi_static::BacklashParams {
                     load_nm: 0.72,
                     model: crate::physics::HysteresisModel::Memory,
                 },

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use super::sim::{ClosedLoopResult, Completion, ModeResult, SolverStats, TimeSeries};
+use crate::closed_loop::{ClosedLoopResult, Completion, ModeResult, SolverStats, TimeSeries};
 use crate::metrics::Metrics;
 use crate::plot::{save_chart, Chart, HBand, PlotError, Series};
 use crate::report::ReportError;
@@ -80,7 +80,7 @@ pub fn write_closed_loop_outputs(
     std::fs::create_dir_all(dir).map_err(|e| ReportError::io(dir, e))?;
     let mut written = Vec::new();
     let command_unit = match scenario.closed_loop.as_ref().map(|p| p.motor.amplifier) {
-        Some(super::Amplifier::Voltage) => "V",
+        Some(crate::closed_loop::Amplifier::Voltage) => "V",
         _ => "A",
     };
     if result.modes.iter().any(|m| m.series.is_some()) {

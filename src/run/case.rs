@@ -1,0 +1,187 @@
+//! One sweep case at the top layer: the case's scenario resolved from the base table, its
+//! runner, and the folder for its own files. The sweep engine only sees a closure.
+
+use std::path::{Path, PathBuf};
+
+use crate::scenario::{set_path, Scenario, ScenarioError};
+use crate::sweep::engine::{render_value, Case, Cell, SweepError};
+
+/// What a sweep computes per case.
+pub trait CaseRunner: Sync {
+    /// Names of the figures, in order (units in the names).
+    fn columns(&self) -> Vec<String>;
+    /// Figures of one resolved case scenario; must return one cell per column. Failures of
+    /// the physics are results (a regime column), not errors.
+    fn run(&self, scenario: &Scenario, case: &Case) -> Vec<Cell>;
+
+    /// Whether [`CaseRunner::run_case`] writes anything into a case folder (per-case time
+    /// series); when false, asking for them only earns a warning.
+    fn writes_case_files(&self) -> bool {
+        false
+    }
+
+    /// Figures of one case, also writing its own files (time series) into `dir` when
+    /// given. Runners with per-case files override this so the case is computed once.
+    fn run_case(
+        &self,
+        scenario: &Scenario,
+        case: &Case,
+        dir: Option<&Path>,
+    ) -> std::io::Result<Vec<Cell>> {
+        let _ = dir;
+        Ok(self.run(scenario, case))
+    }
+}
+
+/// Folder of one case's own files under a sweep's results directory:
+/// `cases/case-000123`.
+pub fn case_dir(results: &Path, index: usize) -> PathBuf {
+    results.join("cases").join(format!("case-{index:06}"))
+}
+
+/// Build the scenario of one case from the base scenario table.
+pub fn case_scenario(
+    base: &toml::Table,
+    case: &Case,
+    default_name: &str,
+) -> Result<Scenario, ScenarioError> {
+    let mut table = base.clone();
+    table.remove("sweep");
+    for (key, _, value) in &case.assignments {
+        let path: Vec<String> = key.split('.').map(str::to_string).collect();
+        set_path(&mut table, &path, value.clone()).map_err(|message| ScenarioError::Override {
+            arg: format!("{key}={}", render_value(value)),
+            message,
+        })?;
+    }
+    Scenario::from_table(table, &format!("sweep case {}", case.index), default_name)
+}
+
+/// Resolve, run and (when asked) write the files of one case.
+pub fn run_one_case(
+    base: &toml::Table,
+    default_name: &str,
+    case: &Case,
+    runner: &dyn CaseRunner,
+    case_files: Option<&Path>,
+) -> Result<Vec<Cell>, SweepError> {
+    let scenario = case_scenario(base, case, default_name).map_err(|e| SweepError::Case {
+        index: case.index,
+        source: Box::new(e),
+    })?;
+    let dir = match case_files {
+        Some(root) if runner.writes_case_files() => {
+            let dir = case_dir(root, case.index);
+            std::fs::create_dir_all(&dir).map_err(|source| SweepError::CaseFiles {
+                index: case.index,
+                source,
+            })?;
+            Some(dir)
+        }
+        _ => None,
+    };
+    runner
+        .run_case(&scenario, case, dir.as_deref())
+        .map_err(|source| SweepError::CaseFiles {
+            index: case.index,
+            source,
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sweep::engine::{expand, run_cases, Plan, Shard};
+    use crate::sweep::spec::{DistKind, SweepMode, SweepParameter, SweepSpec};
+
+    fn uniform(key: &str, lo: f64, hi: f64) -> SweepParameter {
+        SweepParameter {
+            key: key.into(),
+            dist: Some(DistKind::Uniform),
+            min: Some(lo),
+            max: Some(hi),
+            ..SweepParameter::default()
+        }
+    }
+
+    fn num(v: &toml::Value) -> f64 {
+        match v {
+            toml::Value::Float(f) => *f,
+            toml::Value::Integer(i) => *i as f64,
+            other => panic!("not a number: {other}"),
+        }
+    }
+
+    #[test]
+    fn rows_do_not_depend_on_threads_or_shards() {
+        let scenario = Scenario::from_toml(
+            crate::scenario::builtin("paper_fig11").unwrap(),
+            "f",
+            "f",
+            &[],
+        )
+        .unwrap();
+        let base = scenario.to_table();
+        let spec = SweepSpec {
+            mode: SweepMode::Random,
+            samples: Some(40),
+            seed: Some(17),
+            parameters: vec![
+                uniform("drive.preload_n", 5.0, 150.0),
+                SweepParameter {
+                    key: "backlash.load_nm".into(),
+                    dist: Some(DistKind::TruncatedNormal),
+                    mean: Some(0.7),
+                    std: Some(0.3),
+                    min: Some(0.1),
+                    max: Some(2.0),
+                    ..SweepParameter::default()
+                },
+            ],
+        };
+        let cases = expand(&spec, &base).unwrap();
+        let run = |threads: usize, shard: Shard| {
+            let plan = Plan {
+                cases: &cases,
+                shard,
+                threads,
+            };
+            let mut rows = Vec::new();
+            let runner = crate::run::BacklashRunner;
+            run_cases(
+                &plan,
+                runner.columns().len(),
+                &|case| run_one_case(&base, "f", case, &runner, None),
+                &mut |case, cells| {
+                    rows.push(crate::report::sweep::row_line(case, &cells));
+                    Ok(())
+                },
+                &|| {},
+            )
+            .unwrap();
+            rows
+        };
+        let one = run(1, Shard::ALL);
+        assert_eq!(one.len(), 40);
+        assert_eq!(one, run(2, Shard::ALL));
+        let mut sharded: Vec<String> = (1..=3).flat_map(|k| run(2, Shard { k, n: 3 })).collect();
+        sharded.sort_by_key(|r| r.split(',').next().unwrap().parse::<usize>().unwrap());
+        assert_eq!(one, sharded);
+        // A fresh expansion draws the same values.
+        assert_eq!(cases, expand(&spec, &base).unwrap());
+    }
+
+    #[test]
+    fn tolerance_scenario_file_expands() {
+        let text = include_str!("../../scenarios/paper_bench_tolerance.toml");
+        let scenario = Scenario::from_toml(text, "t", "t", &[]).unwrap();
+        let base = scenario.to_table();
+        let cases = expand(scenario.sweep.as_ref().unwrap(), &base).unwrap();
+        assert_eq!(cases.len(), 200);
+        for c in &cases {
+            let preload = num(&c.assignments[0].2);
+            assert!((85.0..=115.0).contains(&preload), "{preload}");
+            case_scenario(&base, c, "t").unwrap();
+        }
+    }
+}
