@@ -5,6 +5,7 @@ pub mod closed_loop;
 pub mod design;
 pub mod identify;
 pub mod io;
+pub mod measurement;
 pub mod metrics;
 pub mod physics;
 pub mod plot;

@@ -631,6 +631,7 @@ fn report(result: Result<RunReport, RunError>) -> ExitCode {
                 | RunError::Sweep(_)
                 | RunError::ClosedLoop(_)
                 | RunError::Identify(_)
+                | RunError::Log(_)
                 | RunError::Unsupported(_) => exit::INPUT,
                 RunError::Output(_) | RunError::Report(_) => exit::OUTPUT,
             })

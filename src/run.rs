@@ -40,6 +40,9 @@ pub enum RunError {
     /// A diagnosis cannot be made.
     #[error(transparent)]
     Identify(#[from] crate::identify::IdentifyError),
+    /// A bench log cannot be read.
+    #[error(transparent)]
+    Log(#[from] crate::io::benchlog::LogError),
 }
 
 /// What a run produced.
@@ -607,17 +610,21 @@ pub fn run_diagnosis(
     json: Option<&Path>,
     save_model: Option<&Path>,
 ) -> Result<RunReport, RunError> {
-    let diagnosis = crate::identify::diagnose_files(scenario, paths, options)?;
+    let logs: Vec<crate::measurement::BenchLog> = paths
+        .iter()
+        .map(|p| crate::io::benchlog::read_bench_log(p))
+        .collect::<Result<_, _>>()?;
+    let diagnosis = crate::identify::diagnose(scenario, &logs, options)?;
     let staged = StagedDir::create(&out.dir, out.force)?;
-    crate::identify::write_diagnosis(staged.path(), &diagnosis, None)?;
+    report::diagnosis::write_diagnosis(staged.path(), &diagnosis, None)?;
     if let Some(path) = json {
         let text = std::fs::read(staged.path().join("diagnosis.json"))
             .map_err(|e| ReportError::io(path, e))?;
         crate::io::output::write_atomic(path, &text)?;
     }
     if let Some(path) = save_model {
-        crate::identify::save_model(path, scenario, &diagnosis)?;
+        report::diagnosis::save_model(path, scenario, &diagnosis)?;
     }
-    let table = crate::identify::summary_text(&diagnosis);
+    let table = report::diagnosis::summary_text(&diagnosis);
     finish(staged, table, None, Vec::new())
 }

@@ -970,3 +970,15 @@ impl crate::closed_loop::ClosedLoopSource for Scenario {
         }
     }
 }
+
+impl crate::identify::IdentifySource for Scenario {
+    fn identify_setup(&self) -> crate::identify::IdentifySetup<'_> {
+        crate::identify::IdentifySetup {
+            name: self.name(),
+            drive: &self.drive,
+            load: &self.load,
+            identify: self.identify.as_ref(),
+            quasi_static: self.quasi_static.as_ref(),
+        }
+    }
+}

@@ -1,9 +1,9 @@
 //! Diagnosis against synthetic logs with hidden effects of known size.
 
 use cable_servo::identify::{
-    diagnose, read_bench_log, report::effect_value, synthesize, write_bench_log, DiagnoseOptions,
-    EffectName, Ringing, SynthOptions,
+    diagnose, effect_value, synthesize, DiagnoseOptions, EffectName, Ringing, SynthOptions,
 };
+use cable_servo::io::benchlog::{read_bench_log, write_bench_log};
 use cable_servo::scenario::Scenario;
 use rand::{Rng, SeedableRng};
 
@@ -293,7 +293,7 @@ fn writes_report_and_model() {
     .unwrap();
     let d = diagnose(&sc, &[log], &DiagnoseOptions::default()).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let files = cable_servo::identify::write_diagnosis(dir.path(), &d, None).unwrap();
+    let files = cable_servo::report::diagnosis::write_diagnosis(dir.path(), &d, None).unwrap();
     assert!(files.iter().all(|f| f.exists()));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("diagnosis.json")).unwrap())
@@ -310,7 +310,7 @@ fn writes_report_and_model() {
         assert!(json.get(k).is_some(), "{k}");
     }
     let m = dir.path().join("model.toml");
-    cable_servo::identify::save_model(&m, &sc, &d).unwrap();
+    cable_servo::report::diagnosis::save_model(&m, &sc, &d).unwrap();
     let back = Scenario::load(m.to_str().unwrap(), &[]).unwrap();
     let eps = back.effects.unwrap().input_pulley_runout.unwrap();
     assert!((eps - 1e-3).abs() < 1e-4);
@@ -336,11 +336,12 @@ fn davinci_real_logs() {
         },
     )
     .unwrap();
-    eprintln!("{}", cable_servo::identify::report::summary_text(&d));
+    eprintln!("{}", cable_servo::report::diagnosis::summary_text(&d));
     eprintln!("elapsed {:?}", t.elapsed());
     let out = std::path::Path::new("target/davinci_diagnosis");
-    cable_servo::identify::write_diagnosis(out, &d, None).unwrap();
-    cable_servo::identify::save_model(&out.join("davinci_tool4_model.toml"), &sc, &d).unwrap();
+    cable_servo::report::diagnosis::write_diagnosis(out, &d, None).unwrap();
+    cable_servo::report::diagnosis::save_model(&out.join("davinci_tool4_model.toml"), &sc, &d)
+        .unwrap();
 }
 
 #[test]

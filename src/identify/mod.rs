@@ -3,22 +3,23 @@
 //! model on data its fit did not see.
 
 pub mod effects;
+pub mod estimates;
 pub mod lm;
 pub mod model;
 pub mod play;
-pub mod report;
 pub mod synth;
 pub mod whiteness;
 
 use serde::Serialize;
 
-pub use crate::io::benchlog::{read_bench_log, write_bench_log, BenchLog, LogError, Sample};
+pub use crate::measurement::{BenchLog, Sample};
 pub use effects::{EffectName, EffectsParams, IdentifyParams};
-pub use report::{save_model, summary_text, write_diagnosis};
+pub use estimates::effect_value;
 pub use synth::{parse_effect_arg, synthesize, Ringing, SynthOptions};
 
 use crate::physics::DriveParams;
-use crate::scenario::Scenario;
+use crate::physics::LoadParams;
+use crate::study::quasi_static::QuasiStaticParams;
 use model::{Evaluator, Fitted, LinParam, NlParam, Prepared, Spec};
 
 /// Why a diagnosis cannot be made.
@@ -35,9 +36,6 @@ pub enum IdentifyError {
         /// What is wrong.
         message: String,
     },
-    /// Reading a log failed.
-    #[error(transparent)]
-    Log(#[from] LogError),
     /// Settings that do not fit the data.
     #[error("{key}: {message}")]
     Config {
@@ -369,17 +367,47 @@ fn cross_validate(
     Ok((rms(held.iter().copied()), held.len(), full))
 }
 
-/// Diagnose bench logs against the scenario's drive: calibrate the base model, search the
+/// What identification reads of a study description: the drive to calibrate, its loads,
+/// the identification settings and, for synthetic logs, the prescribed motion.
+#[derive(Clone, Copy, Debug)]
+pub struct IdentifySetup<'a> {
+    /// Name used in messages and log comments.
+    pub name: &'a str,
+    /// Nominal drive (the calibration's starting point).
+    pub drive: &'a DriveParams,
+    /// Loads on the drum (synthetic logs).
+    pub load: &'a LoadParams,
+    /// How logs calibrate the drive; `None` = defaults.
+    pub identify: Option<&'a IdentifyParams>,
+    /// Prescribed input motion, duration and rate (synthetic logs).
+    pub quasi_static: Option<&'a QuasiStaticParams>,
+}
+
+/// Anything an identification setup can be read from: a setup itself, or a scenario
+/// (which implements this at the edge).
+pub trait IdentifySource {
+    /// The setup.
+    fn identify_setup(&self) -> IdentifySetup<'_>;
+}
+
+impl IdentifySource for IdentifySetup<'_> {
+    fn identify_setup(&self) -> IdentifySetup<'_> {
+        *self
+    }
+}
+
+/// Diagnose bench logs against the setup's drive: calibrate the base model, search the
 /// effect library, score on held-out data. Typical run: a few seconds for a minute of data.
 pub fn diagnose(
-    scenario: &Scenario,
+    source: &(impl IdentifySource + ?Sized),
     logs: &[BenchLog],
     options: &DiagnoseOptions,
 ) -> Result<Diagnosis, IdentifyError> {
     if logs.is_empty() {
         return Err(IdentifyError::NoLogs);
     }
-    let ident = scenario.identify.clone().unwrap_or_default();
+    let scenario = source.identify_setup();
+    let ident = scenario.identify.cloned().unwrap_or_default();
     ident.validate().map_err(|(k, m)| IdentifyError::Config {
         key: format!("identify.{k}"),
         message: m,
@@ -594,7 +622,7 @@ pub fn diagnose(
         .unwrap_or_else(|_| nalgebra::DMatrix::from_element(np, np, f64::NAN));
     let ext_drive = with_base(&drive_for, &nl_final, &ext_fit.x);
     let (params, drive_out, effects_out) =
-        report::parameters(&drive0, &ext_drive, &nl_final, &ext_fit, &cov);
+        estimates::parameters(&drive0, &ext_drive, &nl_final, &ext_fit, &cov);
     // A held-out log's encoder zero is fitted on that log only when it is scored.
     let params: Vec<ParamEstimate> = params
         .into_iter()
@@ -800,17 +828,4 @@ fn fitted_ratio(drive: &DriveParams, f: &Fitted) -> f64 {
         .iter()
         .position(|p| *p == LinParam::InverseRatio)
         .map_or(ic, |i| 1.0 / (1.0 / ic + f.coef[i]))
-}
-
-/// Read logs and diagnose: the convenience entry for `cable-servo diagnose`.
-pub fn diagnose_files(
-    scenario: &Scenario,
-    paths: &[std::path::PathBuf],
-    options: &DiagnoseOptions,
-) -> Result<Diagnosis, IdentifyError> {
-    let logs: Vec<BenchLog> = paths
-        .iter()
-        .map(|p| read_bench_log(p))
-        .collect::<Result<_, _>>()?;
-    diagnose(scenario, &logs, options)
 }

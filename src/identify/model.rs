@@ -9,7 +9,7 @@ use nalgebra::DMatrix;
 use super::effects::{EffectName, IdentifyParams};
 use super::lm::{levenberg_marquardt, linear_lsq};
 use super::IdentifyError;
-use crate::io::benchlog::BenchLog;
+use crate::measurement::BenchLog;
 use crate::physics::{CableDrive, DriveParams, HysteresisModel};
 
 /// A log made ready for fitting: decimated, with velocities and motion direction.

@@ -7,8 +7,8 @@ use rand_distr::{Distribution, Normal};
 use super::effects::EffectName;
 use super::model::{replay, transport_filter};
 use super::IdentifyError;
-use crate::io::benchlog::BenchLog;
-use crate::scenario::Scenario;
+use super::IdentifySource;
+use crate::measurement::BenchLog;
 
 /// A decaying oscillation after every reversal: a resonance outside the effect library.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -58,18 +58,16 @@ impl Default for SynthOptions {
 /// given hidden effects (sizes in the units of [`EffectName::unit`]); runout phases are
 /// drawn from `seed`.
 pub fn synthesize(
-    scenario: &Scenario,
+    source: &(impl IdentifySource + ?Sized),
     effects: &[(EffectName, f64)],
     seed: u64,
     options: &SynthOptions,
 ) -> Result<BenchLog, IdentifyError> {
-    let qs = scenario
-        .quasi_static
-        .as_ref()
-        .ok_or_else(|| IdentifyError::Config {
-            key: "quasi_static".into(),
-            message: "synthesis needs a [quasi_static] section with the motion".into(),
-        })?;
+    let scenario = source.identify_setup();
+    let qs = scenario.quasi_static.ok_or_else(|| IdentifyError::Config {
+        key: "quasi_static".into(),
+        message: "synthesis needs a [quasi_static] section with the motion".into(),
+    })?;
     let dur = options.duration_s.unwrap_or(qs.duration_s);
     let rate = options.sample_rate_hz.unwrap_or(qs.sample_rate_hz);
     if !(dur > 0.0 && rate > 0.0 && dur * rate >= 40.0 && dur * rate <= 1e7) {
@@ -80,7 +78,7 @@ pub fn synthesize(
     }
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let get = |e: EffectName| effects.iter().find(|x| x.0 == e).map(|x| x.1);
-    let drive = &scenario.drive;
+    let drive = scenario.drive;
     let ic = drive.ratio();
     let n = (dur * rate).round() as usize + 1;
     let t: Vec<f64> = (0..n).map(|k| k as f64 / rate).collect();
@@ -198,8 +196,7 @@ pub fn synthesize(
         source: format!("synthetic(seed={seed})"),
         comments: vec![format!(
             "synthetic log: scenario {}, effects {:?}, seed {seed}",
-            scenario.name(),
-            effects
+            scenario.name, effects
         )],
         ..BenchLog::default()
     };

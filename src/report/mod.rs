@@ -2,6 +2,7 @@
 //! break a run (their failures are reported as warnings).
 
 pub mod closed_loop;
+pub mod diagnosis;
 pub mod quasi_static;
 pub mod sweep;
 

@@ -1,168 +1,11 @@
-//! Diagnosis output: parameter table, JSON, a one-minute text report, plots, and the
-//! extended model as a scenario file.
+//! Diagnosis output: JSON, a one-minute text report, traces, plots, and the extended model
+//! as a scenario file.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use nalgebra::DMatrix;
-
-use super::effects::{EffectName, EffectsParams};
-use super::model::{Fitted, LinParam, NlParam};
-use super::{Diagnosis, IdentifyError, ParamEstimate};
-use crate::physics::DriveParams;
+use crate::identify::{Diagnosis, EffectName, IdentifyError};
 use crate::scenario::Scenario;
-
-fn std_of(cov: &DMatrix<f64>, grad: &[(usize, f64)]) -> f64 {
-    let mut v = 0.0;
-    for (i, gi) in grad {
-        for (j, gj) in grad {
-            v += gi * gj * cov[(*i, *j)];
-        }
-    }
-    v.max(0.0).sqrt()
-}
-
-/// Physical parameters from a fit: calibrated drive, effects, and the table with stds.
-pub(crate) fn parameters(
-    drive0: &DriveParams,
-    drive_nl: &DriveParams,
-    nl: &[(NlParam, f64, f64, f64)],
-    fit: &Fitted,
-    cov: &DMatrix<f64>,
-) -> (Vec<ParamEstimate>, DriveParams, EffectsParams) {
-    let mut out = Vec::new();
-    let mut drive = drive_nl.clone();
-    let mut eff = EffectsParams::default();
-    let nn = nl.len();
-    let lin = |p: LinParam| {
-        fit.lin
-            .iter()
-            .position(|q| *q == p)
-            .map(|i| (nn + i, fit.coef[i]))
-    };
-    for (k, n) in nl.iter().enumerate() {
-        let v = fit.x[k];
-        let s = std_of(cov, &[(k, 1.0)]);
-        let (name, unit) = match n.0 {
-            NlParam::Mu => ("friction_coefficient", "1"),
-            NlParam::Preload => ("preload_n", "N"),
-            NlParam::Effect(EffectName::BearingFriction) => {
-                eff.bearing_friction_nm = Some(v);
-                ("bearing_friction", "N m")
-            }
-            NlParam::Effect(EffectName::PreloadRelaxation) => {
-                eff.preload_relaxation_per_s = Some(v);
-                ("preload_relaxation", "1/s")
-            }
-            NlParam::Effect(EffectName::CableTransport) => {
-                eff.cable_transport_rad = Some(v);
-                ("cable_transport", "rad (input travel)")
-            }
-            NlParam::Effect(_) => continue,
-        };
-        out.push(ParamEstimate {
-            name: name.into(),
-            value: v,
-            std: s,
-            unit: unit.into(),
-        });
-    }
-    if let Some((i, c)) = lin(LinParam::ModulusScale) {
-        let g = drive0.cable_modulus_n / c.max(1e-12);
-        drive.cable_modulus_n = g;
-        out.push(ParamEstimate {
-            name: "cable_modulus_n".into(),
-            value: g,
-            std: std_of(cov, &[(i, g / c.max(1e-12))]),
-            unit: "N".into(),
-        });
-    }
-    let mut ic = drive0.ratio();
-    if let Some((i, d)) = lin(LinParam::InverseRatio) {
-        ic = 1.0 / (1.0 / ic + d);
-        drive.pulley_radius_m = drive.drum_radius_m / ic;
-        out.push(ParamEstimate {
-            name: "ratio".into(),
-            value: ic,
-            std: std_of(cov, &[(i, ic * ic)]),
-            unit: "1".into(),
-        });
-    }
-    let pair = |e: EffectName, scale: f64| -> Option<(f64, f64, f64, f64)> {
-        let (i, a) = lin(LinParam::Effect(e, 0))?;
-        let (j, b) = lin(LinParam::Effect(e, 1))?;
-        let h = a.hypot(b).max(1e-300);
-        let amp = scale * h;
-        let s = std_of(cov, &[(i, scale * a / h), (j, scale * b / h)]);
-        let ph = b.atan2(a);
-        let sp = std_of(cov, &[(i, -b / (h * h)), (j, a / (h * h))]);
-        Some((amp, s, ph, sp))
-    };
-    // A runout is fitted as two quadrature terms; it is reported as amplitude and phase.
-    let mut push_runout = |name: &str, (v, s, ph, sp): (f64, f64, f64, f64)| {
-        out.push(ParamEstimate {
-            name: name.into(),
-            value: v,
-            std: s,
-            unit: "1 (eccentricity/radius)".into(),
-        });
-        out.push(ParamEstimate {
-            name: format!("{name}_phase"),
-            value: ph,
-            std: sp,
-            unit: "rad".into(),
-        });
-        (v, ph)
-    };
-    if let Some(fit) = pair(EffectName::InputPulleyRunout, ic) {
-        let (v, ph) = push_runout("input_pulley_runout", fit);
-        eff.input_pulley_runout = Some(v);
-        eff.input_pulley_runout_phase_rad = Some(ph);
-    }
-    if let Some(fit) = pair(EffectName::OutputDrumRunout, 1.0) {
-        let (v, ph) = push_runout("output_drum_runout", fit);
-        eff.output_drum_runout = Some(v);
-        eff.output_drum_runout_phase_rad = Some(ph);
-    }
-    for (e, unit) in [
-        (EffectName::EncoderDelay, "s"),
-        (EffectName::EncoderScaleError, "1"),
-        (EffectName::ThermalDrift, "rad/s"),
-    ] {
-        if let Some((i, v)) = lin(LinParam::Effect(e, 0)) {
-            match e {
-                EffectName::EncoderDelay => eff.encoder_delay_s = Some(v),
-                EffectName::EncoderScaleError => eff.encoder_scale_error = Some(v),
-                _ => eff.thermal_drift_rad_per_s = Some(v),
-            }
-            out.push(ParamEstimate {
-                name: e.to_string(),
-                value: v,
-                std: std_of(cov, &[(i, 1.0)]),
-                unit: unit.into(),
-            });
-        }
-    }
-    for (k, p) in fit.lin.iter().enumerate() {
-        if let LinParam::Offset(l) = p {
-            out.push(ParamEstimate {
-                name: format!("encoder_zero[{l}]"),
-                value: fit.coef[k],
-                std: std_of(cov, &[(nn + k, 1.0)]),
-                unit: "rad".into(),
-            });
-        }
-    }
-    (out, drive, eff)
-}
-
-/// Size of an effect in a diagnosis, by name (None when not identified).
-pub fn effect_value(d: &Diagnosis, e: EffectName) -> Option<f64> {
-    d.params
-        .iter()
-        .find(|p| p.name == e.as_str())
-        .map(|p| p.value)
-}
 
 fn wr(path: &Path, text: &str) -> Result<(), IdentifyError> {
     std::fs::write(path, text).map_err(|e| IdentifyError::Write {
@@ -345,32 +188,33 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
         hi: floor,
         label: "noise floor".into(),
     };
-    let against = |label: &str, f: &dyn Fn(&super::Trace) -> Vec<f64>, base: bool| -> Chart {
-        Chart {
-            title: format!(
-                "{} residual against {label}",
-                if base { "base-model" } else { "extended-model" }
-            ),
-            x_label: label.into(),
-            y_label: "residual (mrad)".into(),
-            series: d
-                .traces
-                .iter()
-                .map(|t| {
-                    let model = if base { &t.base_rad } else { &t.extended_rad };
-                    let r: Vec<f64> = t
-                        .measured_rad
-                        .iter()
-                        .zip(model)
-                        .map(|(m, p)| (m - p) * 1e3)
-                        .collect();
-                    Series::points(short(&t.log), f(t), r)
-                })
-                .collect(),
-            bands: vec![band()],
-            ..Chart::default()
-        }
-    };
+    let against =
+        |label: &str, f: &dyn Fn(&crate::identify::Trace) -> Vec<f64>, base: bool| -> Chart {
+            Chart {
+                title: format!(
+                    "{} residual against {label}",
+                    if base { "base-model" } else { "extended-model" }
+                ),
+                x_label: label.into(),
+                y_label: "residual (mrad)".into(),
+                series: d
+                    .traces
+                    .iter()
+                    .map(|t| {
+                        let model = if base { &t.base_rad } else { &t.extended_rad };
+                        let r: Vec<f64> = t
+                            .measured_rad
+                            .iter()
+                            .zip(model)
+                            .map(|(m, p)| (m - p) * 1e3)
+                            .collect();
+                        Series::points(short(&t.log), f(t), r)
+                    })
+                    .collect(),
+                bands: vec![band()],
+                ..Chart::default()
+            }
+        };
     for base in [true, false] {
         let charts = vec![
             against("time (s)", &|t| t.t_s.clone(), base),
