@@ -812,6 +812,47 @@ impl Scenario {
     }
 }
 
+impl Study {
+    /// The name a scenario file uses for this study.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Study::QuasiStatic => "quasi_static",
+            Study::Backlash => "backlash",
+            Study::ClosedLoop => "closed_loop",
+        }
+    }
+}
+
+impl crate::closed_loop::ClosedLoopSource for Scenario {
+    fn closed_loop_setup(
+        &self,
+    ) -> Result<crate::closed_loop::ClosedLoopSetup<'_>, crate::closed_loop::ClosedLoopError> {
+        match (&self.study, &self.closed_loop) {
+            (Study::ClosedLoop, Some(params)) => Ok(crate::closed_loop::ClosedLoopSetup {
+                drive: &self.drive,
+                load: &self.load,
+                effects: self.effects.as_ref(),
+                params,
+            }),
+            (study, _) => Err(crate::closed_loop::ClosedLoopError::NotClosedLoop {
+                study: format!("\"{}\"", study.as_str()),
+            }),
+        }
+    }
+}
+
+impl crate::identify::IdentifySource for Scenario {
+    fn identify_setup(&self) -> crate::identify::IdentifySetup<'_> {
+        crate::identify::IdentifySetup {
+            name: self.name(),
+            drive: &self.drive,
+            load: &self.load,
+            identify: self.identify.as_ref(),
+            quasi_static: self.quasi_static.as_ref(),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -939,46 +980,5 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(!err.contains('\n'), "{err}");
-    }
-}
-
-impl Study {
-    /// The name a scenario file uses for this study.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Study::QuasiStatic => "quasi_static",
-            Study::Backlash => "backlash",
-            Study::ClosedLoop => "closed_loop",
-        }
-    }
-}
-
-impl crate::closed_loop::ClosedLoopSource for Scenario {
-    fn closed_loop_setup(
-        &self,
-    ) -> Result<crate::closed_loop::ClosedLoopSetup<'_>, crate::closed_loop::ClosedLoopError> {
-        match (&self.study, &self.closed_loop) {
-            (Study::ClosedLoop, Some(params)) => Ok(crate::closed_loop::ClosedLoopSetup {
-                drive: &self.drive,
-                load: &self.load,
-                effects: self.effects.as_ref(),
-                params,
-            }),
-            (study, _) => Err(crate::closed_loop::ClosedLoopError::NotClosedLoop {
-                study: format!("\"{}\"", study.as_str()),
-            }),
-        }
-    }
-}
-
-impl crate::identify::IdentifySource for Scenario {
-    fn identify_setup(&self) -> crate::identify::IdentifySetup<'_> {
-        crate::identify::IdentifySetup {
-            name: self.name(),
-            drive: &self.drive,
-            load: &self.load,
-            identify: self.identify.as_ref(),
-            quasi_static: self.quasi_static.as_ref(),
-        }
     }
 }

@@ -277,7 +277,7 @@ pub fn run_closed_loop(
     let setup = source.closed_loop_setup()?;
     let scenario = &setup;
     let p = setup.params;
-    p.validate(&scenario.drive)
+    p.validate(scenario.drive)
         .map_err(|(key, message)| ClosedLoopError::Invalid { key, message })?;
     scenario
         .drive
