@@ -1,5 +1,5 @@
 //! Closed-loop design answers: the largest load, or the fastest scan, that still meets the
-//! pointing target with a given controller and compensation.
+//! pointing target with a given controller and compensation. Top layer.
 //!
 //! Each answer bisects on one scenario value, running the closed loop at every probe, and
 //! assumes the loop meets the target below the answer and misses it above.

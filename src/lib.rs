@@ -1,5 +1,15 @@
 //! cable-servo: preloaded cable-drive physics, closed-loop gimbal simulation, design sweeps
 //! and bench-log diagnosis for electro-optical pointing systems.
+//!
+//! The modules form four layers; each imports only from the layers below it (and the few
+//! same-layer arrows listed in `tests/layering.rs`, which enforces this):
+//!
+//! | layer | modules | job |
+//! |---|---|---|
+//! | top | [`run`], [`design`], the `cable-servo` binary | orchestration and the command line |
+//! | edge | [`scenario`], [`io`], [`plot`], [`report`] | scenario files, logs and tables, figures, result files |
+//! | computation | [`closed_loop`], [`study`], [`identify`], [`sweep`] | parameter structs in, result records out |
+//! | bottom | [`physics`], [`signal`], [`metrics`], [`measurement`] | the drive's physics, signals, metrics, data in memory |
 
 pub mod closed_loop;
 pub mod design;

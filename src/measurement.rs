@@ -1,6 +1,5 @@
 //! A bench log in memory: the measured angles, load and optional tensions and current of a
-//! drive, column-wise. Reading and writing files is the I/O layer's job; identification
-//! and metrics take this.
+//! drive, column-wise. Bottom layer: imports nothing of this crate; files are read by `io`.
 
 use std::ops::Range;
 

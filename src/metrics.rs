@@ -1,4 +1,5 @@
 //! Pointing metrics over a window, for simulated and measured records alike.
+//! Bottom layer: imports nothing of this crate.
 //!
 //! One streaming routine ([`MetricsAccumulator`], or [`compute_metrics`] over an iterator)
 //! so a simulation that keeps no time series and a bench log read from disk are judged

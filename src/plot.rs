@@ -1,4 +1,5 @@
-//! Publication-quality plots for cable-servo design reviews.
+//! Publication-quality plots for cable-servo design reviews, drawn from result records only.
+//! Edge layer: imports nothing of this crate.
 //!
 //! Every figure is written twice, as `<stem>.png` (raster, for slides and
 //! quick looks) and `<stem>.svg` (vector, for documents). Text is rendered

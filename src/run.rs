@@ -1,5 +1,6 @@
 //! Running a scenario end to end: compute, write CSV and JSON, then plots, into a staged
 //! results directory that appears only when complete (or marked incomplete).
+//! Top layer: may import every module below.
 
 use std::path::{Path, PathBuf};
 

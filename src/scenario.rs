@@ -1,4 +1,5 @@
-//! Scenario files: a TOML description that fully determines a run.
+//! Scenario files: a TOML description that fully determines a run, read into the parameter
+//! structs of the computation layer. Edge layer: imports computation and bottom modules.
 //!
 //! Parsing is strict (unknown keys are errors, with the closest valid key suggested), and
 //! `--set KEY=VALUE` overrides go through the same deserialisation and validation as the

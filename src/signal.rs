@@ -1,4 +1,5 @@
 //! Time signals: prescribed input motion and closed-loop references.
+//! Bottom layer: imports nothing of this crate but the number formatting of messages.
 //!
 //! A [`Signal`] is evaluated analytically (value, first and second derivative), so feedforward
 //! terms are exact; tabulated signals interpolate linearly between samples.

@@ -1,5 +1,6 @@
 //! Closed-loop gimbal axis: torque motor, hysteretic cable drive and output drum under a
 //! sampled PID loop with feedforward and backlash compensation.
+//! Computation layer: takes a [`ClosedLoopSetup`], imports only physics, signal, metrics.
 //!
 //! The pieces are readable alone: [`params`] (scenario structs and their validation),
 //! [`plant`] (the continuous-time equations and the brake's stick/slip logic),

@@ -1,6 +1,8 @@
 //! Diagnosis of bench logs: replay the quasi-static memory model against measurements,
 //! calibrate its parameters, search the effect library for what it misses, and score every
 //! model on data its fit did not see.
+//! Computation layer: takes an [`IdentifySetup`] and logs in memory; imports physics,
+//! measurement and study, never files, plots or scenarios.
 
 pub mod effects;
 pub mod estimates;

@@ -1,4 +1,5 @@
-//! Files at the edge: bench logs, scenario tables, staged results directories.
+//! Files at the edge: bench logs, scenario tables, staged results directories, shard merges.
+//! Edge layer: imports the bottom layer and fills a scenario's tables.
 
 pub mod benchlog;
 pub mod merge;

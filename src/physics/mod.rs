@@ -1,6 +1,5 @@
-//! Cable-drive physics: capstan wrap regions with memory, cable halves and the drive.
-//!
-//! Knows nothing of files, plots or the command line.
+//! Cable-drive physics: capstan wrap regions with memory, cable halves, the drive, loads and
+//! physical effects beyond the base model. Bottom layer: imports nothing of this crate.
 
 pub mod drive;
 pub mod effects;

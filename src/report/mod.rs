@@ -1,5 +1,6 @@
-//! Result files and plots. CSV and JSON are written first; plots come after and can never
-//! break a run (their failures are reported as warnings).
+//! Result files and plots of each study. Edge layer: imports computation results, plot, io
+//! and scenario. CSV and JSON are written first; plots come after and can never break a run
+//! (their failures are reported as warnings).
 
 pub mod closed_loop;
 pub mod diagnosis;

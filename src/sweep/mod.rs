@@ -1,4 +1,6 @@
-//! Design sweeps over scenario keys.
+//! Design sweeps over scenario keys: case generation (grids, lists, random and Latin-hypercube
+//! draws) and parallel execution of a closure the caller provides. Computation layer:
+//! imports nothing of this crate above it.
 
 pub mod engine;
 pub mod sample;

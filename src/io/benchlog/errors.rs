@@ -196,7 +196,7 @@ pub enum LogError {
         /// The `csv` crate's description.
         message: String,
     },
-    /// [`write_bench_log`] was given a log that could not be read back (no samples,
+    /// [`super::write_bench_log`] was given a log that could not be read back (no samples,
     /// columns of different lengths, non-finite values, non-increasing time).
     #[error("{path}: refusing to write invalid bench log: {reason}")]
     Invalid {

@@ -20,16 +20,16 @@
 //! needed is an input error ([`LogError`]) whose message names the file, the 1-based line
 //! number in the file (comment and blank lines included) and, where relevant, the column.
 //!
-//! The reader streams: bytes flow from a [`BufReader`] through a small line filter into a
+//! The reader streams: bytes flow from a [`std::io::BufReader`] through a small line filter into a
 //! [`csv::Reader`], one record at a time. [`visit_bench_log`] therefore runs in memory
 //! bounded by the longest line; [`read_bench_log`] additionally holds the output columns.
 //! No input can make the reader panic.
 //!
 //! [`write_bench_log`] writes the same format atomically, with floats that read back bit
-//! for bit; [`write_bench_log_to`] writes it to any [`Write`]r.
+//! for bit; [`write_bench_log_to`] writes it to any [`std::io::Write`]r.
 //!
-//! The parts: [`errors`] (what can be wrong with a log, and messages that say where),
-//! [`parse`] (the streaming line filter and record parser), [`write`] (the atomic writer).
+//! The parts: `errors` (what can be wrong with a log, and messages that say where),
+//! `parse` (the streaming line filter and record parser), `write` (the atomic writer).
 
 mod errors;
 mod parse;
