@@ -21,6 +21,10 @@
 //! ends on the same stored segment (`WrapLaw`). The region keeps the last law for loading
 //! and the last for unloading; a load that keeps rising (or falling) across commits keeps
 //! the same law, so most trials skip the walk altogether.
+//!
+//! This file is long (about 1100 lines of code and 300 of tests) because it is one
+//! algorithm: the breakpoint list, its closed-form laws and the commit share invariants
+//! that only hold together, and splitting them would spread one proof over several files.
 
 use std::cell::Cell;
 
