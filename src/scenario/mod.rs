@@ -1,0 +1,279 @@
+//! Scenario files: a TOML description that fully determines a run, read into the parameter
+//! structs of the computation layer. Edge layer: imports computation and bottom modules.
+//!
+//! Parsing is strict (unknown keys are errors, with the closest valid key suggested), and
+//! `--set KEY=VALUE` overrides go through the same deserialisation and validation as the
+//! file.
+//!
+//! The parts: `errors` (what can be wrong, with file, line and key), `builtin` (the
+//! scenarios compiled into the binary), `overrides` (`--set KEY=VALUE`), `validate`
+//! (ranges and cross-checks).
+
+use serde::{Deserialize, Serialize};
+
+use crate::closed_loop::ClosedLoopParams;
+use crate::identify::{EffectsParams, IdentifyParams};
+use crate::physics::{DriveParams, LoadParams};
+use crate::signal::Signal;
+pub use crate::study::quasi_static::{BacklashParams, QuasiStaticParams};
+use crate::sweep::SweepSpec;
+
+mod builtin;
+mod errors;
+mod overrides;
+#[cfg(test)]
+mod tests;
+mod validate;
+
+pub use builtin::{builtin, BUILTIN, DEFAULT_SCENARIO};
+pub use errors::ScenarioError;
+use errors::{line_col, parse_error, plain_message, with_suggestion};
+pub use overrides::{parse_assignment, set_path};
+
+/// What a scenario computes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Study {
+    /// Prescribed input motion and load, drive quasi-static (no inertia): tensions,
+    /// transmission error, tension profiles; memory and memoryless models side by side.
+    QuasiStatic,
+    /// Backlash protocol: `+M`, `-M`, `+M` applied to the preloaded drive; initial and
+    /// reversal backlash (the unit case of the paper's Fig. 11 sweep).
+    Backlash,
+    /// Motor, cable drive and output inertia in a discrete PID loop.
+    ClosedLoop,
+}
+
+/// Most samples a quasi-static run may take (memory and run time grow with it).
+pub const MAX_QS_SAMPLES: f64 = 2e6;
+
+/// Fewest samples per period of the fastest motion or load component.
+pub const SAMPLES_PER_PERIOD: f64 = 10.0;
+
+/// A complete run description.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    /// Name used for the results folder; defaults to the file stem.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// One-line description for reports.
+    #[serde(default)]
+    pub description: Option<String>,
+    /// What the scenario computes.
+    pub study: Study,
+    /// The cable drive.
+    pub drive: DriveParams,
+    /// Loads on the output drum.
+    #[serde(default)]
+    pub load: LoadParams,
+    /// Quasi-static study settings (`study = "quasi_static"`).
+    #[serde(default)]
+    pub quasi_static: Option<QuasiStaticParams>,
+    /// Backlash protocol settings (`study = "backlash"`).
+    #[serde(default)]
+    pub backlash: Option<BacklashParams>,
+    /// Closed-loop settings (`study = "closed_loop"`).
+    #[serde(default)]
+    pub closed_loop: Option<ClosedLoopParams>,
+    /// Optional sweep over scenario keys.
+    #[serde(default)]
+    pub sweep: Option<SweepSpec>,
+    /// How bench logs calibrate the drive and which effects are searched (`diagnose`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub identify: Option<IdentifyParams>,
+    /// Identified effects beyond the base model (written by `diagnose --save-model`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub effects: Option<EffectsParams>,
+}
+
+impl Scenario {
+    /// Read a scenario file, or a built-in scenario when `path` names one (`eots_tracking`).
+    pub fn load(path: &str, overrides: &[String]) -> Result<Scenario, ScenarioError> {
+        let p = std::path::Path::new(path);
+        if !p.exists() {
+            if let Some(text) = builtin(path) {
+                return Scenario::from_toml(text, &format!("{path} (built-in)"), path, overrides);
+            }
+        }
+        let bytes = std::fs::read(p).map_err(|source| ScenarioError::Io {
+            path: path.to_string(),
+            source,
+        })?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            let good = e.utf8_error().valid_up_to();
+            let bytes = e.as_bytes();
+            let prefix = std::str::from_utf8(&bytes[..good]).unwrap_or_default();
+            let (line, column) = line_col(prefix, good);
+            ScenarioError::Parse {
+                source_name: path.to_string(),
+                line,
+                column,
+                message: format!(
+                    "byte 0x{:02x} is not UTF-8 text; a scenario is a TOML text file saved as UTF-8",
+                    bytes[good]
+                ),
+            }
+        })?;
+        let stem = p
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("scenario")
+            .to_string();
+        Scenario::from_toml(&text, path, &stem, overrides)
+    }
+
+    /// Parse scenario text; `source_name` names it in messages, `default_name` is used when
+    /// the file sets no `name`.
+    pub fn from_toml(
+        text: &str,
+        source_name: &str,
+        default_name: &str,
+        overrides: &[String],
+    ) -> Result<Scenario, ScenarioError> {
+        // Typed parse of the file alone first, so errors carry its line numbers.
+        let mut scenario: Scenario =
+            toml::from_str(text).map_err(|e| parse_error(source_name, text, &e))?;
+        let mut shown_name = source_name.to_string();
+        if !overrides.is_empty() {
+            let mut table: toml::Table =
+                toml::from_str(text).map_err(|e| parse_error(source_name, text, &e))?;
+            for arg in overrides {
+                let (path, value) = parse_assignment(arg)?;
+                set_path(&mut table, &path, value).map_err(|message| ScenarioError::Override {
+                    arg: arg.clone(),
+                    message,
+                })?;
+                // Each override is checked on its own so the message names it.
+                Scenario::deserialize(toml::Value::Table(table.clone())).map_err(|e| {
+                    ScenarioError::Override {
+                        arg: arg.clone(),
+                        message: plain_message(&with_suggestion(e.message())),
+                    }
+                })?;
+            }
+            scenario = Scenario::deserialize(toml::Value::Table(table)).map_err(|e| {
+                ScenarioError::Override {
+                    arg: overrides.join(" "),
+                    message: plain_message(&with_suggestion(e.message())),
+                }
+            })?;
+            shown_name = format!("{source_name} with --set");
+        }
+        if scenario.name.is_none() {
+            scenario.name = Some(default_name.to_string());
+        }
+        scenario.validate(&shown_name)?;
+        Ok(scenario)
+    }
+
+    /// Build from an already parsed table (sweep cases); `source_name` names it in messages.
+    pub fn from_table(
+        table: toml::Table,
+        source_name: &str,
+        default_name: &str,
+    ) -> Result<Scenario, ScenarioError> {
+        let mut scenario = Scenario::deserialize(toml::Value::Table(table)).map_err(|e| {
+            ScenarioError::Invalid {
+                source_name: source_name.to_string(),
+                key: "scenario".into(),
+                message: plain_message(&with_suggestion(e.message())),
+            }
+        })?;
+        if scenario.name.is_none() {
+            scenario.name = Some(default_name.to_string());
+        }
+        scenario.validate(source_name)?;
+        Ok(scenario)
+    }
+
+    /// The scenario as a TOML table (fields filled from files at run time are not included).
+    pub fn to_table(&self) -> toml::Table {
+        match toml::Value::try_from(self) {
+            Ok(toml::Value::Table(t)) => t,
+            _ => toml::Table::new(),
+        }
+    }
+
+    /// Signals other than the quasi-static motion (closed-loop references), for the I/O
+    /// layer to fill tabulated ones.
+    pub fn signals_mut(&mut self) -> Vec<&mut Signal> {
+        self.closed_loop
+            .as_mut()
+            .map(|c| vec![&mut c.reference])
+            .unwrap_or_default()
+    }
+
+    /// Scenario name (file stem unless set).
+    pub fn name(&self) -> &str {
+        self.name.as_deref().unwrap_or("scenario")
+    }
+
+    /// Warnings that do not stop a run (e.g. load near the drive's capacity).
+    pub fn warnings(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        let capacity = 2.0 * self.drive.preload_n * self.drive.drum_radius_m;
+        let peak = self
+            .load
+            .peak_torque_nm()
+            .max(self.backlash.as_ref().map_or(0.0, |b| b.load_nm));
+        if peak >= capacity {
+            out.push(format!(
+                "peak load {peak:.3} N m reaches the slack limit 2*preload_n*drum_radius_m = {capacity:.3} N m: expect a slack span; raise drive.preload_n above {:.1} N",
+                peak / (2.0 * self.drive.drum_radius_m)
+            ));
+        } else if peak >= 0.8 * capacity {
+            out.push(format!(
+                "peak load {peak:.3} N m is {:.0} % of the slack limit {capacity:.3} N m",
+                100.0 * peak / capacity
+            ));
+        }
+        out
+    }
+
+    /// The scenario as TOML (as resolved, overrides applied), for summaries.
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).unwrap_or_default()
+    }
+}
+
+impl Study {
+    /// The name a scenario file uses for this study.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Study::QuasiStatic => "quasi_static",
+            Study::Backlash => "backlash",
+            Study::ClosedLoop => "closed_loop",
+        }
+    }
+}
+
+impl crate::closed_loop::ClosedLoopSource for Scenario {
+    fn closed_loop_setup(
+        &self,
+    ) -> Result<crate::closed_loop::ClosedLoopSetup<'_>, crate::closed_loop::ClosedLoopError> {
+        match (&self.study, &self.closed_loop) {
+            (Study::ClosedLoop, Some(params)) => Ok(crate::closed_loop::ClosedLoopSetup {
+                drive: &self.drive,
+                load: &self.load,
+                effects: self.effects.as_ref(),
+                params,
+            }),
+            (study, _) => Err(crate::closed_loop::ClosedLoopError::NotClosedLoop {
+                study: format!("\"{}\"", study.as_str()),
+            }),
+        }
+    }
+}
+
+impl crate::identify::IdentifySource for Scenario {
+    fn identify_setup(&self) -> crate::identify::IdentifySetup<'_> {
+        crate::identify::IdentifySetup {
+            name: self.name(),
+            drive: &self.drive,
+            load: &self.load,
+            identify: self.identify.as_ref(),
+            quasi_static: self.quasi_static.as_ref(),
+        }
+    }
+}
