@@ -10,7 +10,7 @@
 //! u_k = clamp(v, -limit, limit)
 //! I_k = I_{k-1} if v was clipped and e_k pushes further into the limit, else I'
 //! ```
-//! `u_k` is held over `[t_k, t_{k+1})` (zero-order hold, no computation delay).
+//! `u_k` is applied after the computation delay ([`CommandDelay`]) and held (zero-order hold).
 
 use rand::rngs::StdRng;
 use rand::SeedableRng;
@@ -272,5 +272,73 @@ mod tests {
         pid.update(1.0, 0.0, 0.0);
         let u = pid.update(1.0, 0.0, 0.0);
         assert!((u - (1.0 + 2.0 * 0.1)).abs() < 1e-12, "{u}");
+    }
+}
+
+/// The commands the plant holds over one control period under a computation delay of
+/// `m + f` periods (`m` whole, `0 <= f < 1`): `u_{k-m-1}` over the first `f` of the period,
+/// then `u_{k-m}` (commands before the start are zero).
+#[derive(Clone, Debug)]
+pub struct CommandDelay {
+    /// `[u_{k-m-1}, ..., u_k]` after the push of `u_k`.
+    queue: std::collections::VecDeque<f64>,
+    fraction: f64,
+}
+
+/// Held commands of one period: `first` over `[t_k, t_k + split*T)`, `second` over the rest.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeldCommands {
+    /// Command held first (A or V).
+    pub first: f64,
+    /// Command held from the split on (A or V).
+    pub second: f64,
+    /// Fraction of the period the first command holds, 0 to 1 (0: `second` holds all of it).
+    pub split: f64,
+}
+
+impl CommandDelay {
+    /// Delay in control periods (0 to a few).
+    pub fn new(delay_samples: f64) -> Self {
+        let whole = delay_samples.max(0.0).floor();
+        CommandDelay {
+            queue: std::iter::repeat_n(0.0, whole as usize + 2).collect(),
+            fraction: delay_samples - whole,
+        }
+    }
+
+    /// Take the command computed at this sample; return what the plant holds until the next.
+    pub fn push(&mut self, u: f64) -> HeldCommands {
+        self.queue.pop_front();
+        self.queue.push_back(u);
+        HeldCommands {
+            first: self.queue[0],
+            second: self.queue[1],
+            split: self.fraction,
+        }
+    }
+}
+
+#[cfg(test)]
+mod delay_tests {
+    use super::*;
+
+    #[test]
+    fn whole_and_fractional_delays_hold_the_right_commands() {
+        let mut none = CommandDelay::new(0.0);
+        let h = none.push(3.0);
+        assert_eq!((h.second, h.split), (3.0, 0.0));
+        let mut one = CommandDelay::new(1.0);
+        assert_eq!(one.push(1.0).second, 0.0);
+        assert_eq!(one.push(2.0).second, 1.0);
+        let mut half = CommandDelay::new(0.5);
+        let h = half.push(1.0);
+        assert_eq!((h.first, h.second, h.split), (0.0, 1.0, 0.5));
+        let h = half.push(2.0);
+        assert_eq!((h.first, h.second), (1.0, 2.0));
+        let mut late = CommandDelay::new(1.25);
+        late.push(1.0);
+        late.push(2.0);
+        let h = late.push(3.0);
+        assert_eq!((h.first, h.second, h.split), (1.0, 2.0, 0.25));
     }
 }

@@ -9,6 +9,7 @@
 //! written at the edge, by `report::closed_loop`.
 
 pub mod controller;
+pub mod linear;
 pub mod params;
 pub mod plant;
 pub mod sim;

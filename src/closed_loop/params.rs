@@ -257,8 +257,20 @@ pub struct ControllerParams {
     /// keeps the shifted reference free of steps.
     #[serde(default = "default_brake_transition")]
     pub brake_transition_s: f64,
+    /// Computation delay from sampling the sensors to applying the new command, in control
+    /// periods (1 = the command computed from the samples at `t_k` is applied at
+    /// `t_{k+1}`, as a drive that computes during the period does; fractions switch the
+    /// held command inside the period). 0 to 4; default 1.
+    #[serde(default = "default_computation_delay")]
+    pub computation_delay_samples: f64,
 }
 
+/// Largest computation delay accepted, control periods.
+pub const MAX_COMPUTATION_DELAY_SAMPLES: f64 = 4.0;
+
+fn default_computation_delay() -> f64 {
+    1.0
+}
 fn default_derivative_filter() -> f64 {
     1000.0
 }
@@ -279,6 +291,7 @@ impl Default for ControllerParams {
             acceleration_feedforward: 0.0,
             load_feedforward: false,
             brake_transition_s: default_brake_transition(),
+            computation_delay_samples: default_computation_delay(),
         }
     }
 }
@@ -618,6 +631,15 @@ impl ClosedLoopParams {
         nonneg("sensors.output_noise_rad", s.output_noise_rad)?;
         let c = &self.controller;
         pos("controller.sample_rate_hz", c.sample_rate_hz)?;
+        if !(0.0..=MAX_COMPUTATION_DELAY_SAMPLES).contains(&c.computation_delay_samples) {
+            return Err((
+                key("controller.computation_delay_samples"),
+                format!(
+                    "{} is outside 0 to {MAX_COMPUTATION_DELAY_SAMPLES} control periods (1 = the command computed at one sample is applied at the next)",
+                    crate::number(c.computation_delay_samples)
+                ),
+            ));
+        }
         for (k, v) in [
             ("controller.kp", c.kp),
             ("controller.ki", c.ki),

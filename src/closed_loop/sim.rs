@@ -6,7 +6,7 @@ use std::time::Instant;
 use ode_solvers::Rk4;
 use serde::{Deserialize, Serialize};
 
-use super::controller::{BrakePredictor, Compensator, Pid, Sensors};
+use super::controller::{BrakePredictor, CommandDelay, Compensator, Pid, Sensors};
 use super::params::{Amplifier, ClosedLoopParams, CompensationMode, Feedback};
 use super::plant::{
     damped, load_torque, update_brake, BrakeState, Forces, PeriodRhs, PlantCable,
@@ -392,6 +392,7 @@ fn run_mode(
     let mut cable = PlantCable::new(p.cable, drive);
     let mut sensors = Sensors::new(&p.sensors);
     let mut pid = Pid::new(&p.controller, p.motor.command_limit());
+    let mut delay = CommandDelay::new(p.controller.computation_delay_samples);
     let mut comp = mode
         .model()
         .map(|m| Compensator::new(p.compensator_params(drive), m));
@@ -516,8 +517,13 @@ fn run_mode(
             Feedback::Output => (ic * r.value, ic * yo),
         };
         let u = pid.update(rr, yy, u_ff);
+        let held = delay.push(u);
         if !voltage_mode {
-            x[CURRENT] = u;
+            x[CURRENT] = if held.split > 0.0 {
+                held.first
+            } else {
+                held.second
+            };
         }
 
         let sample = Sample {
@@ -548,42 +554,65 @@ fn run_mode(
             break;
         }
 
-        // Plant over [t_k, t_k+1) with u_k held; the integrator restarts here.
-        let rhs = PeriodRhs {
-            c: &coeff,
-            cable: &cable,
-            load,
-            brake,
-            command: u,
-            t0: t,
-            h: ts / f64::from(sub),
-            steps: f64::from(sub),
-            fault: std::cell::Cell::new(None),
+        // Plant over [t_k, t_k+1) with the delayed commands held, in one piece or two (the
+        // command switches inside the period under a fractional delay); the integrator
+        // restarts at every piece, and the cable memory is committed only at t_k+1.
+        let pieces = if held.split > 0.0 {
+            [
+                (0.0, held.split, held.first),
+                (held.split, 1.0, held.second),
+            ]
+        } else {
+            [(0.0, 1.0, held.second), (1.0, 1.0, held.second)]
         };
-        // End point 2N: room for all N + 1 results; `solout` stops the run at N.
-        let mut solver = Rk4::new(&rhs, 0.0, x, 2.0 * f64::from(sub), 1.0);
-        // Rk4 never fails; a cable fault is reported through the RHS.
-        let st = solver
-            .integrate()
-            .unwrap_or(ode_solvers::dop_shared::Stats {
-                num_eval: 0,
-                accepted_steps: 0,
-                rejected_steps: 0,
-            });
-        stats.steps += u64::from(st.accepted_steps);
-        stats.rhs_evaluations += u64::from(st.num_eval);
-        stats.rejected_steps += u64::from(st.rejected_steps);
+        let mut fault = None;
+        for (from, to, command) in pieces {
+            if to <= from {
+                continue;
+            }
+            if !voltage_mode {
+                x[CURRENT] = command;
+            }
+            let rhs = PeriodRhs {
+                c: &coeff,
+                cable: &cable,
+                load,
+                brake,
+                command,
+                t0: t + from * ts,
+                h: (to - from) * ts / f64::from(sub),
+                steps: f64::from(sub),
+                fault: std::cell::Cell::new(None),
+            };
+            // End point 2N: room for all N + 1 results; `solout` stops the run at N.
+            let mut solver = Rk4::new(&rhs, 0.0, x, 2.0 * f64::from(sub), 1.0);
+            // Rk4 never fails; a cable fault is reported through the RHS.
+            let st = solver
+                .integrate()
+                .unwrap_or(ode_solvers::dop_shared::Stats {
+                    num_eval: 0,
+                    accepted_steps: 0,
+                    rejected_steps: 0,
+                });
+            stats.steps += u64::from(st.accepted_steps);
+            stats.rhs_evaluations += u64::from(st.num_eval);
+            stats.rejected_steps += u64::from(st.rejected_steps);
+            if let Some(y) = solver.y_out().last() {
+                x = *y;
+            }
+            fault = rhs.fault.get();
+            if fault.is_some() {
+                break;
+            }
+        }
         stats.periods += 1;
-        if let Some(f) = rhs.fault.get() {
+        if let Some(f) = fault {
             completion = Completion::Incomplete {
                 fault: describe(&f, t + ts, mode, last_torque, coeff.ro),
                 time_s: t + ts,
             };
             reached = t + ts;
             break;
-        }
-        if let Some(y) = solver.y_out().last() {
-            x = *y;
         }
         if !x.iter().all(|v| v.is_finite()) {
             completion = Completion::Incomplete {

@@ -1,0 +1,452 @@
+//! The exact linear reference of a closed loop: computed, not simulated.
+//!
+//! The plant with the cable replaced by its linear spring (both free spans, `k = G/Lf` per
+//! half, plus the structural damping), the motor (current amplifier: the winding current is
+//! the held command; voltage amplifier: `R`, `L`, `Ke`), both inertias and viscous
+//! friction, discretised exactly with a zero-order hold at the control period (matrix
+//! exponential). The computation delay of `m + f` periods holds `u_{k-m-1}` over the first
+//! `f` of a period and `u_{k-m}` over the rest, which discretises exactly as
+//! `x_{k+1} = Ad x_k + B1 u_{k-m-1} + B2 u_{k-m}`. The PID is the implemented difference
+//! equation (derivative on the measurement through its first-order filter, integral by
+//! forward sums), so the loop gain broken at the plant input is
+//!
+//! ```text
+//! K(z) = kp + ki T / (1 - z^-1) + (1 - a) (kd / T) (1 - z^-1) / (1 - a z^-1)
+//! L(z) = K(z) P(z),   P(z) = C (zI - Ad)^-1 (B1 z^-1 + B2) z^-m
+//! S = 1 / (1 + L),    T = L / (1 + L)
+//! ```
+//!
+//! Margins are read on a dense logarithmic grid up to Nyquist and refined by bisection. A
+//! PID around a double integrator is conditionally stable (its phase starts at -270 deg),
+//! so the gain margin is split into the upward one (crossings of the negative real axis
+//! with `|L| < 1`, the classical margin) and the downward one (`|L| > 1`). Stability of
+//! the closed loop is decided by the eigenvalues of the assembled sampled system, not by
+//! the margins.
+
+use nalgebra::{Complex, DMatrix, DVector};
+use serde::Serialize;
+
+use super::params::{Amplifier, ClosedLoopParams, Feedback};
+use crate::physics::DriveParams;
+
+/// The linear sampled loop of a closed-loop setup.
+#[derive(Clone, Debug)]
+pub struct LinearLoop {
+    /// State transition over one period.
+    ad: DMatrix<f64>,
+    /// Input matrix of the command held over the first `fraction` of the period.
+    b1: DVector<f64>,
+    /// Input matrix of the command held over the rest.
+    b2: DVector<f64>,
+    /// Measured output row (motor angle, or `ic` times the output angle), motor rad.
+    c: DVector<f64>,
+    /// Whole periods of computation delay.
+    whole: usize,
+    /// Sample period, s.
+    ts: f64,
+    kp: f64,
+    ki_t: f64,
+    kd_t: f64,
+    a: f64,
+}
+
+/// Margins, peaks and bandwidth of a loop.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Margins {
+    /// Phase margin, deg (`None` when `|L|` never crosses 1).
+    pub phase_margin_deg: Option<f64>,
+    /// Gain crossover frequency, Hz.
+    pub crossover_hz: Option<f64>,
+    /// Upward gain margin, dB (`None` when the phase never crosses -180 deg with `|L| < 1`).
+    pub gain_margin_db: Option<f64>,
+    /// Frequency of that phase crossover, Hz.
+    pub phase_crossover_hz: Option<f64>,
+    /// Downward gain margin, dB (conditionally stable loops: how far the gain may fall).
+    pub lower_gain_margin_db: Option<f64>,
+    /// Sensitivity peak `max |S|` (1.3 to 2 for a sound design).
+    pub ms: f64,
+    /// Complementary sensitivity peak `max |T|`.
+    pub mt: f64,
+    /// Closed-loop bandwidth: first frequency where `|T|` falls below -3 dB, Hz.
+    pub bandwidth_hz: Option<f64>,
+    /// Whether every pole of the sampled closed loop lies inside the unit circle.
+    pub stable: bool,
+    /// Largest closed-loop pole magnitude (below 1 when stable).
+    pub spectral_radius: f64,
+}
+
+fn augmented_exp(a: &DMatrix<f64>, b: &DVector<f64>, tau: f64) -> (DMatrix<f64>, DVector<f64>) {
+    let n = a.nrows();
+    let mut m = DMatrix::<f64>::zeros(n + 1, n + 1);
+    m.view_mut((0, 0), (n, n)).copy_from(a);
+    m.view_mut((0, n), (n, 1)).copy_from(b);
+    let e = (m * tau).exp();
+    (
+        e.view((0, 0), (n, n)).into_owned(),
+        e.view((0, n), (n, 1)).column(0).into_owned(),
+    )
+}
+
+impl LinearLoop {
+    /// The loop of `p` around `drive`, with the cable as its linear spring.
+    pub fn new(p: &ClosedLoopParams, drive: &DriveParams) -> Self {
+        let (ri, ro) = (drive.pulley_radius_m, drive.drum_radius_m);
+        let k = ClosedLoopParams::half_stiffness_n_per_m(drive);
+        let cd = p.cable_damping_n_s_per_m(drive);
+        let m = &p.motor;
+        let (jm, bm, kt) = (
+            m.inertia_kg_m2,
+            m.viscous_nm_s_per_rad,
+            m.torque_constant_nm_per_a,
+        );
+        let (jo, bo) = (p.output.inertia_kg_m2, p.output.viscous_nm_s_per_rad);
+        let voltage = m.amplifier == Amplifier::Voltage;
+        // States [theta_m, omega_m, theta_o, omega_o] (+ current with a voltage amplifier).
+        let n = if voltage { 5 } else { 4 };
+        let mut a = DMatrix::<f64>::zeros(n, n);
+        let mut b = DVector::<f64>::zeros(n);
+        // F = Tu - Tl = 2k (ri th_m - ro th_o) + 2c (ri w_m - ro w_o)
+        let f = [2.0 * k * ri, 2.0 * cd * ri, -2.0 * k * ro, -2.0 * cd * ro];
+        a[(0, 1)] = 1.0;
+        a[(2, 3)] = 1.0;
+        for (j, fj) in f.iter().enumerate() {
+            a[(1, j)] = -ri * fj / jm;
+            a[(3, j)] = ro * fj / jo;
+        }
+        a[(1, 1)] -= bm / jm;
+        a[(3, 3)] -= bo / jo;
+        if voltage {
+            a[(1, 4)] = kt / jm;
+            a[(4, 1)] = -m.back_emf() / m.inductance_h;
+            a[(4, 4)] = -m.resistance_ohm / m.inductance_h;
+            b[4] = 1.0 / m.inductance_h;
+        } else {
+            b[1] = kt / jm;
+        }
+        let ctl = &p.controller;
+        let ts = 1.0 / ctl.sample_rate_hz;
+        let delay = ctl.computation_delay_samples.max(0.0);
+        let whole = delay.floor();
+        let f = delay - whole;
+        let (ad, _) = augmented_exp(&a, &b, ts);
+        let (phi_rest, gam_rest) = augmented_exp(&a, &b, (1.0 - f) * ts);
+        let (_, gam_first) = augmented_exp(&a, &b, f * ts);
+        let mut c = DVector::<f64>::zeros(n);
+        match ctl.feedback {
+            Feedback::Motor => c[0] = 1.0,
+            Feedback::Output => c[2] = drive.ratio(),
+        }
+        LinearLoop {
+            ad,
+            b1: phi_rest * gam_first,
+            b2: gam_rest,
+            c,
+            whole: whole as usize,
+            ts,
+            kp: ctl.kp,
+            ki_t: ctl.ki * ts,
+            kd_t: ctl.kd / ts,
+            a: (-std::f64::consts::TAU * ctl.derivative_filter_hz * ts).exp(),
+        }
+    }
+
+    /// Nyquist frequency, Hz.
+    pub fn nyquist_hz(&self) -> f64 {
+        0.5 / self.ts
+    }
+
+    /// Plant `P` from held command to measurement at `f_hz`, delay included.
+    pub fn plant(&self, f_hz: f64) -> Complex<f64> {
+        let z = Complex::from_polar(1.0, std::f64::consts::TAU * f_hz * self.ts);
+        let zi = z.inv();
+        let n = self.ad.nrows();
+        let m = DMatrix::<Complex<f64>>::identity(n, n) * z - self.ad.map(Complex::from);
+        let rhs = self.b1.map(|v| Complex::from(v) * zi) + self.b2.map(Complex::from);
+        let x = m.lu().solve(&rhs).unwrap_or_else(|| DVector::zeros(n));
+        let y: Complex<f64> = self.c.iter().zip(x.iter()).map(|(c, x)| x * *c).sum();
+        y * zi.powi(self.whole as i32)
+    }
+
+    /// Controller `K` at `f_hz`.
+    pub fn controller(&self, f_hz: f64) -> Complex<f64> {
+        let zi = Complex::from_polar(1.0, -std::f64::consts::TAU * f_hz * self.ts);
+        let one = Complex::from(1.0);
+        Complex::from(self.kp)
+            + Complex::from(self.ki_t) / (one - zi)
+            + (one - zi) * ((1.0 - self.a) * self.kd_t) / (one - zi * self.a)
+    }
+
+    /// Loop gain broken at the plant input, `L = K P`.
+    pub fn loop_gain(&self, f_hz: f64) -> Complex<f64> {
+        self.controller(f_hz) * self.plant(f_hz)
+    }
+
+    /// Sensitivity `S = 1/(1+L)`.
+    pub fn sensitivity(&self, f_hz: f64) -> Complex<f64> {
+        (Complex::from(1.0) + self.loop_gain(f_hz)).inv()
+    }
+
+    /// Complementary sensitivity `T = L/(1+L)`.
+    pub fn complementary(&self, f_hz: f64) -> Complex<f64> {
+        let l = self.loop_gain(f_hz);
+        l / (Complex::from(1.0) + l)
+    }
+
+    /// One period of the sampled closed loop with zero reference: the state is
+    /// `[x, I, d, y_prev, u_{k-1}, ..., u_{k-m-1}]`, linear in itself.
+    fn step(&self, s: &DVector<f64>) -> DVector<f64> {
+        let n = self.ad.nrows();
+        let x = s.rows(0, n);
+        let (integ, deriv, y_prev) = (s[n], s[n + 1], s[n + 2]);
+        let y = self.c.dot(&x);
+        let integ = integ - self.ki_t * y;
+        let deriv = self.a * deriv - (1.0 - self.a) * self.kd_t * (y - y_prev);
+        let u = -self.kp * y + integ + deriv;
+        // History after the push of u_k: [u_k, u_{k-1}, ..., u_{k-m-1}].
+        let mut hist = vec![u];
+        hist.extend(s.rows(n + 3, self.whole + 1).iter().copied());
+        let first = hist[self.whole + 1];
+        let second = hist[self.whole];
+        let x_next = &self.ad * x + &self.b1 * first + &self.b2 * second;
+        let mut out = DVector::<f64>::zeros(s.len());
+        out.rows_mut(0, n).copy_from(&x_next);
+        out[n] = integ;
+        out[n + 1] = deriv;
+        out[n + 2] = y;
+        for (j, h) in hist.iter().take(self.whole + 1).enumerate() {
+            out[n + 3 + j] = *h;
+        }
+        out
+    }
+
+    /// The sampled closed loop as a matrix (its columns are the responses to unit states).
+    pub fn closed_loop_matrix(&self) -> DMatrix<f64> {
+        let dim = self.ad.nrows() + 3 + self.whole + 1;
+        let mut m = DMatrix::<f64>::zeros(dim, dim);
+        for j in 0..dim {
+            let mut e = DVector::<f64>::zeros(dim);
+            e[j] = 1.0;
+            m.set_column(j, &self.step(&e));
+        }
+        m
+    }
+
+    /// Largest closed-loop pole magnitude.
+    pub fn spectral_radius(&self) -> f64 {
+        self.closed_loop_matrix()
+            .complex_eigenvalues()
+            .iter()
+            .map(|l| l.norm())
+            .fold(0.0, f64::max)
+    }
+
+    /// Margins, peaks and bandwidth, on `points` log-spaced frequencies from 0.1 Hz to
+    /// just below Nyquist (2000 is plenty), refined by bisection.
+    pub fn margins(&self, points: usize) -> Margins {
+        let (lo, hi) = (0.1_f64, self.nyquist_hz() * 0.9999);
+        let points = points.max(10);
+        let freqs: Vec<f64> = (0..points)
+            .map(|i| lo * (hi / lo).powf(i as f64 / (points - 1) as f64))
+            .collect();
+        let l: Vec<Complex<f64>> = freqs.iter().map(|&f| self.loop_gain(f)).collect();
+        let refine = |f0: f64, f1: f64, g: &dyn Fn(f64) -> f64| {
+            let (mut a, mut b) = (f0, f1);
+            let ga = g(a);
+            for _ in 0..60 {
+                let m = (a * b).sqrt();
+                if (g(m) > 0.0) == (ga > 0.0) {
+                    a = m;
+                } else {
+                    b = m;
+                }
+            }
+            (a * b).sqrt()
+        };
+        let mut pm: Option<(f64, f64)> = None;
+        let mut gm_up: Option<(f64, f64)> = None;
+        let mut gm_down: Option<f64> = None;
+        for i in 1..points {
+            let (l0, l1) = (l[i - 1], l[i]);
+            if (l0.norm() - 1.0) * (l1.norm() - 1.0) <= 0.0 && l0.norm() != l1.norm() {
+                let f = refine(freqs[i - 1], freqs[i], &|f| self.loop_gain(f).norm() - 1.0);
+                let lf = self.loop_gain(f);
+                let margin = 180.0 - lf.arg().to_degrees().abs();
+                if pm.is_none_or(|(m, _)| margin < m) {
+                    pm = Some((margin, f));
+                }
+            }
+            // Crossing of the negative real axis: the imaginary part changes sign there.
+            if l0.im * l1.im <= 0.0 && (l0.re < 0.0 || l1.re < 0.0) && l0.im != l1.im {
+                let f = refine(freqs[i - 1], freqs[i], &|f| self.loop_gain(f).im);
+                let lf = self.loop_gain(f);
+                if lf.re < 0.0 {
+                    let db = -20.0 * lf.norm().log10();
+                    if lf.norm() < 1.0 {
+                        if gm_up.is_none_or(|(m, _)| db < m) {
+                            gm_up = Some((db, f));
+                        }
+                    } else if gm_down.is_none_or(|m| -db < m) {
+                        gm_down = Some(-db);
+                    }
+                }
+            }
+        }
+        let s: Vec<f64> = l
+            .iter()
+            .map(|l| (Complex::from(1.0) + l).inv().norm())
+            .collect();
+        let t: Vec<f64> = l
+            .iter()
+            .map(|l| (l / (Complex::from(1.0) + l)).norm())
+            .collect();
+        let half_power = std::f64::consts::FRAC_1_SQRT_2;
+        let bandwidth = (1..points)
+            .find(|&i| t[i - 1] >= half_power && t[i] < half_power)
+            .map(|i| {
+                refine(freqs[i - 1], freqs[i], &|f| {
+                    self.complementary(f).norm() - half_power
+                })
+            });
+        let rho = self.spectral_radius();
+        Margins {
+            phase_margin_deg: pm.map(|p| p.0),
+            crossover_hz: pm.map(|p| p.1),
+            gain_margin_db: gm_up.map(|g| g.0),
+            phase_crossover_hz: gm_up.map(|g| g.1),
+            lower_gain_margin_db: gm_down,
+            ms: s.iter().copied().fold(0.0, f64::max),
+            mt: t.iter().copied().fold(0.0, f64::max),
+            bandwidth_hz: bandwidth,
+            stable: rho < 1.0,
+            spectral_radius: rho,
+        }
+    }
+
+    /// The same loop with every controller gain scaled by `g` (for margin checks).
+    pub fn with_gain(&self, g: f64) -> Self {
+        LinearLoop {
+            kp: self.kp * g,
+            ki_t: self.ki_t * g,
+            kd_t: self.kd_t * g,
+            ..self.clone()
+        }
+    }
+}
+
+/// Margins a servo engineer signs: phase margin >= 35 deg and gain margin >= 6 dB.
+pub fn margins_signable(m: &Margins) -> Result<(), String> {
+    if !m.stable {
+        return Err(format!(
+            "the sampled closed loop is unstable (largest pole magnitude {:.4})",
+            m.spectral_radius
+        ));
+    }
+    match m.phase_margin_deg {
+        Some(pm) if pm >= 35.0 => {}
+        other => return Err(format!("phase margin {other:?} deg is below 35 deg")),
+    }
+    if let Some(gm) = m.gain_margin_db {
+        if gm < 6.0 {
+            return Err(format!("gain margin {gm:.2} dB is below 6 dB"));
+        }
+    }
+    if let Some(gm) = m.lower_gain_margin_db {
+        if gm < 6.0 {
+            return Err(format!("downward gain margin {gm:.2} dB is below 6 dB"));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bench loop of `scenarios/eots_tracking.toml`, read without the scenario layer.
+    fn bench() -> (ClosedLoopParams, DriveParams) {
+        let t: toml::Table =
+            toml::from_str(include_str!("../../scenarios/eots_tracking.toml")).unwrap();
+        (
+            t["closed_loop"].clone().try_into().unwrap(),
+            t["drive"].clone().try_into().unwrap(),
+        )
+    }
+
+    /// A pure inertia `1/(J s^2)` under a zero-order hold has the closed form
+    /// `P(z) = T^2 (z + 1) / (2 J (z - 1)^2)`; a whole period of delay multiplies it by
+    /// `z^-1`, and half a period splits the input matrix into the hand-integrated
+    /// `B1 = [h^2 + h^2/2, h]/J` and `B2 = [h^2/2, h]/J` with `h = T/2`.
+    #[test]
+    fn zoh_of_an_inertia_matches_the_closed_form() {
+        let j = 2.0;
+        let ts = 1e-3;
+        let mut a = DMatrix::<f64>::zeros(2, 2);
+        a[(0, 1)] = 1.0;
+        let b = DVector::from_vec(vec![0.0, 1.0 / j]);
+        let (ad, bd) = augmented_exp(&a, &b, ts);
+        assert!((ad[(0, 1)] - ts).abs() < 1e-15);
+        assert!((bd[0] - ts * ts / (2.0 * j)).abs() < 1e-18);
+        assert!((bd[1] - ts / j).abs() < 1e-15);
+        let lp = LinearLoop {
+            ad: ad.clone(),
+            b1: DVector::zeros(2),
+            b2: bd.clone(),
+            c: DVector::from_vec(vec![1.0, 0.0]),
+            whole: 0,
+            ts,
+            kp: 0.0,
+            ki_t: 0.0,
+            kd_t: 0.0,
+            a: 0.0,
+        };
+        for f in [1.0, 17.0, 230.0] {
+            let z = Complex::from_polar(1.0, std::f64::consts::TAU * f * ts);
+            let one = Complex::from(1.0);
+            let exact = (z + one) * (ts * ts / (2.0 * j)) / ((z - one) * (z - one));
+            assert!((lp.plant(f) - exact).norm() < 1e-9 * exact.norm(), "{f} Hz");
+            // One whole period of delay multiplies by z^-1.
+            let delayed = LinearLoop {
+                whole: 1,
+                ..lp.clone()
+            };
+            assert!((delayed.plant(f) - exact / z).norm() < 1e-9 * exact.norm());
+        }
+        // Half a period of delay: u_{k-1} over [0, T/2), u_k over [T/2, T).
+        let (phi_h, gam_h) = augmented_exp(&a, &b, ts / 2.0);
+        let half = LinearLoop {
+            b1: &phi_h * &gam_h,
+            b2: gam_h.clone(),
+            ..lp.clone()
+        };
+        // By hand: B2 = [(T/2)^2/2, T/2]/J, B1 = [T/2*T/2 + (T/2)^2/2, T/2]/J.
+        let h = ts / 2.0;
+        assert!((half.b2[0] - h * h / (2.0 * j)).abs() < 1e-18);
+        assert!((half.b1[0] - (h * h + h * h / 2.0) / j).abs() < 1e-18);
+        assert!((half.b1[1] - h / j).abs() < 1e-15);
+    }
+
+    /// The gain margin is where the closed loop loses stability: scaling every gain by
+    /// the margin puts a pole on the unit circle (eigenvalues of the assembled sampled
+    /// system, an independent route from the frequency response).
+    #[test]
+    fn gain_margin_agrees_with_closed_loop_poles() {
+        let (mut p, drive) = bench();
+        p.controller.computation_delay_samples = 1.0;
+        let lp = LinearLoop::new(&p, &drive);
+        let m = lp.margins(3000);
+        assert!(m.stable, "{m:?}");
+        let gm = m.gain_margin_db.expect("a phase crossover");
+        let g = 10f64.powf(gm / 20.0);
+        let below = lp.with_gain(g * 0.995).spectral_radius();
+        let above = lp.with_gain(g * 1.005).spectral_radius();
+        assert!(below < 1.0 && above > 1.0, "{below} {above} at {gm} dB");
+        // The phase margin's crossover has |L| = 1 and the stated angle to -1.
+        let f = m.crossover_hz.unwrap();
+        let l = lp.loop_gain(f);
+        assert!((l.norm() - 1.0).abs() < 1e-9);
+        let pm = m.phase_margin_deg.unwrap();
+        assert!(
+            ((Complex::from(-1.0) - l).norm() - 2.0 * (pm.to_radians() / 2.0).sin()).abs() < 1e-6
+        );
+    }
+}
