@@ -246,6 +246,15 @@ enum Command {
         #[arg(long)]
         force: bool,
     },
+    /// Margins of a closed-loop design on its exact linear reference (cable as its linear
+    /// spring, zero-order hold, PID and computation delay as implemented).
+    Margins {
+        /// Scenario file or built-in name (default: eots_tracking).
+        scenario: Option<String>,
+        /// Override a scenario key (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+    },
     /// Print a built-in scenario (to copy and edit).
     Show {
         /// Built-in scenario name.
@@ -522,6 +531,59 @@ fn main() -> ExitCode {
                 Err(e) => {
                     tell!("error: {e}");
                     ExitCode::from(e.exit_code())
+                }
+            }
+        }
+        Command::Margins { scenario, set } => {
+            let name = scenario.as_deref().unwrap_or(DEFAULT_SCENARIO);
+            let scenario = match load(name, &set) {
+                Ok(s) => s,
+                Err(code) => return code,
+            };
+            let Some(p) = scenario.closed_loop.as_ref() else {
+                tell!("error: {name} is not a closed-loop scenario (study = \"closed_loop\")");
+                return ExitCode::from(exit::INPUT);
+            };
+            let m =
+                cable_servo::closed_loop::linear::LinearLoop::new(p, &scenario.drive).margins(4000);
+            let opt = |v: Option<f64>, digits: usize| {
+                v.map_or_else(|| "none".to_string(), |v| format!("{v:.digits$}"))
+            };
+            say!(
+                "{}: computation delay {} sample(s) at {} Hz",
+                scenario.name(),
+                p.controller.computation_delay_samples,
+                p.controller.sample_rate_hz
+            );
+            say!(
+                "stable            {} (largest pole |z| = {:.5})",
+                m.stable,
+                m.spectral_radius
+            );
+            say!(
+                "phase margin      {} deg at {} Hz",
+                opt(m.phase_margin_deg, 1),
+                opt(m.crossover_hz, 1)
+            );
+            say!(
+                "gain margin       {} dB at {} Hz (upward)",
+                opt(m.gain_margin_db, 2),
+                opt(m.phase_crossover_hz, 1)
+            );
+            say!(
+                "lower gain margin {} dB (downward)",
+                opt(m.lower_gain_margin_db, 2)
+            );
+            say!("Ms, Mt            {:.3}, {:.3}", m.ms, m.mt);
+            say!("bandwidth (-3 dB of T) {} Hz", opt(m.bandwidth_hz, 1));
+            match cable_servo::closed_loop::linear::margins_signable(&m) {
+                Ok(()) => {
+                    say!("signable: yes (PM >= 35 deg, GM >= 6 dB)");
+                    ExitCode::SUCCESS
+                }
+                Err(why) => {
+                    say!("signable: no: {why}");
+                    ExitCode::from(exit::PHYSICAL)
                 }
             }
         }
