@@ -63,8 +63,10 @@ Exit codes: 0 success, 2 usage error, 3 input error, 4 physical failure (results
 incomplete), 5 output error (existing results without --force)."
 )]
 struct Cli {
+    /// Without a command: `run` of the default study (eots_tracking) into a fresh
+    /// directory under `results/`.
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
 }
 
 /// A bisection on closed-loop runs for the largest value that meets the pointing target.
@@ -129,7 +131,8 @@ enum Command {
     Run {
         /// Scenario file or built-in name (default: the EOTS tracking study).
         scenario: Option<String>,
-        /// Results directory (default: results/<scenario name>).
+        /// Results directory (default: results/<scenario name>, or the first free
+        /// results/<scenario name>-2, -3, ... when it exists; with --force it is replaced).
         #[arg(long)]
         out: Option<PathBuf>,
         /// Override a scenario value, e.g. drive.preload_n=70 (repeatable).
@@ -270,7 +273,13 @@ fn main() -> ExitCode {
             return ExitCode::from(if e.use_stderr() { exit::USAGE } else { 0 });
         }
     };
-    match cli.command {
+    let command = cli.command.unwrap_or(Command::Run {
+        scenario: None,
+        out: None,
+        set: Vec::new(),
+        force: false,
+    });
+    match command {
         Command::Run {
             scenario,
             out,
@@ -282,7 +291,9 @@ fn main() -> ExitCode {
                 Ok(s) => s,
                 Err(code) => return code,
             };
-            let dir = out.unwrap_or_else(|| PathBuf::from("results").join(scenario.name()));
+            let dir = out.unwrap_or_else(|| {
+                run::default_results_dir(&PathBuf::from("results").join(scenario.name()), force)
+            });
             report(run::run_scenario(&scenario, &OutputOptions { dir, force }))
         }
         Command::Sweep {

@@ -70,6 +70,23 @@ pub struct OutputOptions {
     pub force: bool,
 }
 
+/// Results directory used when the user names none: `base` itself when it is free or
+/// `force` asks to replace it, else the first free `base-2`, `base-3`, ... so repeating a
+/// command keeps earlier results and still succeeds.
+pub fn default_results_dir(base: &Path, force: bool) -> PathBuf {
+    if force || std::fs::symlink_metadata(base).is_err() {
+        return base.to_path_buf();
+    }
+    let name = base
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    (2u64..)
+        .map(|k| base.with_file_name(format!("{name}-{k}")))
+        .find(|p| std::fs::symlink_metadata(p).is_err())
+        .unwrap_or_else(|| base.to_path_buf())
+}
+
 /// Run a single scenario (quasi-static, backlash or closed-loop study).
 pub fn run_scenario(scenario: &Scenario, out: &OutputOptions) -> Result<RunReport, RunError> {
     let mut warnings = scenario.warnings();
