@@ -188,7 +188,15 @@ fn run_closed_loop(
     dir: &Path,
     warnings: &mut Vec<String>,
 ) -> Result<(String, Option<String>), RunError> {
-    let result = closed_loop::run_closed_loop(scenario, &closed_loop::RunOptions::default())?;
+    let decimation = scenario
+        .closed_loop
+        .as_ref()
+        .map_or(1, |c| c.timeseries_decimation());
+    let options = closed_loop::RunOptions {
+        decimation,
+        ..closed_loop::RunOptions::default()
+    };
+    let result = closed_loop::run_closed_loop(scenario, &options)?;
     report::closed_loop::write_closed_loop_outputs(dir, scenario, &result)?;
     let target = scenario.closed_loop.as_ref().map_or(0.1, |c| c.target_mrad);
     if let Err(e) = report::closed_loop::plot_closed_loop(dir, &result, target) {

@@ -382,6 +382,11 @@ pub struct ClosedLoopParams {
     /// the sample rate; the validation says when more are needed).
     #[serde(default = "default_substeps")]
     pub rk4_substeps: u32,
+    /// Rows per second kept in the time series, Hz (1000: a row every millisecond, which
+    /// resolves the loop's 30 Hz bandwidth; at most the control rate, which keeps every
+    /// sample). Metrics always use every control sample.
+    #[serde(default = "default_timeseries_rate")]
+    pub timeseries_rate_hz: f64,
     /// Torque motor.
     #[serde(default)]
     pub motor: MotorParams,
@@ -426,6 +431,10 @@ fn default_cable_damping() -> f64 {
 }
 fn default_substeps() -> u32 {
     1
+}
+
+fn default_timeseries_rate() -> f64 {
+    1000.0
 }
 
 /// Linearised rates of the plant used for step-size and sample-rate checks.
@@ -531,9 +540,28 @@ impl ClosedLoopParams {
         (self.duration_s * self.controller.sample_rate_hz).round() as u64
     }
 
+    /// Control samples per time-series row (1 keeps every sample).
+    pub fn timeseries_decimation(&self) -> usize {
+        let ratio = self.controller.sample_rate_hz / self.timeseries_rate_hz;
+        if ratio.is_finite() && ratio > 1.0 {
+            ratio.round() as usize
+        } else {
+            1
+        }
+    }
+
     /// Check ranges and consistency; returns `(dotted key, message)` of the first problem.
     pub fn validate(&self, drive: &DriveParams) -> Result<(), (String, String)> {
         let key = |k: &str| format!("closed_loop.{k}");
+        if !(self.timeseries_rate_hz.is_finite() && self.timeseries_rate_hz > 0.0) {
+            return Err((
+                key("timeseries_rate_hz"),
+                format!(
+                    "{} must be a positive rate in Hz (1000 keeps a row every millisecond; the control rate keeps every sample)",
+                    crate::number(self.timeseries_rate_hz)
+                ),
+            ));
+        }
         let pos = |k: &str, v: f64| -> Result<(), (String, String)> {
             if v.is_finite() && v > 0.0 {
                 Ok(())
