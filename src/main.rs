@@ -195,6 +195,10 @@ enum Command {
         /// Hold out whole logs by index (0-based, in --data order) instead of time blocks.
         #[arg(long = "holdout", value_name = "INDEX")]
         holdout: Vec<usize>,
+        /// Cut this many seconds from the start of every log (start-up transient); default:
+        /// a load step at the start is detected and cut with its settling; 0 keeps all.
+        #[arg(long = "cut-start", value_name = "SECONDS")]
+        cut_start: Option<f64>,
         /// Results directory (default: results/<scenario name>-diagnosis).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -425,6 +429,7 @@ fn main() -> ExitCode {
             scenario,
             data,
             holdout,
+            cut_start,
             out,
             json,
             save_model,
@@ -438,8 +443,19 @@ fn main() -> ExitCode {
             let dir = out.unwrap_or_else(|| {
                 PathBuf::from("results").join(format!("{}-diagnosis", scenario.name()))
             });
+            let start = match cut_start {
+                None => cable_servo::identify::startup::StartMode::Detect,
+                Some(s) if s.is_finite() && s >= 0.0 => {
+                    cable_servo::identify::startup::StartMode::Fixed(s)
+                }
+                Some(s) => {
+                    tell!("error: --cut-start {s}: must be a time in seconds, 0 or more");
+                    return ExitCode::from(exit::USAGE);
+                }
+            };
             let options = cable_servo::identify::DiagnoseOptions {
                 holdout_logs: holdout,
+                start,
                 ..Default::default()
             };
             match cable_servo::run::run_diagnosis(

@@ -7,6 +7,8 @@ pub mod lm;
 pub mod model;
 pub mod play;
 pub mod report;
+pub mod resolution;
+pub mod startup;
 pub mod synth;
 pub mod whiteness;
 
@@ -79,6 +81,9 @@ pub struct DiagnoseOptions {
     pub candidates: Option<Vec<EffectName>>,
     /// Skip the play-operator baseline (saves time in statistical runs).
     pub skip_play_operator: bool,
+    /// Start-up handling: detect a load step at each log's start (default) or cut a fixed
+    /// time; what is cut is neither fitted nor scored.
+    pub start: startup::StartMode,
 }
 
 /// One estimated parameter.
@@ -189,6 +194,8 @@ pub struct Diagnosis {
     pub holdout: String,
     /// Logs used.
     pub logs: Vec<String>,
+    /// What was cut from the start of each log (start-up transient), in `logs` order.
+    pub start_cuts: Vec<startup::StartCut>,
     /// Calibrated drive.
     pub drive: DriveParams,
     /// Identified effects, as stored in a scenario.
@@ -384,7 +391,11 @@ pub fn diagnose(
         key: format!("identify.{k}"),
         message: m,
     })?;
-    let prepared: Vec<Prepared> = logs
+    let (cut_logs, start_cuts): (Vec<BenchLog>, Vec<startup::StartCut>) = logs
+        .iter()
+        .map(|l| startup::cut_start(l, options.start))
+        .unzip();
+    let prepared: Vec<Prepared> = cut_logs
         .iter()
         .map(|l| model::prepare(l, ident.max_rate_hz))
         .collect::<Result<_, _>>()?;
@@ -712,6 +723,7 @@ pub fn diagnose(
         play_operator,
         holdout: split.text,
         logs: prepared.iter().map(|l| l.source.clone()).collect(),
+        start_cuts,
         drive: drive_out,
         effects: effects_out,
         traces,

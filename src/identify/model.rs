@@ -41,34 +41,6 @@ pub struct Prepared {
     pub q_out: f64,
 }
 
-fn quant_step(v: &[f64]) -> f64 {
-    // Smallest clearly non-zero step; for noisy unquantised data this is tiny and the noise
-    // estimate from differences takes over.
-    let mut steps: Vec<f64> = v
-        .windows(2)
-        .map(|w| (w[1] - w[0]).abs())
-        .filter(|d| *d > 1e-12)
-        .collect();
-    if steps.len() < 10 {
-        return 0.0;
-    }
-    steps.sort_by(|a, b| a.total_cmp(b));
-    let q = steps[steps.len() / 100];
-    // Only accept it as a grid if most steps are near multiples of it.
-    let on_grid = steps
-        .iter()
-        .filter(|d| {
-            let k = (**d / q).round();
-            (*d - k * q).abs() < 0.05 * q
-        })
-        .count();
-    if on_grid as f64 > 0.9 * steps.len() as f64 {
-        q
-    } else {
-        0.0
-    }
-}
-
 /// Decimate by block averaging to at most `max_rate_hz` and derive velocities.
 pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyError> {
     let bad = |message: String| IdentifyError::BadLog {
@@ -107,8 +79,8 @@ pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyErr
     let rate = (n - 1) as f64 / span;
     // Keep at least 40 samples after averaging, whatever the rates.
     let m = ((rate / max_rate_hz).floor() as usize).clamp(1, (n / 40).max(1));
-    let q_in = quant_step(&log.theta_in_rad);
-    let q_out = quant_step(&log.theta_out_rad);
+    let q_in = super::resolution::encoder_step(&log.theta_in_rad);
+    let q_out = super::resolution::encoder_step(&log.theta_out_rad);
     let avg = |v: &[f64]| -> Vec<f64> {
         v.chunks(m)
             .filter(|c| c.len() == m)
