@@ -29,6 +29,19 @@ pub enum EffectName {
     CableTransport,
     /// Slow drift of the error with time, rad/s (1e-7 to 1e-5).
     ThermalDrift,
+    /// Transmission ratio varying smoothly with the input angle over the stroke (jaw
+    /// linkage, cable leaving a non-circular guide): Legendre terms `P_2..P_4` of the input
+    /// angle scaled to the observed stroke; value: RMS of the shape over the stroke, rad
+    /// (1e-4 to 0.05).
+    AngleDependentRatio,
+    /// Output deflection proportional to the transmitted load beyond the capstan model's
+    /// spans (cable stretch outside the wrap, jaw and pin flexibility), rad/(N m) (>= 0;
+    /// 1e-4 to 1 from gimbal drums to surgical jaws).
+    LoadCompliance,
+    /// Friction memory over many contacts with different thresholds (Prandtl-Ishlinskii sum
+    /// of play operators on the input angle, non-negative weights): the lag grows gradually
+    /// after a reversal; value: lag after a long travel, rad of output (1e-4 to 0.05).
+    DistributedFrictionMemory,
 }
 
 impl EffectName {
@@ -44,6 +57,30 @@ impl EffectName {
         EffectName::ThermalDrift,
     ];
 
+    /// Effects of multi-wrap instrument drives, searched when a scenario or the caller lists
+    /// them (`[identify] candidates`): on a single-wrap drive they overlap the base model's
+    /// own memory and compliance, so the default search leaves them out.
+    pub const EXTENDED: [EffectName; 3] = [
+        EffectName::AngleDependentRatio,
+        EffectName::LoadCompliance,
+        EffectName::DistributedFrictionMemory,
+    ];
+
+    /// The library and the extended effects.
+    pub const EVERY: [EffectName; 11] = [
+        EffectName::InputPulleyRunout,
+        EffectName::OutputDrumRunout,
+        EffectName::EncoderDelay,
+        EffectName::EncoderScaleError,
+        EffectName::PreloadRelaxation,
+        EffectName::BearingFriction,
+        EffectName::CableTransport,
+        EffectName::ThermalDrift,
+        EffectName::AngleDependentRatio,
+        EffectName::LoadCompliance,
+        EffectName::DistributedFrictionMemory,
+    ];
+
     /// Name as used in files and on the command line.
     pub fn as_str(self) -> &'static str {
         match self {
@@ -55,6 +92,9 @@ impl EffectName {
             EffectName::BearingFriction => "bearing_friction",
             EffectName::CableTransport => "cable_transport",
             EffectName::ThermalDrift => "thermal_drift",
+            EffectName::AngleDependentRatio => "angle_dependent_ratio",
+            EffectName::LoadCompliance => "load_compliance",
+            EffectName::DistributedFrictionMemory => "distributed_friction_memory",
         }
     }
 
@@ -70,6 +110,9 @@ impl EffectName {
             EffectName::BearingFriction => "N m",
             EffectName::CableTransport => "rad (input travel)",
             EffectName::ThermalDrift => "rad/s",
+            EffectName::AngleDependentRatio => "rad (RMS over the stroke)",
+            EffectName::LoadCompliance => "rad/(N m)",
+            EffectName::DistributedFrictionMemory => "rad (lag after a long travel)",
         }
     }
 
@@ -84,6 +127,9 @@ impl EffectName {
             EffectName::BearingFriction => "unmeasured Coulomb torque at the drum: jumps larger than the measured load explains",
             EffectName::CableTransport => "cable creep over the wraps: error keeps evolving after a reversal instead of jumping once",
             EffectName::ThermalDrift => "slow drift of the error with time, independent of motion",
+            EffectName::AngleDependentRatio => "transmission ratio changes smoothly over the stroke: error a smooth curve of the input angle, the same going up and down",
+            EffectName::LoadCompliance => "the output gives way in proportion to the load it carries (cable outside the wraps, jaw and pin flexibility)",
+            EffectName::DistributedFrictionMemory => "friction at many contacts: after a reversal the lag builds up gradually over the input travel",
         }
     }
 }
@@ -97,12 +143,12 @@ impl std::fmt::Display for EffectName {
 impl std::str::FromStr for EffectName {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        EffectName::ALL
+        EffectName::EVERY
             .iter()
             .copied()
             .find(|e| e.as_str() == s)
             .ok_or_else(|| {
-                let names: Vec<&str> = EffectName::ALL.iter().map(|e| e.as_str()).collect();
+                let names: Vec<&str> = EffectName::EVERY.iter().map(|e| e.as_str()).collect();
                 format!("unknown effect `{s}`; known: {}", names.join(", "))
             })
     }
@@ -306,6 +352,22 @@ pub struct EffectsParams {
     /// Drift of the error with time, rad/s.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub thermal_drift_rad_per_s: Option<f64>,
+    /// Ratio shape: Legendre coefficients of `P_2, P_3, P_4` of the input angle scaled to
+    /// `angle_dependent_ratio_stroke_rad`, rad of output error.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angle_dependent_ratio_coefs: Option<Vec<f64>>,
+    /// Input stroke `[low, high]` the ratio shape is defined over, rad.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angle_dependent_ratio_stroke_rad: Option<[f64; 2]>,
+    /// Output deflection per transmitted torque beyond the spans, rad/(N m).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub load_compliance_rad_per_nm: Option<f64>,
+    /// Play thresholds of the distributed friction memory, rad of input.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction_memory_thresholds_rad: Option<Vec<f64>>,
+    /// Their weights, output rad per input rad (non-negative).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction_memory_weights: Option<Vec<f64>>,
 }
 
 impl EffectsParams {
@@ -348,6 +410,46 @@ impl EffectsParams {
             -1.0,
             1.0,
         )?;
+        check(
+            "load_compliance_rad_per_nm",
+            self.load_compliance_rad_per_nm,
+            0.0,
+            100.0,
+        )?;
+        if let Some(c) = &self.angle_dependent_ratio_coefs {
+            if c.len() != 3 || c.iter().any(|v| !(v.is_finite() && v.abs() <= 1.0)) {
+                return Err((
+                    "angle_dependent_ratio_coefs".into(),
+                    "must be 3 finite numbers (rad) of magnitude <= 1".into(),
+                ));
+            }
+            match self.angle_dependent_ratio_stroke_rad {
+                Some([a, b]) if a.is_finite() && b.is_finite() && a < b => {}
+                _ => {
+                    return Err((
+                        "angle_dependent_ratio_stroke_rad".into(),
+                        "needed with angle_dependent_ratio_coefs: [low, high] finite, low < high"
+                            .into(),
+                    ))
+                }
+            }
+        }
+        match (
+            &self.friction_memory_thresholds_rad,
+            &self.friction_memory_weights,
+        ) {
+            (None, None) => {}
+            (Some(r), Some(w))
+                if r.len() == w.len()
+                    && r.iter().all(|v| v.is_finite() && *v > 0.0)
+                    && w.iter().all(|v| v.is_finite() && *v >= 0.0 && *v <= 10.0) => {}
+            _ => {
+                return Err((
+                    "friction_memory_weights".into(),
+                    "friction_memory_thresholds_rad (> 0) and friction_memory_weights (0 to 10) must both be given, of equal length".into(),
+                ))
+            }
+        }
         Ok(())
     }
 }

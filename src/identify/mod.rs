@@ -3,7 +3,9 @@
 //! model on data its fit did not see.
 
 pub mod effects;
+pub mod extra_effects;
 pub mod lm;
+pub mod loo;
 pub mod model;
 pub mod play;
 pub mod report;
@@ -271,7 +273,11 @@ fn make_split(
 }
 
 /// `k` contiguous blocks per log, restricted to rows in `within`.
-fn block_folds(logs: &[Prepared], k: usize, within: &[bool]) -> Vec<(Vec<bool>, Vec<bool>)> {
+pub(crate) fn block_folds(
+    logs: &[Prepared],
+    k: usize,
+    within: &[bool],
+) -> Vec<(Vec<bool>, Vec<bool>)> {
     let n = within.len();
     (0..k)
         .map(|f| {
@@ -299,7 +305,7 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
 }
 
 /// Noise floor of the residual: robust high-frequency spread, or quantisation when larger.
-fn noise_floor(logs: &[Prepared], resid: &[f64], ic: f64) -> f64 {
+pub(crate) fn noise_floor(logs: &[Prepared], resid: &[f64], ic: f64) -> f64 {
     let mut d: Vec<f64> = Vec::new();
     let mut start = 0;
     for l in logs {
@@ -604,8 +610,18 @@ pub fn diagnose(
         .covariance(&ext_fit, &split.full)
         .unwrap_or_else(|_| nalgebra::DMatrix::from_element(np, np, f64::NAN));
     let ext_drive = with_base(&drive_for, &nl_final, &ext_fit.x);
-    let (params, drive_out, effects_out) =
+    let (mut params, drive_out, mut effects_out) =
         report::parameters(&drive0, &ext_drive, &nl_final, &ext_fit, &cov);
+    let (stroke, thresholds) = ev_final.stroke_and_thresholds();
+    extra_effects::parameters(
+        &ext_fit,
+        nl_final.len(),
+        &cov,
+        stroke,
+        &thresholds,
+        &mut params,
+        &mut effects_out,
+    );
     // A held-out log's encoder zero is fitted on that log only when it is scored.
     let params: Vec<ParamEstimate> = params
         .into_iter()
@@ -786,9 +802,11 @@ fn plausible(f: &Fitted, ic: f64) -> bool {
         EffectName::EncoderDelay => 0.05,
         EffectName::EncoderScaleError => 0.02,
         EffectName::ThermalDrift => 1e-4,
+        // A ratio shape of 0.2 rad over a stroke is a linkage, not a cable drive.
+        EffectName::AngleDependentRatio => 0.2,
         _ => f64::INFINITY,
     };
-    EffectName::ALL.iter().all(|e| {
+    EffectName::EVERY.iter().all(|e| {
         let v = match (coef(*e, 0), coef(*e, 1)) {
             (Some(a), Some(b)) => {
                 let h = a.hypot(b);
