@@ -40,7 +40,9 @@ pub enum EffectName {
     LoadCompliance,
     /// Friction memory over many contacts with different thresholds (Prandtl-Ishlinskii sum
     /// of play operators on the input angle, non-negative weights): the lag grows gradually
-    /// after a reversal; value: lag after a long travel, rad of output (1e-4 to 0.05).
+    /// after a reversal, and more so the more torque the cable carries (weights grow with
+    /// the transmitted torque's magnitude); value: lag after a long travel at zero load,
+    /// rad of output (1e-4 to 0.05).
     DistributedFrictionMemory,
 }
 
@@ -368,6 +370,10 @@ pub struct EffectsParams {
     /// Their weights, output rad per input rad (non-negative).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction_memory_weights: Option<Vec<f64>>,
+    /// Growth of the weights with the transmitted torque's magnitude, per N m
+    /// (non-negative; friction at a contact grows with the tension pressing on it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction_memory_load_weights_per_nm: Option<Vec<f64>>,
 }
 
 impl EffectsParams {
@@ -448,6 +454,18 @@ impl EffectsParams {
                     "friction_memory_weights".into(),
                     "friction_memory_thresholds_rad (> 0) and friction_memory_weights (0 to 10) must both be given, of equal length".into(),
                 ))
+            }
+        }
+        if let Some(v) = &self.friction_memory_load_weights_per_nm {
+            let n = self
+                .friction_memory_thresholds_rad
+                .as_ref()
+                .map_or(0, |r| r.len());
+            if v.len() != n || v.iter().any(|x| !(x.is_finite() && *x >= 0.0 && *x <= 1e3)) {
+                return Err((
+                    "friction_memory_load_weights_per_nm".into(),
+                    format!("needs one weight (0 to 1000 per N m) per threshold ({n})"),
+                ));
             }
         }
         Ok(())

@@ -107,6 +107,20 @@ pub fn memory_columns(theta_in: &[f64], thresholds: &[f64]) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// Load-scaled columns of the distributed friction memory: `|M| (P_r(theta_in) - theta_in)`.
+/// Friction at a contact grows with the cable tension pressing on it, so the lag grows with
+/// the transmitted torque `M` (N m); weights are output rad per input rad per N m, >= 0.
+pub fn memory_load_columns(
+    theta_in: &[f64],
+    torque_nm: &[f64],
+    thresholds: &[f64],
+) -> Vec<Vec<f64>> {
+    memory_columns(theta_in, thresholds)
+        .into_iter()
+        .map(|c| c.iter().zip(torque_nm).map(|(v, m)| v * m.abs()).collect())
+        .collect()
+}
+
 /// Lag of the memory after a long travel past a reversal, rad of output: `sum w_j r_j`.
 pub fn memory_amplitude(w: &[f64], thresholds: &[f64]) -> f64 {
     w.iter().zip(thresholds).map(|(a, b)| a * b).sum()
@@ -295,7 +309,9 @@ pub(crate) fn parameters(
     }
     let mem = coefs(EffectName::DistributedFrictionMemory);
     if !mem.is_empty() {
-        let w: Vec<f64> = mem.iter().map(|x| x.1).collect();
+        let nt = thresholds.len().min(mem.len());
+        let w: Vec<f64> = mem[..nt].iter().map(|x| x.1).collect();
+        let v: Vec<f64> = mem[nt..].iter().map(|x| x.1).collect();
         let grad: Vec<(usize, f64)> = mem.iter().zip(thresholds).map(|(a, r)| (a.0, *r)).collect();
         out.push(super::ParamEstimate {
             name: EffectName::DistributedFrictionMemory.to_string(),
@@ -303,7 +319,20 @@ pub(crate) fn parameters(
             std: std_of(&grad),
             unit: EffectName::DistributedFrictionMemory.unit().into(),
         });
-        for ((i, v), r) in mem.iter().zip(thresholds) {
+        if !v.is_empty() {
+            let grad: Vec<(usize, f64)> = mem[nt..]
+                .iter()
+                .zip(thresholds)
+                .map(|(a, r)| (a.0, *r))
+                .collect();
+            out.push(super::ParamEstimate {
+                name: "distributed_friction_memory_per_load".into(),
+                value: memory_amplitude(&v, thresholds),
+                std: std_of(&grad),
+                unit: "rad/(N m) (lag growth with transmitted torque)".into(),
+            });
+        }
+        for ((i, v), r) in mem[..nt].iter().zip(thresholds) {
             out.push(super::ParamEstimate {
                 name: format!("friction_memory_weight[r={r:.4} rad]"),
                 value: *v,
@@ -311,6 +340,15 @@ pub(crate) fn parameters(
                 unit: "rad/rad".into(),
             });
         }
+        for ((i, v), r) in mem[nt..].iter().zip(thresholds) {
+            out.push(super::ParamEstimate {
+                name: format!("friction_memory_load_weight[r={r:.4} rad]"),
+                value: *v,
+                std: std_of(&[(*i, 1.0)]),
+                unit: "rad/rad/(N m)".into(),
+            });
+        }
+        eff.friction_memory_load_weights_per_nm = (!v.is_empty()).then_some(v);
         eff.friction_memory_thresholds_rad = Some(thresholds[..w.len()].to_vec());
         eff.friction_memory_weights = Some(w);
     }

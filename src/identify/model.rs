@@ -419,7 +419,9 @@ impl<'a> Evaluator<'a> {
                 | EffectName::ThermalDrift
                 | EffectName::LoadCompliance => 1,
                 EffectName::AngleDependentRatio => super::extra_effects::SHAPE_TERMS,
-                EffectName::DistributedFrictionMemory => super::extra_effects::MEMORY_THRESHOLDS,
+                EffectName::DistributedFrictionMemory => {
+                    2 * super::extra_effects::MEMORY_THRESHOLDS
+                }
                 _ => 0,
             };
             for j in 0..k {
@@ -441,7 +443,15 @@ impl<'a> Evaluator<'a> {
                 .spec
                 .effects
                 .contains(&EffectName::DistributedFrictionMemory)
-                .then(|| super::extra_effects::memory_columns(&l.th_in, &thresholds));
+                .then(|| {
+                    let mut c = super::extra_effects::memory_columns(&l.th_in, &thresholds);
+                    c.extend(super::extra_effects::memory_load_columns(
+                        &l.th_in,
+                        &l.torque,
+                        &thresholds,
+                    ));
+                    c
+                });
             for i in 0..l.t.len() {
                 let b = base[li][i];
                 let f = if self.spec.fit_g { 0.0 } else { b };

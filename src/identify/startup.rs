@@ -36,7 +36,7 @@ pub enum StartMode {
 /// Time from the first sample to the end of a start-up load step with its settling, s, or
 /// `None` when the log does not start with one.
 ///
-/// A step is found when the load of the first samples differs from the median load of the
+/// A step is found when the load of the first sample differs from the median load of the
 /// record's second half by more than three times the load's own spread during the run
 /// (half the 10-90 % range), so a brake that flips with the motion direction is not taken
 /// for a step. The cut ends [`SETTLE_S`] after the load first reaches 90 % of the step;
@@ -49,9 +49,12 @@ pub fn detect_load_step(t_s: &[f64], load_nm: &[f64]) -> Option<f64> {
     let t0 = t_s[0];
     let window_end = (t0 + 2.0).min(t0 + 0.2 * (t_s[n - 1] - t0));
     let w = t_s.iter().take_while(|t| **t <= window_end).count().max(1);
-    let head = (n / 1000).max(3);
-    let mut first: Vec<f64> = load_nm[..head].to_vec();
-    let l0 = median(&mut first)?;
+    // The load motor can engage within a millisecond of the first sample: the first
+    // sample is the only one sure to precede the step.
+    let l0 = load_nm[0];
+    if !l0.is_finite() {
+        return None;
+    }
     let mut second: Vec<f64> = load_nm[n / 2..n].to_vec();
     let lref = median(&mut second)?;
     let mut run: Vec<f64> = load_nm[w..n].to_vec();
