@@ -41,8 +41,8 @@ pub enum EffectName {
     /// Friction memory over many contacts with different thresholds (Prandtl-Ishlinskii sum
     /// of play operators on the input angle, non-negative weights): the lag grows gradually
     /// after a reversal, and more so the more torque the cable carries (weights grow with
-    /// the transmitted torque's magnitude); value: lag after a long travel at zero load,
-    /// rad of output (1e-4 to 0.05).
+    /// the transmitted torque's magnitude); value: lag after a long travel at the logs' mean
+    /// torque, rad of output (1e-4 to 0.05).
     DistributedFrictionMemory,
 }
 

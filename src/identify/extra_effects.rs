@@ -247,13 +247,15 @@ mod tests {
 }
 
 /// Parameter rows and stored effects of the extended effects in a fit; `cov` is laid out
-/// as (nonlinear, linear) with `n_nonlinear` nonlinear parameters first.
+/// as (nonlinear, linear) with `n_nonlinear` nonlinear parameters first. The friction
+/// memory's size is its lag after a long travel at `mean_abs_torque_nm`.
 pub(crate) fn parameters(
     fit: &super::model::Fitted,
     n_nonlinear: usize,
     cov: &nalgebra::DMatrix<f64>,
     stroke: (f64, f64),
     thresholds: &[f64],
+    mean_abs_torque_nm: f64,
     out: &mut Vec<super::ParamEstimate>,
     eff: &mut super::effects::EffectsParams,
 ) {
@@ -312,10 +314,23 @@ pub(crate) fn parameters(
         let nt = thresholds.len().min(mem.len());
         let w: Vec<f64> = mem[..nt].iter().map(|x| x.1).collect();
         let v: Vec<f64> = mem[nt..].iter().map(|x| x.1).collect();
-        let grad: Vec<(usize, f64)> = mem.iter().zip(thresholds).map(|(a, r)| (a.0, *r)).collect();
+        // Reported at the logs' mean torque magnitude: where the data pins it, whatever
+        // the split between the constant and the load-scaled weights.
+        let grad: Vec<(usize, f64)> = mem[..nt]
+            .iter()
+            .zip(thresholds)
+            .map(|(a, r)| (a.0, *r))
+            .chain(
+                mem[nt..]
+                    .iter()
+                    .zip(thresholds)
+                    .map(|(a, r)| (a.0, *r * mean_abs_torque_nm)),
+            )
+            .collect();
         out.push(super::ParamEstimate {
             name: EffectName::DistributedFrictionMemory.to_string(),
-            value: memory_amplitude(&w, thresholds),
+            value: memory_amplitude(&w, thresholds)
+                + mean_abs_torque_nm * memory_amplitude(&v, thresholds),
             std: std_of(&grad),
             unit: EffectName::DistributedFrictionMemory.unit().into(),
         });
@@ -326,7 +341,7 @@ pub(crate) fn parameters(
                 .map(|(a, r)| (a.0, *r))
                 .collect();
             out.push(super::ParamEstimate {
-                name: "distributed_friction_memory_per_load".into(),
+                name: "distributed_friction_memory_growth".into(),
                 value: memory_amplitude(&v, thresholds),
                 std: std_of(&grad),
                 unit: "rad/(N m) (lag growth with transmitted torque)".into(),
@@ -352,4 +367,12 @@ pub(crate) fn parameters(
         eff.friction_memory_thresholds_rad = Some(thresholds[..w.len()].to_vec());
         eff.friction_memory_weights = Some(w);
     }
+}
+
+/// Mean magnitude of the transmitted torque over logs, N m.
+pub fn mean_abs_torque<'a>(torques: impl Iterator<Item = &'a [f64]>) -> f64 {
+    let (s, n) = torques.fold((0.0, 0usize), |(s, n), t| {
+        (s + t.iter().map(|m| m.abs()).sum::<f64>(), n + t.len())
+    });
+    s / n.max(1) as f64
 }

@@ -252,6 +252,7 @@ pub fn leave_one_out(
         &cov,
         stroke,
         &thresholds,
+        extra_effects::mean_abs_torque(prepared.iter().map(|l| l.torque.as_slice())),
         &mut shared,
         &mut eff,
     );

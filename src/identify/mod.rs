@@ -619,6 +619,7 @@ pub fn diagnose(
         &cov,
         stroke,
         &thresholds,
+        extra_effects::mean_abs_torque(prepared.iter().map(|l| l.torque.as_slice())),
         &mut params,
         &mut effects_out,
     );
