@@ -489,6 +489,7 @@ fn main() -> ExitCode {
                     start,
                     &OutputOptions { dir, force },
                     json.as_deref(),
+                    save_model.as_deref(),
                 ) {
                     Ok(r) => {
                         say_raw!("{}", r.table);

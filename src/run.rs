@@ -630,6 +630,7 @@ pub fn run_leave_one_out(
     start: crate::identify::startup::StartMode,
     out: &OutputOptions,
     json: Option<&Path>,
+    save_model: Option<&Path>,
 ) -> Result<RunReport, RunError> {
     let ident = scenario.identify.clone().unwrap_or_default();
     let effects: Vec<crate::identify::EffectName> = if effects.is_empty() {
@@ -657,6 +658,22 @@ pub fn run_leave_one_out(
     crate::io::output::write_atomic(&staged.path().join("leave_one_out.txt"), text.as_bytes())?;
     if let Some(path) = json {
         crate::io::output::write_atomic(path, &body)?;
+    }
+    if let Some(path) = save_model {
+        let mut s = scenario.clone();
+        s.drive = table.drive.clone();
+        s.effects = Some(table.effects_params.clone());
+        let model =
+            toml::to_string(&s).map_err(|e| ReportError::io(path, std::io::Error::other(e)))?;
+        let header = format!(
+            "# Calibrated jointly on {} logs; leave-one-log-out: extended beats base on {}/{}, the per-log play operator on {}/{}\n",
+            table.rows.len(),
+            table.wins_over_base,
+            table.rows.len(),
+            table.wins_over_play,
+            table.rows.len()
+        );
+        crate::io::output::write_atomic(path, (header + &model).as_bytes())?;
     }
     finish(staged, text, None, Vec::new())
 }

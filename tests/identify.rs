@@ -418,7 +418,12 @@ fn davinci_real_logs() {
 fn shipped_davinci_scenario_loads_with_effects() {
     let sc = Scenario::load("scenarios/davinci_tool4.toml", &[]).unwrap();
     let fx = sc.effects.unwrap();
-    assert!(fx.bearing_friction_nm.is_some() && fx.cable_transport_rad.is_some());
+    assert!(
+        fx.angle_dependent_ratio_coefs.is_some()
+            && fx.load_compliance_rad_per_nm.is_some()
+            && fx.friction_memory_weights.is_some()
+    );
+    assert!(fx.validate().is_ok());
     assert!(sc.identify.unwrap().is_unknown("ratio"));
     let err = Scenario::load(
         "scenarios/davinci_tool4.toml",

@@ -58,6 +58,10 @@ pub struct LooTable {
     pub wins_over_base: usize,
     /// Logs where the extended model beats the play operator fitted to the log.
     pub wins_over_play: usize,
+    /// Drive of the joint calibration on every log.
+    pub drive: DriveParams,
+    /// Effects of the joint calibration, as stored in a scenario.
+    pub effects_params: super::effects::EffectsParams,
 }
 
 fn rms(v: &[f64]) -> f64 {
@@ -189,15 +193,20 @@ pub fn leave_one_out(
 
     let fold = |k: usize| -> Result<LooRow, IdentifyError> {
         let train: Vec<bool> = (0..n).map(|i| !ranges[k].contains(&i)).collect();
-        let score = |effs: &[EffectName]| -> Result<(f64, Vec<f64>), IdentifyError> {
+        // The extension starts from the base calibration when it adds no nonlinear
+        // parameter (the layouts agree), which saves most of its iterations.
+        let score = |effs: &[EffectName],
+                     x0: Option<&[f64]>|
+         -> Result<(f64, Vec<f64>, Vec<f64>), IdentifyError> {
             let mut ev = Evaluator::new(spec(drive, ident, effs), &prepared);
-            let f = ev.fit(&train, None, 30)?;
+            let x0 = x0.filter(|x| x.len() == ev.nonlinear().len());
+            let f = ev.fit(&train, x0, 30)?;
             let (r, _) = ev.residual(&f, &train)?;
             let held: Vec<f64> = r[ranges[k].clone()].to_vec();
-            Ok((rms(&held), held))
+            Ok((rms(&held), held, f.x))
         };
-        let (base, _) = score(&[])?;
-        let (ext, ext_resid) = score(effects)?;
+        let (base, _, xb) = score(&[], None)?;
+        let (ext, ext_resid, _) = score(effects, Some(&xb))?;
         let one = std::slice::from_ref(&prepared[k]);
         let all = vec![true; prepared[k].t.len()];
         let folds = super::block_folds(one, ident.holdout_blocks, &all);
@@ -244,7 +253,7 @@ pub fn leave_one_out(
             NlParam::Effect(_) => {}
         }
     }
-    let (mut shared, _, mut eff) = report::parameters(drive, &d, &nl, &f, &cov);
+    let (mut shared, joint_drive, mut eff) = report::parameters(drive, &d, &nl, &f, &cov);
     let (stroke, thresholds) = ev.stroke_and_thresholds();
     extra_effects::parameters(
         &f,
@@ -261,7 +270,7 @@ pub fn leave_one_out(
         .iter()
         .filter(|p| {
             // Weights pinned at zero by their bound carry no information either way.
-            !(p.name.starts_with("friction_memory_weight") && p.value == 0.0)
+            !(p.name.starts_with("friction_memory_") && p.value == 0.0)
                 && !(p.std.is_finite() && p.std <= NOT_PINNED_REL_STD * p.value.abs())
         })
         .map(|p| {
@@ -308,6 +317,8 @@ pub fn leave_one_out(
         notes,
         wins_over_base,
         wins_over_play,
+        drive: joint_drive,
+        effects_params: eff,
     })
 }
 
