@@ -35,7 +35,7 @@ pub fn stroke<'a>(angles: impl Iterator<Item = &'a [f64]>) -> (f64, f64) {
             hi = hi.max(*v);
         }
     }
-    if !(hi > lo) {
+    if !(hi.is_finite() && lo.is_finite()) || hi <= lo {
         (lo.min(0.0), lo.min(0.0) + 1.0)
     } else {
         (lo, hi)
@@ -176,89 +176,32 @@ pub fn runout_separability(theta_in: &[f64], stroke: (f64, f64)) -> f64 {
 /// indistinguishable (less than 5 % of a runout's signature lies outside the shape's span).
 pub const SEPARABLE_MIN: f64 = 0.05;
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn legendre_terms_are_orthogonal_with_known_norms() {
-        let n = 20000;
-        for a in 0..6 {
-            for b in 0..6 {
-                // Midpoint rule over [-1, 1].
-                let s: f64 = (0..n)
-                    .map(|i| {
-                        let u = -1.0 + (i as f64 + 0.5) * 2.0 / n as f64;
-                        legendre(a, u) * legendre(b, u)
-                    })
-                    .sum::<f64>()
-                    / n as f64;
-                let expect = if a == b {
-                    1.0 / (2 * a + 1) as f64
-                } else {
-                    0.0
-                };
-                assert!((s - expect).abs() < 1e-6, "P{a} P{b}: {s}");
-            }
-        }
-        let c = [0.3, -0.2, 0.1];
-        let direct: f64 = (0..n)
-            .map(|i| {
-                let u = -1.0 + (i as f64 + 0.5) * 2.0 / n as f64;
-                let v: f64 = (0..3).map(|j| c[j] * legendre(j + 2, u)).sum();
-                v * v
-            })
-            .sum::<f64>()
-            / n as f64;
-        assert!((shape_rms(&c) - direct.sqrt()).abs() < 1e-6);
-    }
-
-    #[test]
-    fn memory_column_is_the_lag_of_a_play() {
-        // Up 1 rad, down 1 rad: the lag is -r once the input has moved r, then +r after
-        // moving 2r back.
-        let x: Vec<f64> = (0..=200)
-            .map(|i| {
-                if i <= 100 {
-                    i as f64 * 0.01
-                } else {
-                    2.0 - i as f64 * 0.01
-                }
-            })
-            .collect();
-        let c = &memory_columns(&x, &[0.1])[0];
-        assert!((c[100] + 0.1).abs() < 1e-12);
-        assert!(c[105].abs() < 0.05 + 1e-12);
-        assert!((c[200] - 0.1).abs() < 1e-12);
-        assert_eq!(memory_amplitude(&[0.5, 0.25], &[0.1, 0.2]), 0.1);
-    }
-
-    #[test]
-    fn short_stroke_cannot_tell_runout_from_shape_but_a_revolution_can() {
-        let short: Vec<f64> = (0..2000)
-            .map(|i| 0.52 + 0.52 * (i as f64 * 0.01).sin())
-            .collect();
-        let s = runout_separability(&short, stroke(std::iter::once(short.as_slice())));
-        assert!(s < SEPARABLE_MIN, "short stroke separability {s}");
-        let long: Vec<f64> = (0..2000).map(|i| 6.0 * (i as f64 * 0.01).sin()).collect();
-        let l = runout_separability(&long, stroke(std::iter::once(long.as_slice())));
-        assert!(l > 0.3, "two-revolution stroke separability {l}");
-    }
+/// What the extended effects' coefficients are defined on, shared by the logs of a fit.
+pub(crate) struct Basis<'a> {
+    /// Input stroke, rad.
+    pub stroke: (f64, f64),
+    /// Friction-memory thresholds, rad of input.
+    pub thresholds: &'a [f64],
+    /// Mean transmitted torque magnitude, N m (where the memory's size is read).
+    pub mean_abs_torque_nm: f64,
 }
 
 /// Parameter rows and stored effects of the extended effects in a fit; `cov` is laid out
 /// as (nonlinear, linear) with `n_nonlinear` nonlinear parameters first. The friction
-/// memory's size is its lag after a long travel at `mean_abs_torque_nm`.
+/// memory's size is its lag after a long travel at the basis's mean torque.
 pub(crate) fn parameters(
     fit: &super::model::Fitted,
     n_nonlinear: usize,
     cov: &nalgebra::DMatrix<f64>,
-    stroke: (f64, f64),
-    thresholds: &[f64],
-    mean_abs_torque_nm: f64,
+    basis: &Basis,
     out: &mut Vec<super::ParamEstimate>,
     eff: &mut super::effects::EffectsParams,
 ) {
+    let Basis {
+        stroke,
+        thresholds,
+        mean_abs_torque_nm,
+    } = *basis;
     use super::effects::EffectName;
     use super::model::LinParam;
     let coefs = |e: EffectName| -> Vec<(usize, f64)> {
@@ -375,4 +318,74 @@ pub fn mean_abs_torque<'a>(torques: impl Iterator<Item = &'a [f64]>) -> f64 {
         (s + t.iter().map(|m| m.abs()).sum::<f64>(), n + t.len())
     });
     s / n.max(1) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn legendre_terms_are_orthogonal_with_known_norms() {
+        let n = 20000;
+        for a in 0..6 {
+            for b in 0..6 {
+                // Midpoint rule over [-1, 1].
+                let s: f64 = (0..n)
+                    .map(|i| {
+                        let u = -1.0 + (i as f64 + 0.5) * 2.0 / n as f64;
+                        legendre(a, u) * legendre(b, u)
+                    })
+                    .sum::<f64>()
+                    / n as f64;
+                let expect = if a == b {
+                    1.0 / (2 * a + 1) as f64
+                } else {
+                    0.0
+                };
+                assert!((s - expect).abs() < 1e-6, "P{a} P{b}: {s}");
+            }
+        }
+        let c = [0.3, -0.2, 0.1];
+        let direct: f64 = (0..n)
+            .map(|i| {
+                let u = -1.0 + (i as f64 + 0.5) * 2.0 / n as f64;
+                let v: f64 = (0..3).map(|j| c[j] * legendre(j + 2, u)).sum();
+                v * v
+            })
+            .sum::<f64>()
+            / n as f64;
+        assert!((shape_rms(&c) - direct.sqrt()).abs() < 1e-6);
+    }
+
+    #[test]
+    fn memory_column_is_the_lag_of_a_play() {
+        // Up 1 rad, down 1 rad: the lag is -r once the input has moved r, then +r after
+        // moving 2r back.
+        let x: Vec<f64> = (0..=200)
+            .map(|i| {
+                if i <= 100 {
+                    i as f64 * 0.01
+                } else {
+                    2.0 - i as f64 * 0.01
+                }
+            })
+            .collect();
+        let c = &memory_columns(&x, &[0.1])[0];
+        assert!((c[100] + 0.1).abs() < 1e-12);
+        assert!(c[105].abs() < 0.05 + 1e-12);
+        assert!((c[200] - 0.1).abs() < 1e-12);
+        assert_eq!(memory_amplitude(&[0.5, 0.25], &[0.1, 0.2]), 0.1);
+    }
+
+    #[test]
+    fn short_stroke_cannot_tell_runout_from_shape_but_a_revolution_can() {
+        let short: Vec<f64> = (0..2000)
+            .map(|i| 0.52 + 0.52 * (i as f64 * 0.01).sin())
+            .collect();
+        let s = runout_separability(&short, stroke(std::iter::once(short.as_slice())));
+        assert!(s < SEPARABLE_MIN, "short stroke separability {s}");
+        let long: Vec<f64> = (0..2000).map(|i| 6.0 * (i as f64 * 0.01).sin()).collect();
+        let l = runout_separability(&long, stroke(std::iter::once(long.as_slice())));
+        assert!(l > 0.3, "two-revolution stroke separability {l}");
+    }
 }

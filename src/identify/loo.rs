@@ -259,9 +259,13 @@ pub fn leave_one_out(
         &f,
         nl.len(),
         &cov,
-        stroke,
-        &thresholds,
-        extra_effects::mean_abs_torque(prepared.iter().map(|l| l.torque.as_slice())),
+        &extra_effects::Basis {
+            stroke,
+            thresholds: &thresholds,
+            mean_abs_torque_nm: extra_effects::mean_abs_torque(
+                prepared.iter().map(|l| l.torque.as_slice()),
+            ),
+        },
         &mut shared,
         &mut eff,
     );
@@ -270,8 +274,9 @@ pub fn leave_one_out(
         .iter()
         .filter(|p| {
             // Weights pinned at zero by their bound carry no information either way.
-            !(p.name.starts_with("friction_memory_") && p.value == 0.0)
-                && !(p.std.is_finite() && p.std <= NOT_PINNED_REL_STD * p.value.abs())
+            let at_bound = p.name.starts_with("friction_memory_") && p.value == 0.0;
+            let pinned = p.std.is_finite() && p.std <= NOT_PINNED_REL_STD * p.value.abs();
+            !at_bound && !pinned
         })
         .map(|p| {
             format!(

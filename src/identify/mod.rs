@@ -617,9 +617,13 @@ pub fn diagnose(
         &ext_fit,
         nl_final.len(),
         &cov,
-        stroke,
-        &thresholds,
-        extra_effects::mean_abs_torque(prepared.iter().map(|l| l.torque.as_slice())),
+        &extra_effects::Basis {
+            stroke,
+            thresholds: &thresholds,
+            mean_abs_torque_nm: extra_effects::mean_abs_torque(
+                prepared.iter().map(|l| l.torque.as_slice()),
+            ),
+        },
         &mut params,
         &mut effects_out,
     );

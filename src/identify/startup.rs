@@ -64,7 +64,7 @@ pub fn detect_load_step(t_s: &[f64], load_nm: &[f64]) -> Option<f64> {
     run.sort_by(|a, b| a.total_cmp(b));
     let spread = 0.5 * (run[run.len() * 9 / 10] - run[run.len() / 10]);
     let step = lref - l0;
-    if !(step.abs() > 3.0 * spread) || step == 0.0 {
+    if !step.is_finite() || step == 0.0 || step.abs() <= 3.0 * spread {
         return None;
     }
     let reach = (0..w).find(|i| (load_nm[*i] - l0) / step >= 0.9)?;
