@@ -79,13 +79,18 @@ fn short_stroke_reports_shape_and_runout_as_indistinguishable() {
         "quasi_static.duration_s=10",
         "quasi_static.motion.amplitude_rad=0.5",
     ]);
-    let logs: Vec<BenchLog> = (0..2)
-        .map(|s| {
+    // One instrument: the same seed draws the same shape; two record lengths make two logs.
+    let logs: Vec<BenchLog> = [10.0, 12.0]
+        .iter()
+        .map(|d| {
             log(
                 &sc,
                 &[(EffectName::AngleDependentRatio, 2e-4)],
-                s,
-                SynthOptions::default(),
+                5,
+                SynthOptions {
+                    duration_s: Some(*d),
+                    ..SynthOptions::default()
+                },
             )
         })
         .collect();
