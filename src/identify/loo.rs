@@ -34,6 +34,55 @@ pub struct LooRow {
     pub play_mrad: Option<f64>,
     /// Noise floor of the log from encoder resolution, mrad.
     pub floor_mrad: f64,
+    /// What the extended model's residual on this log still follows, in words: within
+    /// twice the floor it is noise; otherwise the signal (input angle, transmitted load,
+    /// input velocity) whose binned residual means are largest, when above the floor.
+    pub residual: String,
+}
+
+/// Bins for the residual structure check (equal counts).
+const STRUCTURE_BINS: usize = 20;
+
+/// RMS of the residual's bin means over equal-count bins of `signal`, rad: the part of the
+/// residual that is a function of that signal (about floor/sqrt(n/bins) for noise).
+pub fn binned_structure(resid: &[f64], signal: &[f64]) -> f64 {
+    let n = resid.len().min(signal.len());
+    if n < 2 * STRUCTURE_BINS {
+        return 0.0;
+    }
+    let mut idx: Vec<usize> = (0..n).collect();
+    idx.sort_by(|a, b| signal[*a].total_cmp(&signal[*b]));
+    let mean = resid[..n].iter().sum::<f64>() / n as f64;
+    let mut s = 0.0;
+    for b in 0..STRUCTURE_BINS {
+        let part = &idx[b * n / STRUCTURE_BINS..(b + 1) * n / STRUCTURE_BINS];
+        let m = part.iter().map(|i| resid[*i]).sum::<f64>() / part.len().max(1) as f64;
+        s += (m - mean).powi(2) * part.len() as f64;
+    }
+    (s / n as f64).sqrt()
+}
+
+fn residual_verdict(p: &Prepared, resid: &[f64], rmse: f64, floor: f64) -> String {
+    if rmse <= 2.0 * floor {
+        return "within twice the noise floor".into();
+    }
+    let cands = [
+        ("input angle", binned_structure(resid, &p.th_in)),
+        ("transmitted load", binned_structure(resid, &p.torque)),
+        ("input velocity", binned_structure(resid, &p.vel_in)),
+    ];
+    let (name, v) = cands
+        .iter()
+        .copied()
+        .fold(("", 0.0), |a, b| if b.1 > a.1 { b } else { a });
+    if v > floor {
+        format!(
+            "unexplained: follows the {name} ({:.2} mrad RMS of binned means)",
+            v * 1e3
+        )
+    } else {
+        "above the floor without structure in angle, load or velocity".into()
+    }
 }
 
 /// Joint calibration over every log and the leave-one-log-out table.
@@ -228,6 +277,7 @@ pub fn leave_one_out(
             extended_mrad: ext * 1e3,
             play_mrad: play,
             floor_mrad: floor * 1e3,
+            residual: residual_verdict(&prepared[k], &ext_resid, ext, floor),
         })
     };
     use rayon::prelude::*;
@@ -342,9 +392,9 @@ pub fn loo_text(t: &LooTable) -> String {
     );
     let _ = writeln!(
         s,
-        "| log left out | base (mrad) | extended (mrad) | play operator fitted to the log (mrad) | noise floor (mrad) |"
+        "| log left out | base (mrad) | extended (mrad) | play operator fitted to the log (mrad) | noise floor (mrad) | extended residual |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|");
     for r in &t.rows {
         let name = std::path::Path::new(&r.log)
             .file_name()
@@ -354,8 +404,8 @@ pub fn loo_text(t: &LooTable) -> String {
             .map_or("fit failed".to_string(), |p| format!("{p:.2}"));
         let _ = writeln!(
             s,
-            "| {name} | {:.2} | {:.2} | {play} | {:.2} |",
-            r.base_mrad, r.extended_mrad, r.floor_mrad
+            "| {name} | {:.2} | {:.2} | {play} | {:.2} | {} |",
+            r.base_mrad, r.extended_mrad, r.floor_mrad, r.residual
         );
     }
     let _ = writeln!(
@@ -387,4 +437,27 @@ pub fn loo_text(t: &LooTable) -> String {
         let _ = writeln!(s, "Limit: {n}");
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::binned_structure;
+
+    #[test]
+    fn binned_structure_sees_a_function_of_the_signal_and_not_noise() {
+        let n = 4000;
+        let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin()).collect();
+        // Residual = 1e-3 x^2 exactly: its binned means carry its whole spread.
+        let r: Vec<f64> = x.iter().map(|v| 1e-3 * v * v).collect();
+        let mean = r.iter().sum::<f64>() / n as f64;
+        let sd = (r.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
+        let s = binned_structure(&r, &x);
+        assert!((s / sd - 1.0).abs() < 0.05, "{s} vs {sd}");
+        // A residual that depends on another, unrelated sequence shows little structure.
+        let other: Vec<f64> = (0..n)
+            .map(|i| 1e-3 * ((i * 7919 % 1000) as f64 / 500.0 - 1.0))
+            .collect();
+        let t = binned_structure(&other, &x);
+        assert!(t < 0.2 * 1e-3 / 3f64.sqrt(), "{t}");
+    }
 }
