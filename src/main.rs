@@ -199,6 +199,18 @@ enum Command {
         /// Hold out whole logs by index (0-based, in --data order) instead of time blocks.
         #[arg(long = "holdout", value_name = "INDEX")]
         holdout: Vec<usize>,
+        /// Cut this many seconds from the start of every log (start-up transient); default:
+        /// a load step at the start is detected and cut with its settling; 0 keeps all.
+        #[arg(long = "cut-start", value_name = "SECONDS")]
+        cut_start: Option<f64>,
+        /// Leave each log out in turn: calibrate the shared model on the others, score it on
+        /// the one left out beside a play operator fitted to it (needs two or more logs).
+        #[arg(long = "leave-one-out")]
+        leave_one_out: bool,
+        /// Effect of the extension scored by --leave-one-out (repeatable; default: the
+        /// scenario's [identify] candidates).
+        #[arg(long = "extension", value_name = "EFFECT")]
+        extension: Vec<String>,
         /// Results directory (default: results/<scenario name>-diagnosis).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -446,6 +458,9 @@ fn main() -> ExitCode {
             scenario,
             data,
             holdout,
+            cut_start,
+            leave_one_out,
+            extension,
             out,
             json,
             save_model,
@@ -456,13 +471,61 @@ fn main() -> ExitCode {
                 Ok(s) => s,
                 Err(code) => return code,
             };
-            let dir = out.unwrap_or_else(|| {
+            let dir = out.clone().unwrap_or_else(|| {
                 PathBuf::from("results").join(format!("{}-diagnosis", scenario.name()))
             });
+            let start = match cut_start {
+                None => cable_servo::identify::startup::StartMode::Detect,
+                Some(s) if s.is_finite() && s >= 0.0 => {
+                    cable_servo::identify::startup::StartMode::Fixed(s)
+                }
+                Some(s) => {
+                    tell!("error: --cut-start {s}: must be a time in seconds, 0 or more");
+                    return ExitCode::from(exit::USAGE);
+                }
+            };
             let options = cable_servo::identify::DiagnoseOptions {
                 holdout_logs: holdout,
+                start,
                 ..Default::default()
             };
+            if leave_one_out {
+                let mut effects = Vec::new();
+                for e in &extension {
+                    match e.parse::<cable_servo::identify::EffectName>() {
+                        Ok(x) => effects.push(x),
+                        Err(m) => {
+                            tell!("error: --extension: {m}");
+                            return ExitCode::from(exit::USAGE);
+                        }
+                    }
+                }
+                let dir = out.unwrap_or_else(|| {
+                    PathBuf::from("results").join(format!("{}-leave-one-out", scenario.name()))
+                });
+                return match cable_servo::run::run_leave_one_out(
+                    &scenario,
+                    &data,
+                    &effects,
+                    start,
+                    &OutputOptions { dir, force },
+                    json.as_deref(),
+                    save_model.as_deref(),
+                ) {
+                    Ok(r) => {
+                        say_raw!("{}", r.table);
+                        say!("results: {}", r.dir.display());
+                        ExitCode::SUCCESS
+                    }
+                    Err(e) => {
+                        tell!("error: {e}");
+                        ExitCode::from(match e {
+                            RunError::Output(_) | RunError::Report(_) => exit::OUTPUT,
+                            _ => exit::INPUT,
+                        })
+                    }
+                };
+            }
             match cable_servo::run::run_diagnosis(
                 &scenario,
                 &data,

@@ -654,3 +654,60 @@ pub fn run_diagnosis(
     let table = report::diagnosis::summary_text(&diagnosis);
     finish(staged, table, None, Vec::new())
 }
+
+/// Joint calibration over several logs and leave-one-log-out validation of the extension
+/// `effects` (empty: the scenario's `[identify] candidates`), written as
+/// `leave_one_out.json` and `leave_one_out.txt` into a staged results directory.
+pub fn run_leave_one_out(
+    scenario: &Scenario,
+    paths: &[PathBuf],
+    effects: &[crate::identify::EffectName],
+    start: crate::identify::startup::StartMode,
+    out: &OutputOptions,
+    json: Option<&Path>,
+    save_model: Option<&Path>,
+) -> Result<RunReport, RunError> {
+    let ident = scenario.identify.clone().unwrap_or_default();
+    let effects: Vec<crate::identify::EffectName> = if effects.is_empty() {
+        ident.candidates.clone()
+    } else {
+        effects.to_vec()
+    };
+    let logs: Vec<crate::identify::BenchLog> = paths
+        .iter()
+        .map(|p| crate::io::benchlog::read_bench_log(p))
+        .collect::<Result<_, _>>()?;
+    let table =
+        crate::identify::loo::leave_one_out(&scenario.drive, &ident, &logs, &effects, start)?;
+    let text = crate::identify::loo::loo_text(&table);
+    let staged = StagedDir::create(&out.dir, out.force)?;
+    let body = serde_json::to_vec_pretty(&serde_json::json!({
+        "program_version": env!("CARGO_PKG_VERSION"),
+        "scenario": scenario.name(),
+        "logs": paths.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+        "leave_one_out": table,
+    }))
+    .map_err(|e| ReportError::io(&out.dir, std::io::Error::other(e)))?;
+    crate::io::output::write_atomic(&staged.path().join("leave_one_out.json"), &body)?;
+    crate::io::output::write_atomic(&staged.path().join("leave_one_out.txt"), text.as_bytes())?;
+    if let Some(path) = json {
+        crate::io::output::write_atomic(path, &body)?;
+    }
+    if let Some(path) = save_model {
+        let mut s = scenario.clone();
+        s.drive = table.drive.clone();
+        s.effects = Some(table.effects_params.clone());
+        let model =
+            toml::to_string(&s).map_err(|e| ReportError::io(path, std::io::Error::other(e)))?;
+        let header = format!(
+            "# Calibrated jointly on {} logs; leave-one-log-out: extended beats base on {}/{}, the per-log play operator on {}/{}\n",
+            table.rows.len(),
+            table.wins_over_base,
+            table.rows.len(),
+            table.wins_over_play,
+            table.rows.len()
+        );
+        crate::io::output::write_atomic(path, (header + &model).as_bytes())?;
+    }
+    finish(staged, text, None, Vec::new())
+}

@@ -29,6 +29,21 @@ pub enum EffectName {
     CableTransport,
     /// Slow drift of the error with time, rad/s (1e-7 to 1e-5).
     ThermalDrift,
+    /// Transmission ratio varying smoothly with the input angle over the stroke (jaw
+    /// linkage, cable leaving a non-circular guide): Legendre terms `P_2..P_4` of the input
+    /// angle scaled to the observed stroke; value: RMS of the shape over the stroke, rad
+    /// (1e-4 to 0.05).
+    AngleDependentRatio,
+    /// Output deflection proportional to the transmitted load beyond the capstan model's
+    /// spans (cable stretch outside the wrap, jaw and pin flexibility), rad/(N m) (>= 0;
+    /// 1e-4 to 1 from gimbal drums to surgical jaws).
+    LoadCompliance,
+    /// Friction memory over many contacts with different thresholds (Prandtl-Ishlinskii sum
+    /// of play operators on the input angle, non-negative weights): the lag grows gradually
+    /// after a reversal, and more so the more torque the cable carries (weights grow with
+    /// the transmitted torque's magnitude); value: lag after a long travel at the logs' mean
+    /// torque, rad of output (1e-4 to 0.05).
+    DistributedFrictionMemory,
 }
 
 impl EffectName {
@@ -44,6 +59,30 @@ impl EffectName {
         EffectName::ThermalDrift,
     ];
 
+    /// Effects of multi-wrap instrument drives, searched when a scenario or the caller lists
+    /// them (`[identify] candidates`): on a single-wrap drive they overlap the base model's
+    /// own memory and compliance, so the default search leaves them out.
+    pub const EXTENDED: [EffectName; 3] = [
+        EffectName::AngleDependentRatio,
+        EffectName::LoadCompliance,
+        EffectName::DistributedFrictionMemory,
+    ];
+
+    /// The library and the extended effects.
+    pub const EVERY: [EffectName; 11] = [
+        EffectName::InputPulleyRunout,
+        EffectName::OutputDrumRunout,
+        EffectName::EncoderDelay,
+        EffectName::EncoderScaleError,
+        EffectName::PreloadRelaxation,
+        EffectName::BearingFriction,
+        EffectName::CableTransport,
+        EffectName::ThermalDrift,
+        EffectName::AngleDependentRatio,
+        EffectName::LoadCompliance,
+        EffectName::DistributedFrictionMemory,
+    ];
+
     /// Name as used in files and on the command line.
     pub fn as_str(self) -> &'static str {
         match self {
@@ -55,6 +94,9 @@ impl EffectName {
             EffectName::BearingFriction => "bearing_friction",
             EffectName::CableTransport => "cable_transport",
             EffectName::ThermalDrift => "thermal_drift",
+            EffectName::AngleDependentRatio => "angle_dependent_ratio",
+            EffectName::LoadCompliance => "load_compliance",
+            EffectName::DistributedFrictionMemory => "distributed_friction_memory",
         }
     }
 
@@ -70,6 +112,9 @@ impl EffectName {
             EffectName::BearingFriction => "N m",
             EffectName::CableTransport => "rad (input travel)",
             EffectName::ThermalDrift => "rad/s",
+            EffectName::AngleDependentRatio => "rad (RMS over the stroke)",
+            EffectName::LoadCompliance => "rad/(N m)",
+            EffectName::DistributedFrictionMemory => "rad (lag after a long travel)",
         }
     }
 
@@ -84,6 +129,9 @@ impl EffectName {
             EffectName::BearingFriction => "unmeasured Coulomb torque at the drum: jumps larger than the measured load explains",
             EffectName::CableTransport => "cable creep over the wraps: error keeps evolving after a reversal instead of jumping once",
             EffectName::ThermalDrift => "slow drift of the error with time, independent of motion",
+            EffectName::AngleDependentRatio => "transmission ratio changes smoothly over the stroke: error a smooth curve of the input angle, the same going up and down",
+            EffectName::LoadCompliance => "the output gives way in proportion to the load it carries (cable outside the wraps, jaw and pin flexibility)",
+            EffectName::DistributedFrictionMemory => "friction at many contacts: after a reversal the lag builds up gradually over the input travel",
         }
     }
 }
@@ -97,12 +145,12 @@ impl std::fmt::Display for EffectName {
 impl std::str::FromStr for EffectName {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        EffectName::ALL
+        EffectName::EVERY
             .iter()
             .copied()
             .find(|e| e.as_str() == s)
             .ok_or_else(|| {
-                let names: Vec<&str> = EffectName::ALL.iter().map(|e| e.as_str()).collect();
+                let names: Vec<&str> = EffectName::EVERY.iter().map(|e| e.as_str()).collect();
                 format!("unknown effect `{s}`; known: {}", names.join(", "))
             })
     }

@@ -6,9 +6,13 @@
 
 pub mod effects;
 pub mod estimates;
+pub mod extra_effects;
 pub mod lm;
+pub mod loo;
 pub mod model;
 pub mod play;
+pub mod resolution;
+pub mod startup;
 pub mod synth;
 pub mod whiteness;
 
@@ -79,6 +83,9 @@ pub struct DiagnoseOptions {
     pub candidates: Option<Vec<EffectName>>,
     /// Skip the play-operator baseline (saves time in statistical runs).
     pub skip_play_operator: bool,
+    /// Start-up handling: detect a load step at each log's start (default) or cut a fixed
+    /// time; what is cut is neither fitted nor scored.
+    pub start: startup::StartMode,
 }
 
 /// One estimated parameter.
@@ -189,6 +196,8 @@ pub struct Diagnosis {
     pub holdout: String,
     /// Logs used.
     pub logs: Vec<String>,
+    /// What was cut from the start of each log (start-up transient), in `logs` order.
+    pub start_cuts: Vec<startup::StartCut>,
     /// Calibrated drive.
     pub drive: DriveParams,
     /// Identified effects, as stored in a scenario.
@@ -264,7 +273,11 @@ fn make_split(
 }
 
 /// `k` contiguous blocks per log, restricted to rows in `within`.
-fn block_folds(logs: &[Prepared], k: usize, within: &[bool]) -> Vec<(Vec<bool>, Vec<bool>)> {
+pub(crate) fn block_folds(
+    logs: &[Prepared],
+    k: usize,
+    within: &[bool],
+) -> Vec<(Vec<bool>, Vec<bool>)> {
     let n = within.len();
     (0..k)
         .map(|f| {
@@ -292,7 +305,7 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
 }
 
 /// Noise floor of the residual: robust high-frequency spread, or quantisation when larger.
-fn noise_floor(logs: &[Prepared], resid: &[f64], ic: f64) -> f64 {
+pub(crate) fn noise_floor(logs: &[Prepared], resid: &[f64], ic: f64) -> f64 {
     let mut d: Vec<f64> = Vec::new();
     let mut start = 0;
     for l in logs {
@@ -414,7 +427,11 @@ pub fn diagnose(
         key: format!("identify.{k}"),
         message: m,
     })?;
-    let prepared: Vec<Prepared> = logs
+    let (cut_logs, start_cuts): (Vec<BenchLog>, Vec<startup::StartCut>) = logs
+        .iter()
+        .map(|l| startup::cut_start(l, options.start))
+        .unzip();
+    let prepared: Vec<Prepared> = cut_logs
         .iter()
         .map(|l| model::prepare(l, ident.max_rate_hz))
         .collect::<Result<_, _>>()?;
@@ -623,8 +640,23 @@ pub fn diagnose(
         .covariance(&ext_fit, &split.full)
         .unwrap_or_else(|_| nalgebra::DMatrix::from_element(np, np, f64::NAN));
     let ext_drive = with_base(&drive_for, &nl_final, &ext_fit.x);
-    let (params, drive_out, effects_out) =
+    let (mut params, drive_out, mut effects_out) =
         estimates::parameters(&drive0, &ext_drive, &nl_final, &ext_fit, &cov);
+    let (stroke, thresholds) = ev_final.stroke_and_thresholds();
+    extra_effects::parameters(
+        &ext_fit,
+        nl_final.len(),
+        &cov,
+        &extra_effects::Basis {
+            stroke,
+            thresholds: &thresholds,
+            mean_abs_torque_nm: extra_effects::mean_abs_torque(
+                prepared.iter().map(|l| l.torque.as_slice()),
+            ),
+        },
+        &mut params,
+        &mut effects_out,
+    );
     // A held-out log's encoder zero is fitted on that log only when it is scored.
     let params: Vec<ParamEstimate> = params
         .into_iter()
@@ -742,6 +774,7 @@ pub fn diagnose(
         play_operator,
         holdout: split.text,
         logs: prepared.iter().map(|l| l.source.clone()).collect(),
+        start_cuts,
         drive: drive_out,
         effects: effects_out,
         traces,
@@ -804,9 +837,11 @@ fn plausible(f: &Fitted, ic: f64) -> bool {
         EffectName::EncoderDelay => 0.05,
         EffectName::EncoderScaleError => 0.02,
         EffectName::ThermalDrift => 1e-4,
+        // A ratio shape of 0.2 rad over a stroke is a linkage, not a cable drive.
+        EffectName::AngleDependentRatio => 0.2,
         _ => f64::INFINITY,
     };
-    EffectName::ALL.iter().all(|e| {
+    EffectName::EVERY.iter().all(|e| {
         let v = match (coef(*e, 0), coef(*e, 1)) {
             (Some(a), Some(b)) => {
                 let h = a.hypot(b);

@@ -41,34 +41,6 @@ pub struct Prepared {
     pub q_out: f64,
 }
 
-fn quant_step(v: &[f64]) -> f64 {
-    // Smallest clearly non-zero step; for noisy unquantised data this is tiny and the noise
-    // estimate from differences takes over.
-    let mut steps: Vec<f64> = v
-        .windows(2)
-        .map(|w| (w[1] - w[0]).abs())
-        .filter(|d| *d > 1e-12)
-        .collect();
-    if steps.len() < 10 {
-        return 0.0;
-    }
-    steps.sort_by(|a, b| a.total_cmp(b));
-    let q = steps[steps.len() / 100];
-    // Only accept it as a grid if most steps are near multiples of it.
-    let on_grid = steps
-        .iter()
-        .filter(|d| {
-            let k = (**d / q).round();
-            (*d - k * q).abs() < 0.05 * q
-        })
-        .count();
-    if on_grid as f64 > 0.9 * steps.len() as f64 {
-        q
-    } else {
-        0.0
-    }
-}
-
 /// Decimate by block averaging to at most `max_rate_hz` and derive velocities.
 pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyError> {
     let bad = |message: String| IdentifyError::BadLog {
@@ -107,8 +79,8 @@ pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyErr
     let rate = (n - 1) as f64 / span;
     // Keep at least 40 samples after averaging, whatever the rates.
     let m = ((rate / max_rate_hz).floor() as usize).clamp(1, (n / 40).max(1));
-    let q_in = quant_step(&log.theta_in_rad);
-    let q_out = quant_step(&log.theta_out_rad);
+    let q_in = super::resolution::encoder_step(&log.theta_in_rad);
+    let q_out = super::resolution::encoder_step(&log.theta_out_rad);
     let avg = |v: &[f64]| -> Vec<f64> {
         v.chunks(m)
             .filter(|c| c.len() == m)
@@ -444,7 +416,12 @@ impl<'a> Evaluator<'a> {
                 EffectName::InputPulleyRunout | EffectName::OutputDrumRunout => 2,
                 EffectName::EncoderDelay
                 | EffectName::EncoderScaleError
-                | EffectName::ThermalDrift => 1,
+                | EffectName::ThermalDrift
+                | EffectName::LoadCompliance => 1,
+                EffectName::AngleDependentRatio => super::extra_effects::SHAPE_TERMS,
+                EffectName::DistributedFrictionMemory => {
+                    2 * super::extra_effects::MEMORY_THRESHOLDS
+                }
                 _ => 0,
             };
             for j in 0..k {
@@ -454,7 +431,27 @@ impl<'a> Evaluator<'a> {
         let mut cols = vec![Vec::with_capacity(n); names.len()];
         let mut fixed = Vec::with_capacity(n);
         let mut target = Vec::with_capacity(n);
+        let (stroke, thresholds) = self.stroke_and_thresholds();
         for (li, l) in self.logs.iter().enumerate() {
+            // Columns of the extended effects, which need a whole log (memory) or the stroke.
+            let shape = self
+                .spec
+                .effects
+                .contains(&EffectName::AngleDependentRatio)
+                .then(|| super::extra_effects::shape_columns(&l.th_in, stroke));
+            let memory = self
+                .spec
+                .effects
+                .contains(&EffectName::DistributedFrictionMemory)
+                .then(|| {
+                    let mut c = super::extra_effects::memory_columns(&l.th_in, &thresholds);
+                    c.extend(super::extra_effects::memory_load_columns(
+                        &l.th_in,
+                        &l.torque,
+                        &thresholds,
+                    ));
+                    c
+                });
             for i in 0..l.t.len() {
                 let b = base[li][i];
                 let f = if self.spec.fit_g { 0.0 } else { b };
@@ -479,6 +476,13 @@ impl<'a> Evaluator<'a> {
                             (EffectName::EncoderDelay, _) => -l.vel_out[i],
                             (EffectName::EncoderScaleError, _) => l.th_out[i],
                             (EffectName::ThermalDrift, _) => l.t[i],
+                            (EffectName::LoadCompliance, _) => l.torque[i],
+                            (EffectName::AngleDependentRatio, j) => {
+                                shape.as_ref().map_or(0.0, |c| c[*j][i])
+                            }
+                            (EffectName::DistributedFrictionMemory, j) => {
+                                memory.as_ref().map_or(0.0, |c| c[*j][i])
+                            }
                             _ => 0.0,
                         },
                     });
@@ -493,10 +497,23 @@ impl<'a> Evaluator<'a> {
         })
     }
 
+    /// Input stroke over all logs (rad) and the friction-memory thresholds (rad of input)
+    /// defined on it; shared by every log so the shape and weights are one instrument's.
+    pub fn stroke_and_thresholds(
+        &self,
+    ) -> ((f64, f64), [f64; super::extra_effects::MEMORY_THRESHOLDS]) {
+        let stroke = super::extra_effects::stroke(self.logs.iter().map(|l| l.th_in.as_slice()));
+        let r = super::extra_effects::memory_thresholds_rad(stroke.1 - stroke.0);
+        (stroke, r)
+    }
+
     /// Bounds of the linear coefficients that have physical limits.
     fn lin_bounds(&self, name: LinParam) -> Option<(f64, f64)> {
         let id = &self.spec.ident;
         match name {
+            // Compliance and friction lag only ever make the output give way or lag.
+            LinParam::Effect(EffectName::LoadCompliance, _) => Some((0.0, 100.0)),
+            LinParam::Effect(EffectName::DistributedFrictionMemory, _) => Some((0.0, 10.0)),
             LinParam::ModulusScale => Some((
                 1.0 / id.modulus_factor_bounds[1],
                 1.0 / id.modulus_factor_bounds[0],
@@ -515,7 +532,8 @@ impl<'a> Evaluator<'a> {
     /// Linear coefficients on rows `mask` (bounded ones clamped and the rest refitted).
     pub fn solve_linear(&self, d: &Design, mask: &[bool]) -> Option<Vec<f64>> {
         let mut pinned: Vec<Option<f64>> = vec![None; d.names.len()];
-        for _ in 0..3 {
+        // Each pass pins at least one more coefficient on its bound, so this ends.
+        for _ in 0..3 + d.names.len() {
             let free: Vec<usize> = (0..d.names.len())
                 .filter(|j| pinned[*j].is_none())
                 .collect();

@@ -141,6 +141,35 @@ pub fn synthesize(
             *o += eps * ((*o + ph).sin() - ph.sin());
         }
     }
+    if let Some(v) = get(EffectName::AngleDependentRatio) {
+        // A random mix of the two lowest shape terms with RMS `v` over the stroke.
+        let st = super::extra_effects::stroke(std::iter::once(th_in.as_slice()));
+        let a = rng.gen_range(0.0..std::f64::consts::TAU);
+        let (c2, c3) = (v * 5f64.sqrt() * a.cos(), v * 7f64.sqrt() * a.sin());
+        for k in 0..n {
+            let u = super::extra_effects::scaled(th_in[k], st);
+            out[k] += c2 * super::extra_effects::legendre(2, u)
+                + c3 * super::extra_effects::legendre(3, u);
+        }
+    }
+    if let Some(c) = get(EffectName::LoadCompliance) {
+        for k in 0..n {
+            out[k] += c * torque[k];
+        }
+    }
+    if let Some(v) = get(EffectName::DistributedFrictionMemory) {
+        // Two contacts of the identification grid share the lag `v` at random.
+        let st = super::extra_effects::stroke(std::iter::once(th_in.as_slice()));
+        let r = super::extra_effects::memory_thresholds_rad(st.1 - st.0);
+        let i = rng.gen_range(1..r.len() - 1);
+        let j = (i + rng.gen_range(1..r.len() - 1)) % r.len();
+        let f = rng.gen_range(0.2..0.8);
+        let cols = super::extra_effects::memory_columns(&th_in, &[r[i], r[j]]);
+        let (wi, wj) = (v * f / r[i], v * (1.0 - f) / r[j]);
+        for k in 0..n {
+            out[k] += wi * cols[0][k] + wj * cols[1][k];
+        }
+    }
     if let Some(r) = options.ringing {
         let mut last_rev: Option<f64> = None;
         for k in 0..n {

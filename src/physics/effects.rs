@@ -39,6 +39,26 @@ pub struct EffectsParams {
     /// Drift of the error with time, rad/s.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub thermal_drift_rad_per_s: Option<f64>,
+    /// Ratio shape: Legendre coefficients of `P_2, P_3, P_4` of the input angle scaled to
+    /// `angle_dependent_ratio_stroke_rad`, rad of output error.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angle_dependent_ratio_coefs: Option<Vec<f64>>,
+    /// Input stroke `[low, high]` the ratio shape is defined over, rad.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angle_dependent_ratio_stroke_rad: Option<[f64; 2]>,
+    /// Output deflection per transmitted torque beyond the spans, rad/(N m).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub load_compliance_rad_per_nm: Option<f64>,
+    /// Play thresholds of the distributed friction memory, rad of input.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction_memory_thresholds_rad: Option<Vec<f64>>,
+    /// Their weights, output rad per input rad (non-negative).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction_memory_weights: Option<Vec<f64>>,
+    /// Growth of the weights with the transmitted torque's magnitude, per N m
+    /// (non-negative; friction at a contact grows with the tension pressing on it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction_memory_load_weights_per_nm: Option<Vec<f64>>,
 }
 
 impl EffectsParams {
@@ -81,6 +101,58 @@ impl EffectsParams {
             -1.0,
             1.0,
         )?;
+        check(
+            "load_compliance_rad_per_nm",
+            self.load_compliance_rad_per_nm,
+            0.0,
+            100.0,
+        )?;
+        if let Some(c) = &self.angle_dependent_ratio_coefs {
+            if c.len() != 3 || c.iter().any(|v| !(v.is_finite() && v.abs() <= 1.0)) {
+                return Err((
+                    "angle_dependent_ratio_coefs".into(),
+                    "must be 3 finite numbers (rad) of magnitude <= 1".into(),
+                ));
+            }
+            match self.angle_dependent_ratio_stroke_rad {
+                Some([a, b]) if a.is_finite() && b.is_finite() && a < b => {}
+                _ => {
+                    return Err((
+                        "angle_dependent_ratio_stroke_rad".into(),
+                        "needed with angle_dependent_ratio_coefs: [low, high] finite, low < high"
+                            .into(),
+                    ))
+                }
+            }
+        }
+        match (
+            &self.friction_memory_thresholds_rad,
+            &self.friction_memory_weights,
+        ) {
+            (None, None) => {}
+            (Some(r), Some(w))
+                if r.len() == w.len()
+                    && r.iter().all(|v| v.is_finite() && *v > 0.0)
+                    && w.iter().all(|v| v.is_finite() && *v >= 0.0 && *v <= 10.0) => {}
+            _ => {
+                return Err((
+                    "friction_memory_weights".into(),
+                    "friction_memory_thresholds_rad (> 0) and friction_memory_weights (0 to 10) must both be given, of equal length".into(),
+                ))
+            }
+        }
+        if let Some(v) = &self.friction_memory_load_weights_per_nm {
+            let n = self
+                .friction_memory_thresholds_rad
+                .as_ref()
+                .map_or(0, |r| r.len());
+            if v.len() != n || v.iter().any(|x| !(x.is_finite() && *x >= 0.0 && *x <= 1e3)) {
+                return Err((
+                    "friction_memory_load_weights_per_nm".into(),
+                    format!("needs one weight (0 to 1000 per N m) per threshold ({n})"),
+                ));
+            }
+        }
         Ok(())
     }
 }

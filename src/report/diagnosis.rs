@@ -24,6 +24,9 @@ pub fn summary_text(d: &Diagnosis) -> String {
         d.logs.join(", ")
     );
     let _ = writeln!(s, "Held out: {}", d.holdout);
+    for c in d.start_cuts.iter().filter(|c| c.cut_s > 0.0) {
+        let _ = writeln!(s, "Start-up: {}: {}", c.log, c.reason);
+    }
     let verdict = match d.cause.as_str() {
         "none" => "nothing beyond sensor noise: the calibrated base model explains the data".to_string(),
         "unexplained" => "structure remains that no effect in the library explains (look at the residual plots: resonance, sensor fault, load not logged?)".to_string(),

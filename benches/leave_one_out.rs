@@ -1,0 +1,58 @@
+//! Joint calibration over the eleven da Vinci logs and the leave-one-log-out table
+//! (requirement: under 60 s on 2 cores). The logs are read from `$CABLE_SERVO_DAVINCI`,
+//! else `../shared/real-data/davinci`, else `/work/shared/real-data/davinci`; the bench
+//! says so and does nothing when none exists.
+
+use std::path::PathBuf;
+
+use cable_servo::identify::loo::leave_one_out;
+use cable_servo::identify::startup::StartMode;
+use cable_servo::identify::EffectName;
+use cable_servo::io::benchlog::read_bench_log;
+use cable_servo::scenario::Scenario;
+use criterion::{criterion_group, criterion_main, Criterion};
+
+const LOGS: [&str; 11] = [
+    "00", "02", "04", "05", "06", "08", "09", "15", "25", "35", "45",
+];
+
+fn data_dir() -> Option<PathBuf> {
+    std::env::var_os("CABLE_SERVO_DAVINCI")
+        .map(PathBuf::from)
+        .into_iter()
+        .chain([
+            PathBuf::from("../shared/real-data/davinci"),
+            PathBuf::from("/work/shared/real-data/davinci"),
+        ])
+        .find(|d| d.join("tool4_00.csv").exists())
+}
+
+fn bench(c: &mut Criterion) {
+    let Some(dir) = data_dir() else {
+        eprintln!("da Vinci logs not found (set CABLE_SERVO_DAVINCI); nothing measured");
+        return;
+    };
+    let scenario = Scenario::load("scenarios/davinci_tool4.toml", &[]).expect("scenario");
+    let ident = scenario.identify.clone().unwrap_or_default();
+    let logs: Vec<_> = LOGS
+        .iter()
+        .map(|k| read_bench_log(&dir.join(format!("tool4_{k}.csv"))).expect("log"))
+        .collect();
+    let effects = [
+        EffectName::AngleDependentRatio,
+        EffectName::LoadCompliance,
+        EffectName::DistributedFrictionMemory,
+    ];
+    let mut group = c.benchmark_group("davinci_eleven_logs");
+    group.sample_size(10);
+    group.bench_function("joint_calibration_and_leave_one_out", |b| {
+        b.iter(|| {
+            leave_one_out(&scenario.drive, &ident, &logs, &effects, StartMode::Detect)
+                .expect("leave-one-out")
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,391 @@
+//! Signatures of the effects a real multi-wrap instrument drive shows beyond the capstan
+//! model: a transmission ratio that varies over the stroke, output deflection proportional
+//! to the transmitted load outside the modelled spans, and friction memory spread over many
+//! contacts. Each is linear in its coefficients given the measured signals, so the fit
+//! projects them out by least squares (non-negative where physics demands it).
+//!
+//! Functions take plain arrays: input angles, rad; torques, N m.
+
+/// Legendre terms of the ratio shape: `P_2 .. P_(1+SHAPE_TERMS)` of the scaled input angle
+/// (the constant and linear terms are the encoder zero and the mean ratio).
+pub const SHAPE_TERMS: usize = 3;
+
+/// Play thresholds of the distributed friction memory (a Prandtl-Ishlinskii sum).
+pub const MEMORY_THRESHOLDS: usize = 8;
+
+/// Threshold grid as fractions of the input stroke: geometric from 0.4 % to 20 %, dense
+/// where a lag that builds up over tens of mrad of input travel is resolved.
+pub fn memory_thresholds_rad(stroke_rad: f64) -> [f64; MEMORY_THRESHOLDS] {
+    let mut r = [0.0; MEMORY_THRESHOLDS];
+    let (lo, hi) = (0.004f64, 0.2f64);
+    for (k, v) in r.iter_mut().enumerate() {
+        let f = k as f64 / (MEMORY_THRESHOLDS - 1) as f64;
+        *v = stroke_rad * lo * (hi / lo).powf(f);
+    }
+    r
+}
+
+/// Observed input stroke over several logs' input angles: (lowest, highest), rad.
+pub fn stroke<'a>(angles: impl Iterator<Item = &'a [f64]>) -> (f64, f64) {
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    for a in angles {
+        for v in a {
+            lo = lo.min(*v);
+            hi = hi.max(*v);
+        }
+    }
+    if !(hi.is_finite() && lo.is_finite()) || hi <= lo {
+        (lo.min(0.0), lo.min(0.0) + 1.0)
+    } else {
+        (lo, hi)
+    }
+}
+
+/// Legendre polynomial `P_k(u)` for k = 0..=5.
+pub fn legendre(k: usize, u: f64) -> f64 {
+    let u2 = u * u;
+    match k {
+        0 => 1.0,
+        1 => u,
+        2 => 0.5 * (3.0 * u2 - 1.0),
+        3 => 0.5 * u * (5.0 * u2 - 3.0),
+        4 => (35.0 * u2 * u2 - 30.0 * u2 + 3.0) / 8.0,
+        _ => u * (63.0 * u2 * u2 - 70.0 * u2 + 15.0) / 8.0,
+    }
+}
+
+/// Input angle scaled to [-1, 1] over the stroke `(lo, hi)`.
+pub fn scaled(theta_in: f64, stroke: (f64, f64)) -> f64 {
+    2.0 * (theta_in - stroke.0) / (stroke.1 - stroke.0) - 1.0
+}
+
+/// Columns of the ratio shape: `P_(2+j)(u)` for j in 0..SHAPE_TERMS, rad per unit coefficient.
+pub fn shape_columns(theta_in: &[f64], stroke: (f64, f64)) -> Vec<Vec<f64>> {
+    (0..SHAPE_TERMS)
+        .map(|j| {
+            theta_in
+                .iter()
+                .map(|t| legendre(2 + j, scaled(*t, stroke)))
+                .collect()
+        })
+        .collect()
+}
+
+/// RMS over the stroke of a ratio shape with Legendre coefficients `c` (P_2 first), rad:
+/// the Legendre terms are orthogonal with mean square `1/(2k+1)` over [-1, 1].
+pub fn shape_rms(c: &[f64]) -> f64 {
+    c.iter()
+        .enumerate()
+        .map(|(j, v)| v * v / (2.0 * (j + 2) as f64 + 1.0))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// Gradient of [`shape_rms`] with respect to the coefficients.
+pub fn shape_rms_gradient(c: &[f64]) -> Vec<f64> {
+    let r = shape_rms(c).max(1e-300);
+    c.iter()
+        .enumerate()
+        .map(|(j, v)| v / (2.0 * (j + 2) as f64 + 1.0) / r)
+        .collect()
+}
+
+/// Columns of the distributed friction memory: `P_r(theta_in) - theta_in` for every
+/// threshold `r` (the lag of one contact that sticks until the input has moved `r` past a
+/// reversal). Weights are output rad per input rad, non-negative.
+pub fn memory_columns(theta_in: &[f64], thresholds: &[f64]) -> Vec<Vec<f64>> {
+    thresholds
+        .iter()
+        .map(|r| {
+            super::play::play(theta_in, *r)
+                .iter()
+                .zip(theta_in)
+                .map(|(p, x)| p - x)
+                .collect()
+        })
+        .collect()
+}
+
+/// Load-scaled columns of the distributed friction memory: `|M| (P_r(theta_in) - theta_in)`.
+/// Friction at a contact grows with the cable tension pressing on it, so the lag grows with
+/// the transmitted torque `M` (N m); weights are output rad per input rad per N m, >= 0.
+pub fn memory_load_columns(
+    theta_in: &[f64],
+    torque_nm: &[f64],
+    thresholds: &[f64],
+) -> Vec<Vec<f64>> {
+    memory_columns(theta_in, thresholds)
+        .into_iter()
+        .map(|c| c.iter().zip(torque_nm).map(|(v, m)| v * m.abs()).collect())
+        .collect()
+}
+
+/// Lag of the memory after a long travel past a reversal, rad of output: `sum w_j r_j`.
+pub fn memory_amplitude(w: &[f64], thresholds: &[f64]) -> f64 {
+    w.iter().zip(thresholds).map(|(a, b)| a * b).sum()
+}
+
+/// How far input-pulley runout (period one input revolution) can be told apart from a
+/// ratio shape over the observed stroke: the smaller relative residual of `sin` and `cos`
+/// of the input angle after least-squares projection onto the shape's span (constant,
+/// linear and [`SHAPE_TERMS`] Legendre terms). Near 0: indistinguishable (a stroke much
+/// shorter than a revolution); near 1: fully separable.
+pub fn runout_separability(theta_in: &[f64], stroke: (f64, f64)) -> f64 {
+    let n = theta_in.len();
+    if n < 2 * (SHAPE_TERMS + 2) {
+        return 0.0;
+    }
+    let basis: Vec<Vec<f64>> = (0..SHAPE_TERMS + 2)
+        .map(|k| {
+            theta_in
+                .iter()
+                .map(|t| legendre(k, scaled(*t, stroke)))
+                .collect()
+        })
+        .collect();
+    let cols: Vec<&[f64]> = basis.iter().map(|c| c.as_slice()).collect();
+    let mask = vec![true; n];
+    let mut worst = f64::INFINITY;
+    for f in [f64::sin, f64::cos] {
+        let y: Vec<f64> = theta_in.iter().map(|t| f(*t)).collect();
+        let mean = y.iter().sum::<f64>() / n as f64;
+        let var: f64 = y.iter().map(|v| (v - mean).powi(2)).sum();
+        if var <= 1e-12 * n as f64 {
+            continue;
+        }
+        let Some(fit) = super::lm::linear_lsq(&cols, &y, &mask) else {
+            return 0.0;
+        };
+        let res: f64 = (0..n)
+            .map(|i| {
+                let p: f64 = cols.iter().zip(&fit.coef).map(|(c, b)| c[i] * b).sum();
+                (y[i] - p).powi(2)
+            })
+            .sum();
+        worst = worst.min((res / var).sqrt());
+    }
+    if worst.is_finite() {
+        worst
+    } else {
+        0.0
+    }
+}
+
+/// Below this [`runout_separability`], ratio shape and input-pulley runout are reported as
+/// indistinguishable (less than 5 % of a runout's signature lies outside the shape's span).
+pub const SEPARABLE_MIN: f64 = 0.05;
+
+/// What the extended effects' coefficients are defined on, shared by the logs of a fit.
+pub(crate) struct Basis<'a> {
+    /// Input stroke, rad.
+    pub stroke: (f64, f64),
+    /// Friction-memory thresholds, rad of input.
+    pub thresholds: &'a [f64],
+    /// Mean transmitted torque magnitude, N m (where the memory's size is read).
+    pub mean_abs_torque_nm: f64,
+}
+
+/// Parameter rows and stored effects of the extended effects in a fit; `cov` is laid out
+/// as (nonlinear, linear) with `n_nonlinear` nonlinear parameters first. The friction
+/// memory's size is its lag after a long travel at the basis's mean torque.
+pub(crate) fn parameters(
+    fit: &super::model::Fitted,
+    n_nonlinear: usize,
+    cov: &nalgebra::DMatrix<f64>,
+    basis: &Basis,
+    out: &mut Vec<super::ParamEstimate>,
+    eff: &mut super::effects::EffectsParams,
+) {
+    let Basis {
+        stroke,
+        thresholds,
+        mean_abs_torque_nm,
+    } = *basis;
+    use super::effects::EffectName;
+    use super::model::LinParam;
+    let coefs = |e: EffectName| -> Vec<(usize, f64)> {
+        fit.lin
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| matches!(p, LinParam::Effect(q, _) if *q == e))
+            .map(|(i, _)| (n_nonlinear + i, fit.coef[i]))
+            .collect()
+    };
+    let std_of = |grad: &[(usize, f64)]| -> f64 {
+        let mut v = 0.0;
+        for (i, gi) in grad {
+            for (j, gj) in grad {
+                v += gi * gj * cov[(*i, *j)];
+            }
+        }
+        v.max(0.0).sqrt()
+    };
+    let shape = coefs(EffectName::AngleDependentRatio);
+    if !shape.is_empty() {
+        let c: Vec<f64> = shape.iter().map(|x| x.1).collect();
+        let g = shape_rms_gradient(&c);
+        let grad: Vec<(usize, f64)> = shape.iter().zip(&g).map(|(a, b)| (a.0, *b)).collect();
+        out.push(super::ParamEstimate {
+            name: EffectName::AngleDependentRatio.to_string(),
+            value: shape_rms(&c),
+            std: std_of(&grad),
+            unit: EffectName::AngleDependentRatio.unit().into(),
+        });
+        for (j, (i, v)) in shape.iter().enumerate() {
+            out.push(super::ParamEstimate {
+                name: format!("angle_dependent_ratio_P{}", j + 2),
+                value: *v,
+                std: std_of(&[(*i, 1.0)]),
+                unit: "rad".into(),
+            });
+        }
+        eff.angle_dependent_ratio_coefs = Some(c);
+        eff.angle_dependent_ratio_stroke_rad = Some([stroke.0, stroke.1]);
+    }
+    if let Some((i, v)) = coefs(EffectName::LoadCompliance).first() {
+        out.push(super::ParamEstimate {
+            name: EffectName::LoadCompliance.to_string(),
+            value: *v,
+            std: std_of(&[(*i, 1.0)]),
+            unit: EffectName::LoadCompliance.unit().into(),
+        });
+        eff.load_compliance_rad_per_nm = Some(*v);
+    }
+    let mem = coefs(EffectName::DistributedFrictionMemory);
+    if !mem.is_empty() {
+        let nt = thresholds.len().min(mem.len());
+        let w: Vec<f64> = mem[..nt].iter().map(|x| x.1).collect();
+        let v: Vec<f64> = mem[nt..].iter().map(|x| x.1).collect();
+        // Reported at the logs' mean torque magnitude: where the data pins it, whatever
+        // the split between the constant and the load-scaled weights.
+        let grad: Vec<(usize, f64)> = mem[..nt]
+            .iter()
+            .zip(thresholds)
+            .map(|(a, r)| (a.0, *r))
+            .chain(
+                mem[nt..]
+                    .iter()
+                    .zip(thresholds)
+                    .map(|(a, r)| (a.0, *r * mean_abs_torque_nm)),
+            )
+            .collect();
+        out.push(super::ParamEstimate {
+            name: EffectName::DistributedFrictionMemory.to_string(),
+            value: memory_amplitude(&w, thresholds)
+                + mean_abs_torque_nm * memory_amplitude(&v, thresholds),
+            std: std_of(&grad),
+            unit: EffectName::DistributedFrictionMemory.unit().into(),
+        });
+        if !v.is_empty() {
+            let grad: Vec<(usize, f64)> = mem[nt..]
+                .iter()
+                .zip(thresholds)
+                .map(|(a, r)| (a.0, *r))
+                .collect();
+            out.push(super::ParamEstimate {
+                name: "distributed_friction_memory_growth".into(),
+                value: memory_amplitude(&v, thresholds),
+                std: std_of(&grad),
+                unit: "rad/(N m) (lag growth with transmitted torque)".into(),
+            });
+        }
+        for ((i, v), r) in mem[..nt].iter().zip(thresholds) {
+            out.push(super::ParamEstimate {
+                name: format!("friction_memory_weight[r={r:.4} rad]"),
+                value: *v,
+                std: std_of(&[(*i, 1.0)]),
+                unit: "rad/rad".into(),
+            });
+        }
+        for ((i, v), r) in mem[nt..].iter().zip(thresholds) {
+            out.push(super::ParamEstimate {
+                name: format!("friction_memory_load_weight[r={r:.4} rad]"),
+                value: *v,
+                std: std_of(&[(*i, 1.0)]),
+                unit: "rad/rad/(N m)".into(),
+            });
+        }
+        eff.friction_memory_load_weights_per_nm = (!v.is_empty()).then_some(v);
+        eff.friction_memory_thresholds_rad = Some(thresholds[..w.len()].to_vec());
+        eff.friction_memory_weights = Some(w);
+    }
+}
+
+/// Mean magnitude of the transmitted torque over logs, N m.
+pub fn mean_abs_torque<'a>(torques: impl Iterator<Item = &'a [f64]>) -> f64 {
+    let (s, n) = torques.fold((0.0, 0usize), |(s, n), t| {
+        (s + t.iter().map(|m| m.abs()).sum::<f64>(), n + t.len())
+    });
+    s / n.max(1) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn legendre_terms_are_orthogonal_with_known_norms() {
+        let n = 20000;
+        for a in 0..6 {
+            for b in 0..6 {
+                // Midpoint rule over [-1, 1].
+                let s: f64 = (0..n)
+                    .map(|i| {
+                        let u = -1.0 + (i as f64 + 0.5) * 2.0 / n as f64;
+                        legendre(a, u) * legendre(b, u)
+                    })
+                    .sum::<f64>()
+                    / n as f64;
+                let expect = if a == b {
+                    1.0 / (2 * a + 1) as f64
+                } else {
+                    0.0
+                };
+                assert!((s - expect).abs() < 1e-6, "P{a} P{b}: {s}");
+            }
+        }
+        let c = [0.3, -0.2, 0.1];
+        let direct: f64 = (0..n)
+            .map(|i| {
+                let u = -1.0 + (i as f64 + 0.5) * 2.0 / n as f64;
+                let v: f64 = (0..3).map(|j| c[j] * legendre(j + 2, u)).sum();
+                v * v
+            })
+            .sum::<f64>()
+            / n as f64;
+        assert!((shape_rms(&c) - direct.sqrt()).abs() < 1e-6);
+    }
+
+    #[test]
+    fn memory_column_is_the_lag_of_a_play() {
+        // Up 1 rad, down 1 rad: the lag is -r once the input has moved r, then +r after
+        // moving 2r back.
+        let x: Vec<f64> = (0..=200)
+            .map(|i| {
+                if i <= 100 {
+                    i as f64 * 0.01
+                } else {
+                    2.0 - i as f64 * 0.01
+                }
+            })
+            .collect();
+        let c = &memory_columns(&x, &[0.1])[0];
+        assert!((c[100] + 0.1).abs() < 1e-12);
+        assert!(c[105].abs() < 0.05 + 1e-12);
+        assert!((c[200] - 0.1).abs() < 1e-12);
+        assert_eq!(memory_amplitude(&[0.5, 0.25], &[0.1, 0.2]), 0.1);
+    }
+
+    #[test]
+    fn short_stroke_cannot_tell_runout_from_shape_but_a_revolution_can() {
+        let short: Vec<f64> = (0..2000)
+            .map(|i| 0.52 + 0.52 * (i as f64 * 0.01).sin())
+            .collect();
+        let s = runout_separability(&short, stroke(std::iter::once(short.as_slice())));
+        assert!(s < SEPARABLE_MIN, "short stroke separability {s}");
+        let long: Vec<f64> = (0..2000).map(|i| 6.0 * (i as f64 * 0.01).sin()).collect();
+        let l = runout_separability(&long, stroke(std::iter::once(long.as_slice())));
+        assert!(l > 0.3, "two-revolution stroke separability {l}");
+    }
+}

@@ -1,0 +1,463 @@
+//! Calibration across logs and validation by whole logs.
+//!
+//! One instrument, several bench runs: geometry, ratio shape, compliance, friction and the
+//! extension's weights are the instrument's and shared by every log; only what the bench
+//! changes between runs (the encoder zero; the load, which is measured) is per log. Each log
+//! is left out in turn, the shared model calibrated on the others and scored on it, beside
+//! a play operator fitted to that log itself (held-out time blocks inside it).
+
+use serde::Serialize;
+
+use super::effects::{EffectName, IdentifyParams};
+use super::model::{self, Evaluator, Fitted, NlParam, Prepared, Spec};
+use super::startup::{self, StartCut, StartMode};
+use super::{estimates, extra_effects, play, BenchLog, IdentifyError, ParamEstimate};
+use crate::physics::DriveParams;
+
+/// Shared parameters whose standard deviation exceeds this fraction of their value are
+/// flagged as not pinned down by the logs.
+pub const NOT_PINNED_REL_STD: f64 = 0.5;
+
+/// One log left out.
+#[derive(Clone, Debug, Serialize)]
+pub struct LooRow {
+    /// Log source.
+    pub log: String,
+    /// Rows scored (after decimation and the start-up cut).
+    pub rows: usize,
+    /// RMS error of the base capstan model calibrated on the other logs, mrad.
+    pub base_mrad: f64,
+    /// RMS error of the extended model calibrated on the other logs, mrad.
+    pub extended_mrad: f64,
+    /// RMS error of a play operator fitted to this log, on its own held-out time blocks,
+    /// mrad (`None` when the play fit failed; the message is in `notes`).
+    pub play_mrad: Option<f64>,
+    /// Noise floor of the log from encoder resolution, mrad.
+    pub floor_mrad: f64,
+    /// What the extended model's residual on this log still follows, in words: within
+    /// twice the floor it is noise; otherwise the signal (input angle, transmitted load,
+    /// input velocity) whose binned residual means are largest, when above the floor.
+    pub residual: String,
+}
+
+/// Bins for the residual structure check (equal counts).
+const STRUCTURE_BINS: usize = 20;
+
+/// RMS of the residual's bin means over equal-count bins of `signal`, rad: the part of the
+/// residual that is a function of that signal (about floor/sqrt(n/bins) for noise).
+pub fn binned_structure(resid: &[f64], signal: &[f64]) -> f64 {
+    let n = resid.len().min(signal.len());
+    if n < 2 * STRUCTURE_BINS {
+        return 0.0;
+    }
+    let mut idx: Vec<usize> = (0..n).collect();
+    idx.sort_by(|a, b| signal[*a].total_cmp(&signal[*b]));
+    let mean = resid[..n].iter().sum::<f64>() / n as f64;
+    let mut s = 0.0;
+    for b in 0..STRUCTURE_BINS {
+        let part = &idx[b * n / STRUCTURE_BINS..(b + 1) * n / STRUCTURE_BINS];
+        let m = part.iter().map(|i| resid[*i]).sum::<f64>() / part.len().max(1) as f64;
+        s += (m - mean).powi(2) * part.len() as f64;
+    }
+    (s / n as f64).sqrt()
+}
+
+fn residual_verdict(p: &Prepared, resid: &[f64], rmse: f64, floor: f64) -> String {
+    if rmse <= 2.0 * floor {
+        return "within twice the noise floor".into();
+    }
+    let cands = [
+        ("input angle", binned_structure(resid, &p.th_in)),
+        ("transmitted load", binned_structure(resid, &p.torque)),
+        ("input velocity", binned_structure(resid, &p.vel_in)),
+    ];
+    let (name, v) = cands
+        .iter()
+        .copied()
+        .fold(("", 0.0), |a, b| if b.1 > a.1 { b } else { a });
+    if v > floor {
+        format!(
+            "unexplained: follows the {name} ({:.2} mrad RMS of binned means)",
+            v * 1e3
+        )
+    } else {
+        "above the floor without structure in angle, load or velocity".into()
+    }
+}
+
+/// Joint calibration over every log and the leave-one-log-out table.
+#[derive(Clone, Debug, Serialize)]
+pub struct LooTable {
+    /// Extension used (fixed for every fold).
+    pub effects: Vec<String>,
+    /// One row per log, in input order.
+    pub rows: Vec<LooRow>,
+    /// Shared parameters of the joint calibration over all logs, with 1-sigma.
+    pub shared: Vec<ParamEstimate>,
+    /// Shared parameters the logs do not pin down (relative std above
+    /// [`NOT_PINNED_REL_STD`]), with why.
+    pub not_pinned: Vec<String>,
+    /// What was cut from each log's start.
+    pub start_cuts: Vec<StartCut>,
+    /// How far input-pulley runout can be told from a ratio shape over the stroke (0..1).
+    pub runout_separability: f64,
+    /// Limits and warnings in words.
+    pub notes: Vec<String>,
+    /// Logs where the extended model beats the base model.
+    pub wins_over_base: usize,
+    /// Logs where the extended model beats the play operator fitted to the log.
+    pub wins_over_play: usize,
+    /// Drive of the joint calibration on every log.
+    pub drive: DriveParams,
+    /// Effects of the joint calibration, as stored in a scenario.
+    pub effects_params: super::effects::EffectsParams,
+}
+
+fn rms(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        0.0
+    } else {
+        (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
+    }
+}
+
+fn spec(drive: &DriveParams, ident: &IdentifyParams, effects: &[EffectName]) -> Spec {
+    Spec {
+        drive: drive.clone(),
+        fit_mu: ident.is_unknown("friction_coefficient"),
+        fit_pre: ident.is_unknown("preload_n"),
+        fit_g: ident.is_unknown("cable_modulus_n"),
+        fit_ratio: ident.is_unknown("ratio"),
+        effects: effects.to_vec(),
+        ident: ident.clone(),
+    }
+}
+
+/// Sample rate of a raw log, Hz.
+fn rate(log: &BenchLog) -> f64 {
+    let n = log.t_s.len();
+    if n < 2 {
+        return 0.0;
+    }
+    (n - 1) as f64 / (log.t_s[n - 1] - log.t_s[0]).max(1e-300)
+}
+
+/// Refuse logs that cannot be one instrument on one bench: different sample rates, encoder
+/// resolutions or nominal ratios; a log without a reversal.
+pub fn check_logs(raw: &[BenchLog], prepared: &[Prepared]) -> Result<(), IdentifyError> {
+    let Some(first) = raw.first() else {
+        return Err(IdentifyError::NoLogs);
+    };
+    let r0 = rate(first);
+    let p0 = &prepared[0];
+    let slope = |p: &Prepared| {
+        // Least-squares slope of output on input angle: the nominal ratio's inverse.
+        let n = p.th_in.len() as f64;
+        let mi = p.th_in.iter().sum::<f64>() / n;
+        let mo = p.th_out.iter().sum::<f64>() / n;
+        let sxy: f64 = p
+            .th_in
+            .iter()
+            .zip(&p.th_out)
+            .map(|(a, b)| (a - mi) * (b - mo))
+            .sum();
+        let sxx: f64 = p.th_in.iter().map(|a| (a - mi) * (a - mi)).sum();
+        sxy / sxx.max(1e-300)
+    };
+    let s0 = slope(p0);
+    for (l, p) in raw.iter().zip(prepared).skip(1) {
+        let bad = |message: String| IdentifyError::BadLog {
+            log: l.source.clone(),
+            message,
+        };
+        let r = rate(l);
+        if (r / r0 - 1.0).abs() > 0.01 {
+            return Err(bad(format!(
+                "sampled at {r:.1} Hz but {} at {r0:.1} Hz; logs calibrated together must come from one bench setup (same sample rate)",
+                first.source
+            )));
+        }
+        for (name, q, q0) in [("input", p.q_in, p0.q_in), ("output", p.q_out, p0.q_out)] {
+            if q > 0.0 && q0 > 0.0 && (q / q0 - 1.0).abs() > 0.01 {
+                return Err(bad(format!(
+                    "{name} encoder step {q:.3e} rad differs from {} ({q0:.3e} rad): a different instrument or encoder; calibrate each instrument on its own",
+                    first.source
+                )));
+            }
+        }
+        let s = slope(p);
+        if (s / s0 - 1.0).abs() > 0.05 {
+            return Err(bad(format!(
+                "output turns {s:.4} rad per input rad, {} turns {s0:.4}: a different instrument (ratio differs by more than 5 %); calibrate each instrument on its own",
+                first.source
+            )));
+        }
+    }
+    for p in prepared {
+        if !p.dir.windows(2).any(|w| w[0] != w[1]) {
+            return Err(IdentifyError::BadLog {
+                log: p.source.clone(),
+                message: "the input never reverses in this log (after the start-up cut); friction memory needs at least one reversal".into(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Joint calibration over `logs` and leave-one-log-out validation of the base model and the
+/// extension `effects` (fixed for every fold), with a play operator fitted to each left-out
+/// log for comparison. Folds run in parallel. Typical: 10 to 60 s for eleven 20 s logs.
+pub fn leave_one_out(
+    drive: &DriveParams,
+    ident: &IdentifyParams,
+    logs: &[BenchLog],
+    effects: &[EffectName],
+    start: StartMode,
+) -> Result<LooTable, IdentifyError> {
+    if logs.len() < 2 {
+        return Err(IdentifyError::Config {
+            key: "leave-one-out".into(),
+            message: format!(
+                "{} log given; leaving one out needs at least two",
+                logs.len()
+            ),
+        });
+    }
+    let (cut, start_cuts): (Vec<BenchLog>, Vec<StartCut>) =
+        logs.iter().map(|l| startup::cut_start(l, start)).unzip();
+    let prepared: Vec<Prepared> = cut
+        .iter()
+        .map(|l| model::prepare(l, ident.max_rate_hz))
+        .collect::<Result<_, _>>()?;
+    check_logs(&cut, &prepared)?;
+    let n: usize = prepared.iter().map(|p| p.t.len()).sum();
+    let ranges: Vec<std::ops::Range<usize>> = prepared
+        .iter()
+        .scan(0, |s, p| {
+            let r = *s..*s + p.t.len();
+            *s = r.end;
+            Some(r)
+        })
+        .collect();
+
+    let fold = |k: usize| -> Result<LooRow, IdentifyError> {
+        let train: Vec<bool> = (0..n).map(|i| !ranges[k].contains(&i)).collect();
+        // The extension starts from the base calibration when it adds no nonlinear
+        // parameter (the layouts agree), which saves most of its iterations.
+        let score = |effs: &[EffectName],
+                     x0: Option<&[f64]>|
+         -> Result<(f64, Vec<f64>, Vec<f64>), IdentifyError> {
+            let mut ev = Evaluator::new(spec(drive, ident, effs), &prepared);
+            let x0 = x0.filter(|x| x.len() == ev.nonlinear().len());
+            let f = ev.fit(&train, x0, 30)?;
+            let (r, _) = ev.residual(&f, &train)?;
+            let held: Vec<f64> = r[ranges[k].clone()].to_vec();
+            Ok((rms(&held), held, f.x))
+        };
+        let (base, _, xb) = score(&[], None)?;
+        let (ext, ext_resid, _) = score(effects, Some(&xb))?;
+        let one = std::slice::from_ref(&prepared[k]);
+        let all = vec![true; prepared[k].t.len()];
+        let folds = super::block_folds(one, ident.holdout_blocks, &all);
+        let play = play::cross_validate(one, drive, ident, &folds)
+            .ok()
+            .map(|b| b.rmse_heldout_mrad);
+        let floor = super::noise_floor(one, &ext_resid, drive.ratio());
+        let q = {
+            let p = &prepared[k];
+            ((p.q_out.powi(2) + (p.q_in / drive.ratio()).powi(2)) / 12.0).sqrt()
+        };
+        // The floor from encoder resolution; the residual-difference estimate is reported
+        // by the diagnosis, here the encoders decide.
+        let floor = if q > 0.0 { q } else { floor };
+        Ok(LooRow {
+            log: prepared[k].source.clone(),
+            rows: prepared[k].t.len(),
+            base_mrad: base * 1e3,
+            extended_mrad: ext * 1e3,
+            play_mrad: play,
+            floor_mrad: floor * 1e3,
+            residual: residual_verdict(&prepared[k], &ext_resid, ext, floor),
+        })
+    };
+    use rayon::prelude::*;
+    let rows: Vec<LooRow> = (0..prepared.len())
+        .into_par_iter()
+        .map(fold)
+        .collect::<Result<_, _>>()?;
+
+    // Joint calibration on every log: the shared parameters and how well they are pinned.
+    let all = vec![true; n];
+    let mut ev = Evaluator::new(spec(drive, ident, effects), &prepared);
+    let f: Fitted = ev.fit(&all, None, 40)?;
+    let nl = ev.nonlinear();
+    let np = nl.len() + f.coef.len();
+    let cov = ev
+        .covariance(&f, &all)
+        .unwrap_or_else(|_| nalgebra::DMatrix::from_element(np, np, f64::NAN));
+    let mut d = drive.clone();
+    for (p, v) in nl.iter().zip(&f.x) {
+        match p.0 {
+            NlParam::Mu => d.friction_coefficient = *v,
+            NlParam::Preload => d.preload_n = *v,
+            NlParam::Effect(_) => {}
+        }
+    }
+    let (mut shared, joint_drive, mut eff) = estimates::parameters(drive, &d, &nl, &f, &cov);
+    let (stroke, thresholds) = ev.stroke_and_thresholds();
+    extra_effects::parameters(
+        &f,
+        nl.len(),
+        &cov,
+        &extra_effects::Basis {
+            stroke,
+            thresholds: &thresholds,
+            mean_abs_torque_nm: extra_effects::mean_abs_torque(
+                prepared.iter().map(|l| l.torque.as_slice()),
+            ),
+        },
+        &mut shared,
+        &mut eff,
+    );
+    shared.retain(|p| !p.name.starts_with("encoder_zero["));
+    let not_pinned: Vec<String> = shared
+        .iter()
+        .filter(|p| {
+            // Weights pinned at zero by their bound carry no information either way.
+            let at_bound = p.name.starts_with("friction_memory_") && p.value == 0.0;
+            let pinned = p.std.is_finite() && p.std <= NOT_PINNED_REL_STD * p.value.abs();
+            !at_bound && !pinned
+        })
+        .map(|p| {
+            format!(
+                "{} = {:.4e} +- {:.2e} {}: not pinned down by these logs",
+                p.name, p.value, p.std, p.unit
+            )
+        })
+        .collect();
+    let all_in: Vec<f64> = prepared.iter().flat_map(|p| p.th_in.clone()).collect();
+    let sep = extra_effects::runout_separability(&all_in, stroke);
+    let mut notes = Vec::new();
+    if effects.contains(&EffectName::AngleDependentRatio) && sep < extra_effects::SEPARABLE_MIN {
+        notes.push(format!(
+            "input stroke {:.3} rad ({:.0} % of a revolution): a ratio shape and an eccentric input pulley (runout) leave the same error over it ({:.1} % of a runout's signature lies outside the shape's span); the angle-dependent ratio found here may equally be pulley runout, and only a stroke of a revolution or more tells them apart",
+            stroke.1 - stroke.0,
+            100.0 * (stroke.1 - stroke.0) / std::f64::consts::TAU,
+            100.0 * sep
+        ));
+    }
+    for (k, r) in rows.iter().enumerate() {
+        if r.play_mrad.is_none() {
+            notes.push(format!(
+                "{}: the play operator could not be fitted to this log",
+                prepared[k].source
+            ));
+        }
+    }
+    let wins_over_base = rows
+        .iter()
+        .filter(|r| r.extended_mrad < r.base_mrad)
+        .count();
+    let wins_over_play = rows
+        .iter()
+        .filter(|r| r.play_mrad.is_some_and(|p| r.extended_mrad < p))
+        .count();
+    Ok(LooTable {
+        effects: effects.iter().map(|e| e.to_string()).collect(),
+        rows,
+        shared,
+        not_pinned,
+        start_cuts,
+        runout_separability: sep,
+        notes,
+        wins_over_base,
+        wins_over_play,
+        drive: joint_drive,
+        effects_params: eff,
+    })
+}
+
+/// The table and the shared parameters as text (Markdown table first).
+pub fn loo_text(t: &LooTable) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "Leave-one-log-out (shared model calibrated on the other logs; extension: {})\n",
+        if t.effects.is_empty() {
+            "none".to_string()
+        } else {
+            t.effects.join(" + ")
+        }
+    );
+    let _ = writeln!(
+        s,
+        "| log left out | base (mrad) | extended (mrad) | play operator fitted to the log (mrad) | noise floor (mrad) | extended residual |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|");
+    for r in &t.rows {
+        let name = std::path::Path::new(&r.log)
+            .file_name()
+            .map_or(r.log.clone(), |f| f.to_string_lossy().into_owned());
+        let play = r
+            .play_mrad
+            .map_or("fit failed".to_string(), |p| format!("{p:.2}"));
+        let _ = writeln!(
+            s,
+            "| {name} | {:.2} | {:.2} | {play} | {:.2} | {} |",
+            r.base_mrad, r.extended_mrad, r.floor_mrad, r.residual
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nExtended beats base on {}/{} logs, the per-log play operator on {}/{}.",
+        t.wins_over_base,
+        t.rows.len(),
+        t.wins_over_play,
+        t.rows.len()
+    );
+    for c in t.start_cuts.iter().filter(|c| c.cut_s > 0.0) {
+        let _ = writeln!(s, "Start-up: {}: {}", c.log, c.reason);
+    }
+    let _ = writeln!(
+        s,
+        "\nShared parameters, joint calibration on every log (value +- 1 sigma):"
+    );
+    for p in &t.shared {
+        let _ = writeln!(
+            s,
+            "  {:<34} {:>13.5e} +- {:<10.2e} {}",
+            p.name, p.value, p.std, p.unit
+        );
+    }
+    for n in &t.not_pinned {
+        let _ = writeln!(s, "  NOT PINNED: {n}");
+    }
+    for n in &t.notes {
+        let _ = writeln!(s, "Limit: {n}");
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::binned_structure;
+
+    #[test]
+    fn binned_structure_sees_a_function_of_the_signal_and_not_noise() {
+        let n = 4000;
+        let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin()).collect();
+        // Residual = 1e-3 x^2 exactly: its binned means carry its whole spread.
+        let r: Vec<f64> = x.iter().map(|v| 1e-3 * v * v).collect();
+        let mean = r.iter().sum::<f64>() / n as f64;
+        let sd = (r.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
+        let s = binned_structure(&r, &x);
+        assert!((s / sd - 1.0).abs() < 0.05, "{s} vs {sd}");
+        // A residual that depends on another, unrelated sequence shows little structure.
+        let other: Vec<f64> = (0..n)
+            .map(|i| 1e-3 * ((i * 7919 % 1000) as f64 / 500.0 - 1.0))
+            .collect();
+        let t = binned_structure(&other, &x);
+        assert!(t < 0.2 * 1e-3 / 3f64.sqrt(), "{t}");
+    }
+}
