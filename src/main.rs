@@ -134,7 +134,8 @@ enum Command {
         /// Override a scenario value, e.g. drive.preload_n=70 (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
-        /// Replace an existing results directory.
+        /// Replace an existing results directory written by this program (a file or a
+        /// directory of other content is refused).
         #[arg(long)]
         force: bool,
     },
@@ -174,7 +175,8 @@ enum Command {
         /// Also write every case's time series to cases/case-NNNNNN/ (quasi-static).
         #[arg(long)]
         case_timeseries: bool,
-        /// Replace an existing results directory.
+        /// Replace an existing results directory written by this program (a file or a
+        /// directory of other content is refused).
         #[arg(long)]
         force: bool,
     },
@@ -207,7 +209,8 @@ enum Command {
         /// Override a scenario value (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
-        /// Replace an existing results directory.
+        /// Replace an existing results directory, --json and --save-model files written by
+        /// this program (anything else at those paths is refused).
         #[arg(long)]
         force: bool,
     },
@@ -241,9 +244,13 @@ enum Command {
         /// Shard results: sweep.csv files or directories holding one.
         #[arg(required = true)]
         shards: Vec<PathBuf>,
-        /// Replace an existing output file.
+        /// Replace an existing merged table (only a sweep table; anything else is refused).
         #[arg(long)]
         force: bool,
+        /// Merge even with shards missing or cut short; the result is marked partial
+        /// (terminal and `<out>.merge.json`).
+        #[arg(long)]
+        partial: bool,
     },
     /// Print a built-in scenario (to copy and edit).
     Show {
@@ -476,11 +483,9 @@ fn main() -> ExitCode {
                 Ok(s) => s,
                 Err(code) => return code,
             };
-            if out.exists() && !force {
-                tell!(
-                    "error: refusing to overwrite {}; pass --force to replace it",
-                    out.display()
-                );
+            use cable_servo::io::staging::{check_file_target, FileKind};
+            if let Err(e) = check_file_target(&out, force, FileKind::BenchLog) {
+                tell!("error: {e}");
                 return ExitCode::from(exit::OUTPUT);
             }
             let effects: Result<Vec<_>, _> = effect
@@ -512,10 +517,32 @@ fn main() -> ExitCode {
                 }
             }
         }
-        Command::Merge { out, shards, force } => {
-            match cable_servo::sweep::merge::merge_files(&shards, &out, force) {
-                Ok(rows) => {
-                    say!("{rows} cases merged into {}", out.display());
+        Command::Merge {
+            out,
+            shards,
+            force,
+            partial,
+        } => {
+            match cable_servo::sweep::merge::merge_files(&shards, &out, force, partial) {
+                Ok(r) if r.complete() => {
+                    say!(
+                        "{} cases merged into {} (complete: every shard present)",
+                        r.rows,
+                        out.display()
+                    );
+                    ExitCode::SUCCESS
+                }
+                Ok(r) => {
+                    say!(
+                        "PARTIAL merge: {} of {} cases in {}",
+                        r.rows,
+                        r.cases_total
+                            .map_or_else(|| "an unknown number of".to_string(), |n| n.to_string()),
+                        out.display()
+                    );
+                    for g in &r.gaps {
+                        tell!("warning: partial merge: {g}");
+                    }
                     ExitCode::SUCCESS
                 }
                 Err(e) => {

@@ -480,7 +480,7 @@ pub fn run_sweep(
         &serde_json::json!({
             "cases_total": cases.len(),
             "cases_written": table.rows.len(),
-            "shard": format!("{}/{}", options.shard.k, options.shard.n),
+            "shard": crate::io::manifest::ShardManifest::new(&cases, options.shard.k, options.shard.n),
             "mode": spec.mode.as_str(),
             "seed": sampled.then(|| spec.seed.unwrap_or(0)),
             "design_answers": if sampled { serde_json::Value::Null } else { answers.0.clone() },
@@ -605,6 +605,14 @@ pub fn run_diagnosis(
     json: Option<&Path>,
     save_model: Option<&Path>,
 ) -> Result<RunReport, RunError> {
+    use crate::io::staging::{check_file_target, FileKind};
+    // Checked before the work: an output that cannot be written costs no diagnosis.
+    if let Some(path) = json {
+        check_file_target(path, out.force, FileKind::DiagnosisJson).map_err(OutputError::from)?;
+    }
+    if let Some(path) = save_model {
+        check_file_target(path, out.force, FileKind::SavedModel).map_err(OutputError::from)?;
+    }
     let diagnosis = crate::identify::diagnose_files(scenario, paths, options)?;
     let staged = StagedDir::create(&out.dir, out.force)?;
     crate::identify::write_diagnosis(staged.path(), &diagnosis, None)?;
