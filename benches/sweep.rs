@@ -33,6 +33,7 @@ fn run(base: &toml::Table, cases: &[Case], runner: &dyn CaseRunner, threads: usi
         shard: Shard::ALL,
         threads,
         case_files: None,
+        stop: None,
     };
     let mut rows = 0;
     run_cases(

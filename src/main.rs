@@ -59,7 +59,8 @@ Built-in scenarios (usable by name from any directory): eots_tracking (the defau
 eots_mismatch, eots_runout, step_stare, eots_tolerance, paper_bench, paper_tension, memory_vs_memoryless, \
 paper_fig11, gimbal_ident, davinci_tool4; `cable-servo show NAME` prints one.\n\n\
 Exit codes: 0 success, 2 usage error, 3 input error, 4 physical failure (results kept, marked \
-incomplete), 5 output error (existing results without --force)."
+incomplete), 5 output error (existing results without --force), 130/143 interrupted by \
+SIGINT/SIGTERM."
 )]
 struct Cli {
     #[command(subcommand)]
@@ -267,6 +268,7 @@ fn main() -> ExitCode {
             return ExitCode::from(if e.use_stderr() { exit::USAGE } else { 0 });
         }
     };
+    cable_servo::io::signals::install();
     match cli.command {
         Command::Run {
             scenario,
@@ -339,6 +341,8 @@ fn main() -> ExitCode {
                 .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
             );
             let tick = || bar.inc(1);
+            // A signal now stops the sweep between cases; the rows finished are kept.
+            let _graceful = cable_servo::io::signals::Graceful::begin();
             let result = run::run_sweep(
                 &scenario,
                 &SweepOptions {
@@ -641,6 +645,14 @@ fn report(result: Result<RunReport, RunError>) -> ExitCode {
             }
             say_raw!("{}", r.table);
             say!("results: {}", r.dir.display());
+            if let Some(sig) = r.signal {
+                tell!(
+                    "error: {}",
+                    r.failure.as_deref().unwrap_or("interrupted")
+                );
+                tell!("results kept, marked INCOMPLETE: {}", r.dir.display());
+                return ExitCode::from(cable_servo::io::signals::exit_code(sig));
+            }
             match &r.failure {
                 None => ExitCode::SUCCESS,
                 Some(f) => {

@@ -52,6 +52,8 @@ pub struct RunReport {
     pub failure: Option<String>,
     /// Warnings (capacity, plots that failed).
     pub warnings: Vec<String>,
+    /// The signal (SIGINT 2, SIGTERM 15) that interrupted the run, if one did.
+    pub signal: Option<i32>,
 }
 
 /// Where and how to write results.
@@ -92,6 +94,7 @@ fn finish(
         complete: failure.is_none(),
         failure,
         warnings,
+        signal: None,
     })
 }
 
@@ -458,6 +461,7 @@ pub fn run_sweep(
         shard: options.shard,
         threads: options.threads,
         case_files: options.case_timeseries.then_some(dir.as_path()),
+        stop: Some(&|| crate::io::signals::interrupted().is_some()),
     };
     let outcome = engine::run_cases(
         &plan,
@@ -466,7 +470,20 @@ pub fn run_sweep(
         progress,
     );
     table.finish()?;
-    let failure = outcome.err().map(|e| e.to_string());
+    let owned = cases.iter().filter(|c| options.shard.owns(c.index)).count();
+    let signal = crate::io::signals::interrupted();
+    let failure = match (&outcome, signal) {
+        (Err(e), _) => Some(e.to_string()),
+        (Ok(done), Some(sig)) => Some(format!(
+            "interrupted by {} (exit {}): the sweep stopped taking cases; kept: sweep.csv with the {} finished cases of {} (cases in flight were finished), lost: {} cases not run; rerun the sweep, or its shard, for a complete table",
+            crate::io::signals::name(sig),
+            crate::io::signals::exit_code(sig),
+            done.written,
+            owned,
+            owned - done.written.min(owned)
+        )),
+        (Ok(_), None) => None,
+    };
     let sampled = spec.mode.is_sampled();
     let answers = if sampled {
         report::sweep::statistics(&figure_columns, &table.rows)
@@ -480,6 +497,7 @@ pub fn run_sweep(
         &serde_json::json!({
             "cases_total": cases.len(),
             "cases_written": table.rows.len(),
+            "interrupted_by": signal.map(crate::io::signals::name),
             "shard": crate::io::manifest::ShardManifest::new(&cases, options.shard.k, options.shard.n),
             "mode": spec.mode.as_str(),
             "seed": sampled.then(|| spec.seed.unwrap_or(0)),
@@ -506,7 +524,9 @@ pub fn run_sweep(
         cases.len()
     );
     text.push_str(&answers.1);
-    finish(staged, text, failure, warnings)
+    let mut report = finish(staged, text, failure, warnings)?;
+    report.signal = signal;
+    Ok(report)
 }
 
 /// Answers a designer reads off a sweep: for backlash sweeps over preload and load, the

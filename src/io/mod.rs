@@ -3,5 +3,6 @@
 pub mod benchlog;
 pub mod manifest;
 pub mod output;
+pub mod signals;
 pub mod staging;
 pub mod tables;

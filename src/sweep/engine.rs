@@ -319,6 +319,18 @@ pub struct Plan<'a> {
     /// Results directory under which each case writes `cases/case-NNNNNN/` (time series);
     /// `None` keeps only the sweep table.
     pub case_files: Option<&'a Path>,
+    /// Asked before each case; once it says true, cases not yet started are skipped (an
+    /// interrupted sweep keeps the rows it finished).
+    pub stop: Option<&'a (dyn Fn() -> bool + Sync)>,
+}
+
+/// How far a sweep got.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Progress {
+    /// Rows handed to the sink.
+    pub written: usize,
+    /// Cases skipped because `stop` said so.
+    pub skipped: usize,
 }
 
 /// Run the plan's cases on its threads and hand each row to `sink` in case order as soon
@@ -328,8 +340,9 @@ pub fn run_cases(
     runner: &dyn CaseRunner,
     sink: &mut dyn FnMut(&Case, Vec<Cell>) -> std::io::Result<()>,
     progress: &(dyn Fn() + Sync),
-) -> Result<(), SweepError> {
+) -> Result<Progress, SweepError> {
     let (base, default_name) = (plan.base, plan.default_name);
+    let stop = plan.stop;
     let mine: Vec<&Case> = plan
         .cases
         .iter()
@@ -340,9 +353,11 @@ pub fn run_cases(
         .build()
         .map_err(|e| SweepError::Threads(e.to_string()))?;
     let case_files = plan.case_files;
-    let (tx, rx) = mpsc::sync_channel::<(usize, Result<Vec<Cell>, SweepError>)>(256);
+    type Row = Option<Result<Vec<Cell>, SweepError>>;
+    let (tx, rx) = mpsc::sync_channel::<(usize, Row)>(256);
     let n_cols = runner.columns().len();
     let mut outcome = Ok(());
+    let mut done = Progress::default();
     std::thread::scope(|scope| {
         let mine_ref = &mine;
         scope.spawn(move || {
@@ -351,15 +366,19 @@ pub fn run_cases(
                     .par_iter()
                     .enumerate()
                     .for_each_with(tx, |tx, (pos, case)| {
+                        if stop.is_some_and(|s| s()) {
+                            let _ = tx.send((pos, None));
+                            return;
+                        }
                         let row = one_case(base, default_name, case, runner, case_files);
                         progress();
                         // The receiver only stops early on a write error; then the rest is moot.
-                        let _ = tx.send((pos, row));
+                        let _ = tx.send((pos, Some(row)));
                     });
             });
         });
         // Reorder buffer: rows arrive roughly in order, so it stays small.
-        let mut waiting: BTreeMap<usize, Result<Vec<Cell>, SweepError>> = BTreeMap::new();
+        let mut waiting: BTreeMap<usize, Row> = BTreeMap::new();
         let mut next = 0;
         for (pos, row) in rx.iter() {
             if outcome.is_err() {
@@ -369,11 +388,16 @@ pub fn run_cases(
             while let Some(row) = waiting.remove(&next) {
                 let case = mine[next];
                 let result = match row {
-                    Ok(mut cells) => {
+                    None => {
+                        done.skipped += 1;
+                        Ok(())
+                    }
+                    Some(Ok(mut cells)) => {
                         cells.resize(n_cols, Cell::Num(None));
+                        done.written += 1;
                         sink(case, cells).map_err(SweepError::Write)
                     }
-                    Err(e) => Err(e),
+                    Some(Err(e)) => Err(e),
                 };
                 if let Err(e) = result {
                     outcome = Err(e);
@@ -383,7 +407,7 @@ pub fn run_cases(
             }
         }
     });
-    outcome
+    outcome.map(|()| done)
 }
 
 /// Resolve, run and (when asked) write the files of one case.
@@ -594,6 +618,7 @@ mod tests {
                 shard,
                 threads,
                 case_files: None,
+                stop: None,
             };
             let mut rows = Vec::new();
             run_cases(
