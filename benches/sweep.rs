@@ -32,6 +32,7 @@ fn run(base: &toml::Table, cases: &[Case], runner: &dyn CaseRunner, threads: usi
         cases,
         shard: Shard::ALL,
         threads,
+        stop: None,
     };
     let mut rows = 0;
     run_cases(

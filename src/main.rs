@@ -60,7 +60,8 @@ Built-in scenarios (usable by name from any directory): eots_tracking (the defau
 eots_mismatch, eots_runout, step_stare, eots_tolerance, paper_bench, paper_tension, memory_vs_memoryless, \
 paper_fig11, gimbal_ident, davinci_tool4; `cable-servo show NAME` prints one.\n\n\
 Exit codes: 0 success, 2 usage error, 3 input error, 4 physical failure (results kept, marked \
-incomplete), 5 output error (existing results without --force)."
+incomplete), 5 output error (existing results without --force), 130/143 interrupted by \
+SIGINT/SIGTERM."
 )]
 struct Cli {
     /// Without a command: `run` of the default study (eots_tracking) into a fresh
@@ -138,7 +139,8 @@ enum Command {
         /// Override a scenario value, e.g. drive.preload_n=70 (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
-        /// Replace an existing results directory.
+        /// Replace an existing results directory written by this program (a file or a
+        /// directory of other content is refused).
         #[arg(long)]
         force: bool,
     },
@@ -178,7 +180,8 @@ enum Command {
         /// Also write every case's time series to cases/case-NNNNNN/ (quasi-static).
         #[arg(long)]
         case_timeseries: bool,
-        /// Replace an existing results directory.
+        /// Replace an existing results directory written by this program (a file or a
+        /// directory of other content is refused).
         #[arg(long)]
         force: bool,
     },
@@ -223,7 +226,8 @@ enum Command {
         /// Override a scenario value (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
-        /// Replace an existing results directory.
+        /// Replace an existing results directory, --json and --save-model files written by
+        /// this program (anything else at those paths is refused).
         #[arg(long)]
         force: bool,
     },
@@ -257,9 +261,13 @@ enum Command {
         /// Shard results: sweep.csv files or directories holding one.
         #[arg(required = true)]
         shards: Vec<PathBuf>,
-        /// Replace an existing output file.
+        /// Replace an existing merged table (only a sweep table; anything else is refused).
         #[arg(long)]
         force: bool,
+        /// Merge even with shards missing or cut short; the result is marked partial
+        /// (terminal and `<out>.merge.json`).
+        #[arg(long)]
+        partial: bool,
     },
     /// Margins of a closed-loop design on its exact linear reference (cable as its linear
     /// spring, zero-order hold, PID and computation delay as implemented).
@@ -285,6 +293,7 @@ fn main() -> ExitCode {
             return ExitCode::from(if e.use_stderr() { exit::USAGE } else { 0 });
         }
     };
+    cable_servo::io::signals::install();
     let command = cli.command.unwrap_or(Command::Run {
         scenario: None,
         out: None,
@@ -365,6 +374,8 @@ fn main() -> ExitCode {
                 .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
             );
             let tick = || bar.inc(1);
+            // A signal now stops the sweep between cases; the rows finished are kept.
+            let _graceful = cable_servo::io::signals::Graceful::begin();
             let result = run::run_sweep(
                 &scenario,
                 &SweepOptions {
@@ -560,11 +571,9 @@ fn main() -> ExitCode {
                 Ok(s) => s,
                 Err(code) => return code,
             };
-            if out.exists() && !force {
-                tell!(
-                    "error: refusing to overwrite {}; pass --force to replace it",
-                    out.display()
-                );
+            use cable_servo::io::staging::{check_file_target, FileKind};
+            if let Err(e) = check_file_target(&out, force, FileKind::BenchLog) {
+                tell!("error: {e}");
                 return ExitCode::from(exit::OUTPUT);
             }
             let effects: Result<Vec<_>, _> = effect
@@ -596,18 +605,38 @@ fn main() -> ExitCode {
                 }
             }
         }
-        Command::Merge { out, shards, force } => {
-            match cable_servo::io::merge::merge_files(&shards, &out, force) {
-                Ok(rows) => {
-                    say!("{rows} cases merged into {}", out.display());
-                    ExitCode::SUCCESS
-                }
-                Err(e) => {
-                    tell!("error: {e}");
-                    ExitCode::from(e.exit_code())
-                }
+        Command::Merge {
+            out,
+            shards,
+            force,
+            partial,
+        } => match cable_servo::io::merge::merge_files(&shards, &out, force, partial) {
+            Ok(r) if r.complete() => {
+                say!(
+                    "{} cases merged into {} (complete: every shard present)",
+                    r.rows,
+                    out.display()
+                );
+                ExitCode::SUCCESS
             }
-        }
+            Ok(r) => {
+                say!(
+                    "PARTIAL merge: {} of {} cases in {}",
+                    r.rows,
+                    r.cases_total
+                        .map_or_else(|| "an unknown number of".to_string(), |n| n.to_string()),
+                    out.display()
+                );
+                for g in &r.gaps {
+                    tell!("warning: partial merge: {g}");
+                }
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                tell!("error: {e}");
+                ExitCode::from(e.exit_code())
+            }
+        },
         Command::Margins { scenario, set } => {
             let name = scenario.as_deref().unwrap_or(DEFAULT_SCENARIO);
             let scenario = match load(name, &set) {
@@ -751,6 +780,11 @@ fn report(result: Result<RunReport, RunError>) -> ExitCode {
             }
             say_raw!("{}", r.table);
             say!("results: {}", r.dir.display());
+            if let Some(sig) = r.signal {
+                tell!("error: {}", r.failure.as_deref().unwrap_or("interrupted"));
+                tell!("results kept, marked INCOMPLETE: {}", r.dir.display());
+                return ExitCode::from(cable_servo::io::signals::exit_code(sig));
+            }
             match &r.failure {
                 None => ExitCode::SUCCESS,
                 Some(f) => {

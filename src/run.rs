@@ -59,6 +59,8 @@ pub struct RunReport {
     pub failure: Option<String>,
     /// Warnings (capacity, plots that failed).
     pub warnings: Vec<String>,
+    /// The signal (SIGINT 2, SIGTERM 15) that interrupted the run, if one did.
+    pub signal: Option<i32>,
 }
 
 /// Where and how to write results.
@@ -116,6 +118,7 @@ fn finish(
         complete: failure.is_none(),
         failure,
         warnings,
+        signal: None,
     })
 }
 
@@ -487,6 +490,7 @@ pub fn run_sweep(
         cases: &cases,
         shard: options.shard,
         threads: options.threads,
+        stop: Some(&|| crate::io::signals::interrupted().is_some()),
     };
     let case_files = options.case_timeseries.then_some(dir.as_path());
     let outcome = engine::run_cases(
@@ -497,7 +501,20 @@ pub fn run_sweep(
         progress,
     );
     table.finish()?;
-    let failure = outcome.err().map(|e| e.to_string());
+    let owned = cases.iter().filter(|c| options.shard.owns(c.index)).count();
+    let signal = crate::io::signals::interrupted();
+    let failure = match (&outcome, signal) {
+        (Err(e), _) => Some(e.to_string()),
+        (Ok(done), Some(sig)) => Some(format!(
+            "interrupted by {} (exit {}): the sweep stopped taking cases; kept: sweep.csv with the {} finished cases of {} (cases in flight were finished), lost: {} cases not run; rerun the sweep, or its shard, for a complete table",
+            crate::io::signals::name(sig),
+            crate::io::signals::exit_code(sig),
+            done.written,
+            owned,
+            owned - done.written.min(owned)
+        )),
+        (Ok(_), None) => None,
+    };
     let sampled = spec.mode.is_sampled();
     let answers = if sampled {
         report::sweep::statistics(&figure_columns, &table.rows)
@@ -511,7 +528,8 @@ pub fn run_sweep(
         &serde_json::json!({
             "cases_total": cases.len(),
             "cases_written": table.rows.len(),
-            "shard": format!("{}/{}", options.shard.k, options.shard.n),
+            "interrupted_by": signal.map(crate::io::signals::name),
+            "shard": crate::io::manifest::ShardManifest::new(&cases, options.shard.k, options.shard.n),
             "mode": spec.mode.as_str(),
             "seed": sampled.then(|| spec.seed.unwrap_or(0)),
             "design_answers": if sampled { serde_json::Value::Null } else { answers.0.clone() },
@@ -537,7 +555,9 @@ pub fn run_sweep(
         cases.len()
     );
     text.push_str(&answers.1);
-    finish(staged, text, failure, warnings)
+    let mut report = finish(staged, text, failure, warnings)?;
+    report.signal = signal;
+    Ok(report)
 }
 
 /// Answers a designer reads off a sweep: for backlash sweeps over preload and load, the
@@ -636,6 +656,14 @@ pub fn run_diagnosis(
     json: Option<&Path>,
     save_model: Option<&Path>,
 ) -> Result<RunReport, RunError> {
+    use crate::io::staging::{check_file_target, FileKind};
+    // Checked before the work: an output that cannot be written costs no diagnosis.
+    if let Some(path) = json {
+        check_file_target(path, out.force, FileKind::DiagnosisJson).map_err(OutputError::from)?;
+    }
+    if let Some(path) = save_model {
+        check_file_target(path, out.force, FileKind::SavedModel).map_err(OutputError::from)?;
+    }
     let logs: Vec<crate::measurement::BenchLog> = paths
         .iter()
         .map(|p| crate::io::benchlog::read_bench_log(p))

@@ -2,6 +2,9 @@
 //! Edge layer: imports the bottom layer and fills a scenario's tables.
 
 pub mod benchlog;
+pub mod manifest;
 pub mod merge;
 pub mod output;
+pub mod signals;
+pub mod staging;
 pub mod tables;

@@ -26,6 +26,20 @@ pub enum OutputError {
         /// The existing results path.
         path: PathBuf,
     },
+    /// `--force` was given but the path holds something this program did not write.
+    #[error(
+        "refusing to replace {} with --force: it is {what}; move it away or choose another --out",
+        path.display()
+    )]
+    NotOurs {
+        /// The path.
+        path: PathBuf,
+        /// What is there.
+        what: String,
+    },
+    /// A single-file output cannot be written at its path.
+    #[error(transparent)]
+    FileTarget(#[from] super::staging::FileTargetError),
     /// A filesystem operation failed.
     #[error("{}: {source}", path.display())]
     Io {
@@ -98,6 +112,18 @@ pub struct StagedDir {
     final_path: PathBuf,
     force: bool,
     committed: bool,
+    stale_removed: Vec<PathBuf>,
+}
+
+/// Refuse `--force` on anything this program did not write.
+fn check_ours(path: &Path) -> Result<(), OutputError> {
+    match super::staging::foreign_content(path) {
+        None => Ok(()),
+        Some(what) => Err(OutputError::NotOurs {
+            path: path.to_path_buf(),
+            what,
+        }),
+    }
 }
 
 impl StagedDir {
@@ -115,13 +141,17 @@ impl StagedDir {
                 ),
             });
         };
-        if !force && exists(final_path) {
-            return Err(OutputError::Exists {
-                path: final_path.to_path_buf(),
-            });
+        if exists(final_path) {
+            if !force {
+                return Err(OutputError::Exists {
+                    path: final_path.to_path_buf(),
+                });
+            }
+            check_ours(final_path)?;
         }
         let parent = parent_dir(final_path);
         fs::create_dir_all(parent).map_err(io_err(parent))?;
+        let stale_removed = super::staging::remove_stale(parent);
         let mut attempts = 0;
         let staging = loop {
             let candidate = sibling_name(parent, name, "partial");
@@ -133,12 +163,22 @@ impl StagedDir {
                 Err(e) => return Err(io_err(&candidate)(e)),
             }
         };
-        Ok(StagedDir {
+        super::staging::register(&staging);
+        let staged = StagedDir {
             staging,
             final_path: final_path.to_path_buf(),
             force,
             committed: false,
-        })
+            stale_removed,
+        };
+        let marker = staged.staging.join(super::staging::MARKER_FILE);
+        fs::write(&marker, super::staging::MARKER_TEXT).map_err(io_err(&marker))?;
+        Ok(staged)
+    }
+
+    /// Staging directories of dead processes removed when this one was created.
+    pub fn stale_removed(&self) -> &[PathBuf] {
+        &self.stale_removed
     }
 
     /// The staging directory to write result files into.
@@ -165,6 +205,7 @@ impl StagedDir {
                     path: self.final_path.clone(),
                 });
             }
+            check_ours(&self.final_path)?;
             let name = self.final_path.file_name().unwrap_or_default().to_owned();
             let aside = sibling_name(&parent, &name, "old");
             fs::rename(&self.final_path, &aside).map_err(io_err(&self.final_path))?;
@@ -173,10 +214,12 @@ impl StagedDir {
                 return Err(io_err(&self.final_path)(e));
             }
             self.committed = true;
+            super::staging::unregister(&self.staging);
             let _ = remove_any(&aside);
         } else {
             fs::rename(&self.staging, &self.final_path).map_err(io_err(&self.final_path))?;
             self.committed = true;
+            super::staging::unregister(&self.staging);
         }
         sync_dir(&parent);
         Ok(self.final_path.clone())
@@ -199,6 +242,7 @@ impl Drop for StagedDir {
     fn drop(&mut self) {
         if !self.committed {
             let _ = fs::remove_dir_all(&self.staging);
+            super::staging::unregister(&self.staging);
         }
     }
 }
@@ -302,24 +346,45 @@ mod tests {
         let out = root.path().join("run");
         fs::create_dir(&out).unwrap();
         fs::write(out.join("old.txt"), b"old").unwrap();
+        fs::write(out.join("summary.json"), b"{}").unwrap();
         let staged = StagedDir::create(&out, true).unwrap();
         fs::write(staged.path().join("new.txt"), b"new").unwrap();
         // Old results are untouched until commit.
         assert_eq!(fs::read(out.join("old.txt")).unwrap(), b"old");
         staged.commit().unwrap();
-        assert_eq!(entries(&out), vec!["new.txt"]);
+        assert_eq!(
+            entries(&out),
+            vec![super::super::staging::MARKER_FILE, "new.txt"]
+        );
         assert_eq!(entries(root.path()), vec!["run"]);
     }
 
     #[test]
-    fn force_replaces_existing_file() {
+    fn force_refuses_a_file_or_a_foreign_directory() {
         let root = tempfile::tempdir().unwrap();
         let out = root.path().join("run");
         fs::write(&out, b"a file in the way").unwrap();
-        let staged = StagedDir::create(&out, true).unwrap();
-        staged.commit().unwrap();
-        assert!(out.is_dir());
+        let e = StagedDir::create(&out, true).unwrap_err();
+        assert!(matches!(e, OutputError::NotOurs { .. }), "{e}");
+        assert!(e.to_string().contains("regular file of 17 bytes"), "{e}");
+        fs::remove_file(&out).unwrap();
+        fs::create_dir(&out).unwrap();
+        fs::write(out.join("notes.txt"), b"mine").unwrap();
+        let e = StagedDir::create(&out, true).unwrap_err();
+        assert!(e.to_string().contains("notes.txt"), "{e}");
         assert_eq!(entries(root.path()), vec!["run"]);
+        assert_eq!(entries(&out), vec!["notes.txt"]);
+    }
+
+    #[test]
+    fn stale_staging_of_a_dead_process_is_removed() {
+        let root = tempfile::tempdir().unwrap();
+        // Pid far above any pid_max: never a live process.
+        let stale = root.path().join(".run.partial-4999999-0");
+        fs::create_dir(&stale).unwrap();
+        let staged = StagedDir::create(&root.path().join("run"), false).unwrap();
+        assert_eq!(staged.stale_removed(), [stale.clone()]);
+        assert!(!stale.exists());
     }
 
     #[test]
@@ -356,7 +421,14 @@ mod tests {
         assert_eq!(path, out);
         let text = fs::read_to_string(out.join(INCOMPLETE_FILE)).unwrap();
         assert!(text.contains("solver diverged at t = 3.2 s"), "{text}");
-        assert_eq!(entries(&out), vec![INCOMPLETE_FILE, "partial.csv"]);
+        assert_eq!(
+            entries(&out),
+            vec![
+                super::super::staging::MARKER_FILE,
+                INCOMPLETE_FILE,
+                "partial.csv"
+            ]
+        );
         assert_eq!(entries(root.path()), vec!["run"]);
     }
 

@@ -145,6 +145,7 @@ mod tests {
                 cases: &cases,
                 shard,
                 threads,
+                stop: None,
             };
             let mut rows = Vec::new();
             let runner = crate::run::BacklashRunner;

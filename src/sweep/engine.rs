@@ -259,6 +259,18 @@ pub struct Plan<'a> {
     pub shard: Shard,
     /// Worker threads (0 = all cores).
     pub threads: usize,
+    /// Asked before each case; once it says true, cases not yet started are skipped (an
+    /// interrupted sweep keeps the rows it finished).
+    pub stop: Option<&'a (dyn Fn() -> bool + Sync)>,
+}
+
+/// How far a sweep got.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Progress {
+    /// Rows handed to the sink.
+    pub written: usize,
+    /// Cases skipped because `stop` said so.
+    pub skipped: usize,
 }
 
 /// What a sweep computes for one case: the caller resolves the case into whatever its
@@ -275,7 +287,8 @@ pub fn run_cases(
     run_one: &CaseFn<'_>,
     sink: &mut dyn FnMut(&Case, Vec<Cell>) -> std::io::Result<()>,
     progress: &(dyn Fn() + Sync),
-) -> Result<(), SweepError> {
+) -> Result<Progress, SweepError> {
+    let stop = plan.stop;
     let mine: Vec<&Case> = plan
         .cases
         .iter()
@@ -285,8 +298,10 @@ pub fn run_cases(
         .num_threads(plan.threads)
         .build()
         .map_err(|e| SweepError::Threads(e.to_string()))?;
-    let (tx, rx) = mpsc::sync_channel::<(usize, Result<Vec<Cell>, SweepError>)>(256);
+    type Row = Option<Result<Vec<Cell>, SweepError>>;
+    let (tx, rx) = mpsc::sync_channel::<(usize, Row)>(256);
     let mut outcome = Ok(());
+    let mut done = Progress::default();
     std::thread::scope(|scope| {
         let mine_ref = &mine;
         scope.spawn(move || {
@@ -295,15 +310,19 @@ pub fn run_cases(
                     .par_iter()
                     .enumerate()
                     .for_each_with(tx, |tx, (pos, case)| {
+                        if stop.is_some_and(|s| s()) {
+                            let _ = tx.send((pos, None));
+                            return;
+                        }
                         let row = run_one(case);
                         progress();
                         // The receiver only stops early on a write error; then the rest is moot.
-                        let _ = tx.send((pos, row));
+                        let _ = tx.send((pos, Some(row)));
                     });
             });
         });
         // Reorder buffer: rows arrive roughly in order, so it stays small.
-        let mut waiting: BTreeMap<usize, Result<Vec<Cell>, SweepError>> = BTreeMap::new();
+        let mut waiting: BTreeMap<usize, Row> = BTreeMap::new();
         let mut next = 0;
         for (pos, row) in rx.iter() {
             if outcome.is_err() {
@@ -313,11 +332,16 @@ pub fn run_cases(
             while let Some(row) = waiting.remove(&next) {
                 let case = mine[next];
                 let result = match row {
-                    Ok(mut cells) => {
+                    None => {
+                        done.skipped += 1;
+                        Ok(())
+                    }
+                    Some(Ok(mut cells)) => {
                         cells.resize(n_cols, Cell::Num(None));
+                        done.written += 1;
                         sink(case, cells).map_err(SweepError::Write)
                     }
-                    Err(e) => Err(e),
+                    Some(Err(e)) => Err(e),
                 };
                 if let Err(e) = result {
                     outcome = Err(e);
@@ -327,7 +351,7 @@ pub fn run_cases(
             }
         }
     });
-    outcome
+    outcome.map(|()| done)
 }
 
 /// A sweep that could not finish.

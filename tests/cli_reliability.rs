@@ -1,0 +1,245 @@
+//! Faults and mistakes through the binary: what `--force` may replace, merges of
+//! incomplete shard sets, interruption by signals, runs too large to hold, empty metrics.
+//! Each test checks the exit code, the message, what is left on disk and that nothing
+//! incomplete is claimed complete.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const EXE: &str = env!("CARGO_BIN_EXE_cable-servo");
+
+fn cable_servo(args: &[&str], cwd: &Path) -> Output {
+    Command::new(EXE)
+        .args(args)
+        .current_dir(cwd)
+        .env_remove("RUST_BACKTRACE")
+        .output()
+        .expect("the binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn entries(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+fn p(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+fn no_panic(o: &Output) {
+    let err = stderr(o);
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+/// A quick quasi-static run.
+fn quick_run(out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "run",
+        "paper_bench",
+        "--set",
+        "quasi_static.duration_s=2",
+        "--set",
+        "quasi_static.profile_times_s=[1.0]",
+        "--out",
+        p(out),
+    ];
+    args.extend_from_slice(extra);
+    cable_servo(&args, out.parent().unwrap())
+}
+
+#[test]
+fn force_replaces_only_results_this_program_wrote() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    // A user's regular file at the results path.
+    fs::write(&out, b"my thesis").unwrap();
+    let o = quick_run(&out, &["--force"]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(5), "{err}");
+    assert!(err.contains("regular file of 9 bytes"), "{err}");
+    assert!(err.contains("--out"), "{err}");
+    assert_eq!(fs::read(&out).unwrap(), b"my thesis");
+    assert_eq!(entries(tmp.path()), vec!["out"]);
+    no_panic(&o);
+    // A directory the program never wrote.
+    fs::remove_file(&out).unwrap();
+    fs::create_dir(&out).unwrap();
+    fs::write(out.join("notes.txt"), b"mine").unwrap();
+    let o = quick_run(&out, &["--force"]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(5), "{err}");
+    assert!(
+        err.contains("notes.txt") && err.contains("not results"),
+        "{err}"
+    );
+    assert_eq!(entries(&out), vec!["notes.txt"]);
+    assert_eq!(entries(tmp.path()), vec!["out"]);
+    // Its own results are replaced.
+    fs::remove_dir_all(&out).unwrap();
+    let o = quick_run(&out, &[]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(out.join(".cable-servo-results").is_file());
+    let o = quick_run(&out, &["--force"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(entries(tmp.path()), vec!["out"]);
+}
+
+#[test]
+fn diagnose_single_files_are_not_overwritten_without_force() {
+    let tmp = tempfile::tempdir().unwrap();
+    let log = tmp.path().join("log.csv");
+    fs::write(&log, "t_s,theta_in_rad,theta_out_rad,load_nm\n0,0,0,0\n").unwrap();
+    let model = tmp.path().join("model.toml");
+    fs::write(&model, b"# my own scenario\n").unwrap();
+    let json = tmp.path().join("d.json");
+    fs::write(&json, b"{\"mine\": 1}").unwrap();
+    let base = [
+        "diagnose",
+        "--scenario",
+        "gimbal_ident",
+        "--data",
+        p(&log),
+        "--out",
+        "res",
+    ];
+    for (flag, file) in [("--save-model", &model), ("--json", &json)] {
+        let before = fs::read(file).unwrap();
+        let o = cable_servo(&[&base[..], &[flag, p(file)]].concat(), tmp.path());
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(5), "{flag}: {err}");
+        assert!(err.contains("refusing to overwrite existing file"), "{err}");
+        assert!(err.contains("--force"), "{err}");
+        // With --force, a file this program did not write is still refused.
+        let o = cable_servo(
+            &[&base[..], &[flag, p(file), "--force"]].concat(),
+            tmp.path(),
+        );
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(5), "{flag}: {err}");
+        assert!(err.contains("does not look like"), "{err}");
+        assert_eq!(fs::read(file).unwrap(), before);
+        no_panic(&o);
+    }
+    assert_eq!(entries(tmp.path()), vec!["d.json", "log.csv", "model.toml"]);
+}
+
+const SHARD_ARGS: [&str; 10] = [
+    "sweep",
+    "paper_fig11",
+    "--vary",
+    "drive.preload_n=uniform(40,150)",
+    "--vary",
+    "backlash.load_nm=uniform(0.1,1)",
+    "--samples",
+    "12",
+    "--threads",
+    "1",
+];
+
+fn shard(dir: &Path, k: usize, n: usize, seed: &str) -> PathBuf {
+    let out = dir.join(format!("s{k}-{seed}"));
+    let shard = format!("{k}/{n}");
+    let args = [
+        &SHARD_ARGS[..],
+        &["--seed", seed, "--shard", &shard, "--out", p(&out)],
+    ]
+    .concat();
+    let o = cable_servo(&args, dir);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    out
+}
+
+fn merge(dir: &Path, out: &Path, shards: &[&PathBuf], extra: &[&str]) -> Output {
+    let mut args = vec!["merge", "--out", p(out)];
+    args.extend_from_slice(extra);
+    args.extend(shards.iter().map(|s| p(s)));
+    cable_servo(&args, dir)
+}
+
+#[test]
+fn merge_refuses_a_missing_truncated_duplicated_or_foreign_shard() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let s1 = shard(dir, 1, 3, "5");
+    let s2 = shard(dir, 2, 3, "5");
+    let s3 = shard(dir, 3, 3, "5");
+    let out = dir.join("merged.csv");
+
+    // One shard missing.
+    let o = merge(dir, &out, &[&s1, &s3], &[]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(err.contains("shard 2/3 missing (4 of 12 cases)"), "{err}");
+    assert!(err.contains("--partial"), "{err}");
+    assert!(!out.exists());
+
+    // A shard given twice.
+    let o = merge(dir, &out, &[&s1, &s2, &s2, &s3], &[]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(err.contains("shard 2/3 given twice"), "{err}");
+    assert!(!out.exists());
+
+    // A shard of another sweep (other seed: other case list).
+    let foreign = shard(dir, 2, 3, "6");
+    let o = merge(dir, &out, &[&s1, &foreign, &s3], &[]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(err.contains("belongs to another sweep"), "{err}");
+    assert!(err.contains(p(&foreign)), "{err}");
+    assert!(!out.exists());
+
+    // A shard cut short: its last row removed.
+    let table = fs::read_to_string(s3.join("sweep.csv")).unwrap();
+    let cut: Vec<&str> = table.lines().collect();
+    fs::write(s3.join("sweep.csv"), cut[..cut.len() - 1].join("\n") + "\n").unwrap();
+    let o = merge(dir, &out, &[&s1, &s2, &s3], &[]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(
+        err.contains("shard 3/3") && err.contains("truncated: 3 of its 4 cases"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    // A row cut mid-write.
+    fs::write(s3.join("sweep.csv"), &table[..table.len() - 4]).unwrap();
+    let o = merge(dir, &out, &[&s1, &s2, &s3], &[]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(err.contains("cut short"), "{err}");
+    fs::write(s3.join("sweep.csv"), &table).unwrap();
+
+    // Asked for: a partial merge, marked partial on the terminal and in its record.
+    let o = merge(dir, &out, &[&s1, &s3], &["--partial"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("PARTIAL merge: 8 of 12 cases"),
+        "{}",
+        stdout(&o)
+    );
+    assert!(stderr(&o).contains("shard 2/3 missing"), "{}", stderr(&o));
+    let record = fs::read_to_string(dir.join("merged.csv.merge.json")).unwrap();
+    assert!(record.contains("\"partial\": true"), "{record}");
+    assert!(record.contains("\"complete\": false"), "{record}");
+    assert_eq!(fs::read_to_string(&out).unwrap().lines().count(), 9);
+
+    // The whole set merges, complete.
+    let o = merge(dir, &out, &[&s3, &s1, &s2], &["--force"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).contains("12 cases merged"), "{}", stdout(&o));
+    let record = fs::read_to_string(dir.join("merged.csv.merge.json")).unwrap();
+    assert!(record.contains("\"complete\": true"), "{record}");
+}
