@@ -243,3 +243,56 @@ fn merge_refuses_a_missing_truncated_duplicated_or_foreign_shard() {
     let record = fs::read_to_string(dir.join("merged.csv.merge.json")).unwrap();
     assert!(record.contains("\"complete\": true"), "{record}");
 }
+
+/// SIGINT or SIGTERM to a running sweep: the finished rows are kept, marked incomplete,
+/// with the signal's exit code; no hidden staging directory is left behind.
+#[test]
+fn a_signal_to_a_running_sweep_keeps_the_finished_cases_marked_incomplete() {
+    for (sig, code) in [("INT", 130), ("TERM", 143)] {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("sweep");
+        let child = Command::new(EXE)
+            .args([
+                "sweep",
+                "eots_tolerance",
+                "--samples",
+                "400",
+                "--threads",
+                "2",
+                "--out",
+                p(&out),
+            ])
+            .current_dir(tmp.path())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Long enough for some cases to finish, far shorter than the whole sweep.
+        std::thread::sleep(std::time::Duration::from_millis(1500));
+        let status = Command::new("kill")
+            .args([&format!("-{sig}"), &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success());
+        let o = child.wait_with_output().unwrap();
+        no_panic(&o);
+        assert_eq!(o.status.code(), Some(code), "SIG{sig}: {}", stderr(&o));
+        assert!(stderr(&o).contains("interrupted"), "{}", stderr(&o));
+        let left = entries(tmp.path());
+        assert!(
+            left.iter().all(|e| !e.contains("partial")),
+            "staging left behind: {left:?}"
+        );
+        if out.exists() {
+            let files = entries(&out);
+            assert!(files.contains(&"INCOMPLETE.txt".to_string()), "{files:?}");
+            let summary = fs::read_to_string(out.join("summary.json")).unwrap();
+            assert!(summary.contains("\"complete\": false"), "{summary}");
+            let rows = fs::read_to_string(out.join("sweep.csv"))
+                .unwrap()
+                .lines()
+                .count();
+            assert!(rows < 401, "{rows} rows: the sweep was not interrupted");
+        }
+    }
+}

@@ -6,7 +6,7 @@
 //! the first sample cannot follow that, and the seconds after it say nothing about the
 //! drive, so they are cut.
 
-use crate::io::benchlog::BenchLog;
+use crate::measurement::BenchLog;
 
 /// Settling time kept out after the load has reached 90 % of its step, s: the da Vinci
 /// bench's jaw motor settles within about 0.1 s; four times that leaves margin.
