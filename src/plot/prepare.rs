@@ -1,0 +1,364 @@
+//! Chart preparation, pure data work with no drawing: clipping, staircases, min/max reduction per pixel column, ranges.
+
+use plotters::prelude::*;
+use std::collections::HashSet;
+
+use super::*;
+
+pub(super) type Pt = (f64, f64);
+
+/// Axis-aligned clip box in drawing coordinates.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Bounds {
+    pub(super) x0: f64,
+    pub(super) x1: f64,
+    pub(super) y0: f64,
+    pub(super) y1: f64,
+}
+
+impl Bounds {
+    pub(super) fn contains(&self, p: Pt) -> bool {
+        p.0 >= self.x0 && p.0 <= self.x1 && p.1 >= self.y0 && p.1 <= self.y1
+    }
+}
+
+/// Liang–Barsky clipping of segment `p`-`q`. Unclipped ends are returned
+/// bit-identical so polylines can be re-joined.
+pub(super) fn clip_segment(p: Pt, q: Pt, b: &Bounds) -> Option<(Pt, Pt)> {
+    let dx = q.0 - p.0;
+    let dy = q.1 - p.1;
+    let mut t0 = 0.0f64;
+    let mut t1 = 1.0f64;
+    for (pp, qq) in [
+        (-dx, p.0 - b.x0),
+        (dx, b.x1 - p.0),
+        (-dy, p.1 - b.y0),
+        (dy, b.y1 - p.1),
+    ] {
+        if pp == 0.0 {
+            if qq < 0.0 {
+                return None;
+            }
+        } else {
+            let r = qq / pp;
+            if pp < 0.0 {
+                if r > t1 {
+                    return None;
+                }
+                t0 = t0.max(r);
+            } else {
+                if r < t0 {
+                    return None;
+                }
+                t1 = t1.min(r);
+            }
+        }
+    }
+    let a = if t0 == 0.0 {
+        p
+    } else {
+        (p.0 + t0 * dx, p.1 + t0 * dy)
+    };
+    let c = if t1 == 1.0 {
+        q
+    } else {
+        (p.0 + t1 * dx, p.1 + t1 * dy)
+    };
+    let ok = a.0.is_finite() && a.1.is_finite() && c.0.is_finite() && c.1.is_finite();
+    ok.then_some((a, c))
+}
+
+/// Clips a polyline to `b`, splitting it where it leaves the box.
+pub(super) fn clip_polyline(pts: &[Pt], b: &Bounds) -> Vec<Vec<Pt>> {
+    let mut out = Vec::new();
+    let mut cur: Vec<Pt> = Vec::new();
+    let flush = |cur: &mut Vec<Pt>, out: &mut Vec<Vec<Pt>>| {
+        if cur.len() >= 2 {
+            out.push(std::mem::take(cur));
+        } else {
+            cur.clear();
+        }
+    };
+    for w in pts.windows(2) {
+        match clip_segment(w[0], w[1], b) {
+            None => flush(&mut cur, &mut out),
+            Some((a, c)) => {
+                if cur.last() != Some(&a) {
+                    flush(&mut cur, &mut out);
+                    cur.push(a);
+                }
+                cur.push(c);
+                if c != w[1] {
+                    flush(&mut cur, &mut out);
+                }
+            }
+        }
+    }
+    flush(&mut cur, &mut out);
+    out
+}
+
+/// Zero-order-hold staircase through the samples.
+pub(super) fn staircase(x: &[f64], y: &[f64]) -> Vec<Pt> {
+    let n = x.len().min(y.len());
+    let mut out = Vec::with_capacity(2 * n);
+    for i in 0..n {
+        out.push((x[i], y[i]));
+        if i + 1 < n {
+            out.push((x[i + 1], y[i]));
+        }
+    }
+    out
+}
+
+/// Splits a series into runs of consecutive drawable samples (drawing
+/// coordinates; non-finite or out-of-domain samples break runs).
+pub(super) fn drawable_runs(s: &Series, log_x: bool) -> Vec<(Vec<f64>, Vec<f64>)> {
+    let n = s.x.len().min(s.y.len());
+    let mut runs = Vec::new();
+    let mut cx = Vec::new();
+    let mut cy = Vec::new();
+    for i in 0..n {
+        let x = if log_x {
+            if s.x[i] > 0.0 {
+                s.x[i].log10()
+            } else {
+                f64::NAN
+            }
+        } else {
+            s.x[i]
+        };
+        let y = s.y[i];
+        if x.is_finite() && y.is_finite() {
+            cx.push(x);
+            cy.push(y);
+        } else if !cx.is_empty() {
+            runs.push((std::mem::take(&mut cx), std::mem::take(&mut cy)));
+        }
+    }
+    if !cx.is_empty() {
+        runs.push((cx, cy));
+    }
+    runs
+}
+
+/// Keeps the parts of a run that can be visible in the x range `[lo, hi]`:
+/// samples inside it and samples whose segment to a neighbour crosses it.
+pub(super) fn trim_to_x(rx: &[f64], ry: &[f64], lo: f64, hi: f64) -> Vec<(Vec<f64>, Vec<f64>)> {
+    let n = rx.len().min(ry.len());
+    let seg_visible = |a: usize, b: usize| rx[a].min(rx[b]) <= hi && rx[a].max(rx[b]) >= lo;
+    let mut out = Vec::new();
+    let (mut cx, mut cy) = (Vec::new(), Vec::new());
+    for i in 0..n {
+        let keep = (rx[i] >= lo && rx[i] <= hi)
+            || (i > 0 && seg_visible(i - 1, i))
+            || (i + 1 < n && seg_visible(i, i + 1));
+        if keep {
+            cx.push(rx[i]);
+            cy.push(ry[i]);
+        } else if !cx.is_empty() {
+            out.push((std::mem::take(&mut cx), std::mem::take(&mut cy)));
+        }
+    }
+    if !cx.is_empty() {
+        out.push((cx, cy));
+    }
+    out
+}
+
+/// Drops markers that would land on the same pixel (visually lossless).
+pub(super) fn dedupe_markers(pts: Vec<Pt>, b: &Bounds) -> Vec<Pt> {
+    if pts.len() <= 4000 {
+        return pts;
+    }
+    let (w, h) = (b.x1 - b.x0, b.y1 - b.y0);
+    let mut seen = HashSet::with_capacity(pts.len().min(1 << 16));
+    pts.into_iter()
+        .filter(|p| {
+            let kx = ((p.0 - b.x0) / w * 2400.0) as i64;
+            let ky = ((p.1 - b.y0) / h * 1400.0) as i64;
+            seen.insert((kx, ky))
+        })
+        .collect()
+}
+
+/// A series ready for drawing (drawing coordinates, clipped).
+#[derive(Debug)]
+pub(super) struct PreparedSeries {
+    pub(super) label: String,
+    pub(super) color: RGBColor,
+    pub(super) style: SeriesStyle,
+    pub(super) lines: Vec<Vec<Pt>>,
+    pub(super) dots: Vec<Pt>,
+    /// Has at least one drawable sample anywhere (decides the legend entry).
+    pub(super) has_data: bool,
+}
+
+/// A band ready for drawing (clamped to the y axis).
+#[derive(Debug)]
+pub(super) struct PreparedBand {
+    pub(super) lo: f64,
+    pub(super) hi: f64,
+    pub(super) label: String,
+    pub(super) color: RGBColor,
+}
+
+/// A chart ready for drawing.
+#[derive(Debug)]
+pub(super) struct PreparedChart {
+    pub(super) title: String,
+    pub(super) x_label: String,
+    pub(super) y_label: String,
+    pub(super) x: Axis,
+    pub(super) y: Axis,
+    pub(super) series: Vec<PreparedSeries>,
+    pub(super) bands: Vec<PreparedBand>,
+    pub(super) has_data: bool,
+}
+
+impl PreparedChart {
+    pub(super) fn has_legend(&self) -> bool {
+        self.series
+            .iter()
+            .any(|s| s.has_data && !s.label.is_empty())
+            || self.bands.iter().any(|b| !b.label.is_empty())
+    }
+}
+
+/// Decimation buckets for a figure of the given width (≈ plot pixels).
+pub(super) fn plot_buckets(fig_width: u32) -> usize {
+    (fig_width as usize).saturating_sub(150).max(100)
+}
+
+pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedChart, PlotError> {
+    let log_x = chart.log_x;
+    let runs: Vec<Vec<(Vec<f64>, Vec<f64>)>> = chart
+        .series
+        .iter()
+        .map(|s| drawable_runs(s, log_x))
+        .collect();
+
+    // Data extents in drawing coordinates.
+    let (mut xmin, mut xmax) = (f64::INFINITY, f64::NEG_INFINITY);
+    let (mut ymin, mut ymax) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (rx, ry) in runs.iter().flatten() {
+        for &v in rx {
+            xmin = xmin.min(v);
+            xmax = xmax.max(v);
+        }
+        for &v in ry {
+            ymin = ymin.min(v);
+            ymax = ymax.max(v);
+        }
+    }
+    let has_data = xmin <= xmax;
+    for b in &chart.bands {
+        for v in [b.lo, b.hi] {
+            if v.is_finite() && !(b.lo.is_nan() || b.hi.is_nan()) {
+                ymin = ymin.min(v);
+                ymax = ymax.max(v);
+            }
+        }
+    }
+
+    let (x0, x1) = match chart.x_range {
+        Some(r) => explicit_range(r, log_x, "x")?,
+        None => auto_range(xmin, xmax, log_x),
+    };
+    let (y0, y1) = match chart.y_range {
+        Some(r) => explicit_range(r, false, "y")?,
+        None => auto_range(ymin, ymax, false),
+    };
+    let x_axis = if log_x {
+        Axis::log10(x0, x1)
+    } else {
+        Axis::linear(x0, x1, 8)
+    };
+    let y_axis = Axis::linear(y0, y1, 6);
+    let bounds = Bounds { x0, x1, y0, y1 };
+
+    let mut series = Vec::with_capacity(chart.series.len());
+    for (idx, (s, runs)) in chart.series.iter().zip(&runs).enumerate() {
+        let mut lines = Vec::new();
+        let mut dots = Vec::new();
+        match s.style {
+            SeriesStyle::Points => {
+                for (rx, ry) in runs {
+                    dots.extend(
+                        rx.iter()
+                            .zip(ry)
+                            .map(|(&x, &y)| (x, y))
+                            .filter(|&p| bounds.contains(p)),
+                    );
+                }
+                dots = dedupe_markers(dots, &bounds);
+            }
+            SeriesStyle::Line | SeriesStyle::Step => {
+                // Only what can be seen gets the pixel budget, so a zoomed
+                // x range keeps full resolution.
+                let visible: Vec<(Vec<f64>, Vec<f64>)> = runs
+                    .iter()
+                    .flat_map(|(rx, ry)| trim_to_x(rx, ry, x0, x1))
+                    .collect();
+                let total: usize = visible.iter().map(|(rx, _)| rx.len()).sum();
+                for (rx, ry) in &visible {
+                    let share = (buckets as f64 * rx.len() as f64 / total.max(1) as f64).ceil();
+                    let (dx, dy) = decimate_minmax(rx, ry, (share as usize).max(1));
+                    if dx.len() == 1 {
+                        if bounds.contains((dx[0], dy[0])) {
+                            dots.push((dx[0], dy[0]));
+                        }
+                        continue;
+                    }
+                    let pts: Vec<Pt> = if s.style == SeriesStyle::Step {
+                        staircase(&dx, &dy)
+                    } else {
+                        dx.into_iter().zip(dy).collect()
+                    };
+                    lines.extend(clip_polyline(&pts, &bounds));
+                }
+            }
+        }
+        series.push(PreparedSeries {
+            label: s.label.clone(),
+            color: PALETTE[idx % PALETTE.len()],
+            style: s.style,
+            lines,
+            dots,
+            has_data: !runs.is_empty(),
+        });
+    }
+
+    let mut bands = Vec::new();
+    for b in &chart.bands {
+        if b.lo.is_nan() || b.hi.is_nan() {
+            continue;
+        }
+        let (lo, hi) = if b.lo <= b.hi {
+            (b.lo, b.hi)
+        } else {
+            (b.hi, b.lo)
+        };
+        let (lo, hi) = (lo.max(y0), hi.min(y1));
+        if lo >= hi {
+            continue;
+        }
+        bands.push(PreparedBand {
+            lo,
+            hi,
+            label: b.label.clone(),
+            color: BAND_COLORS[bands.len() % BAND_COLORS.len()],
+        });
+    }
+
+    Ok(PreparedChart {
+        title: chart.title.clone(),
+        x_label: chart.x_label.clone(),
+        y_label: chart.y_label.clone(),
+        x: x_axis,
+        y: y_axis,
+        series,
+        bands,
+        has_data,
+    })
+}

@@ -1,0 +1,652 @@
+//! Figures against their data: ranges, files, robustness.
+
+use std::fs;
+
+use super::*;
+
+/// Fresh output directory for one test.
+fn out_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir()
+        .join("cable-servo-plot-tests")
+        .join(name);
+    let _ = fs::remove_dir_all(&dir);
+    dir
+}
+
+/// Files exist, are non-empty, PNG is a PNG of the expected size, SVG is
+/// an SVG, and no temporary file is left behind.
+fn check_outputs(paths: &[PathBuf], size: (u32, u32)) {
+    assert_eq!(paths.len(), 2);
+    let png = fs::read(&paths[0]).expect("png readable");
+    assert!(paths[0].extension().is_some_and(|e| e == "png"));
+    assert!(png.len() > 1000, "png too small: {}", png.len());
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let w = u32::from_be_bytes([png[16], png[17], png[18], png[19]]);
+    let h = u32::from_be_bytes([png[20], png[21], png[22], png[23]]);
+    assert_eq!((w, h), size);
+    let svg = fs::read_to_string(&paths[1]).expect("svg readable");
+    assert!(paths[1].extension().is_some_and(|e| e == "svg"));
+    assert!(svg.contains("<svg"));
+    assert!(svg.trim_end().ends_with("</svg>"));
+    let dir = paths[0].parent().expect("parent");
+    for entry in fs::read_dir(dir).expect("dir") {
+        let name = entry.expect("entry").file_name();
+        assert!(
+            !name.to_string_lossy().ends_with(".tmp"),
+            "temporary file left: {name:?}"
+        );
+    }
+}
+
+fn is_sorted(v: &[f64]) -> bool {
+    v.windows(2).all(|w| w[0] <= w[1])
+}
+
+#[test]
+fn decimate_keeps_extremes_and_bounds() {
+    let n = 100_000;
+    let x: Vec<f64> = (0..n).map(|i| i as f64 * 1e-3).collect();
+    let mut y: Vec<f64> = x.iter().map(|t| (t * 7.0).sin()).collect();
+    y[12_345] = 5.0; // single-sample spike
+    y[77_777] = -4.0;
+    for buckets in [1, 7, 100, 1000] {
+        let (dx, dy) = decimate_minmax(&x, &y, buckets);
+        assert!(dx.len() <= 2 * buckets, "{} > 2*{buckets}", dx.len());
+        assert_eq!(dx.len(), dy.len());
+        assert!(dy.contains(&5.0) && dy.contains(&-4.0));
+        assert!(is_sorted(&dx));
+        // Every output point is an input point.
+        for (xx, yy) in dx.iter().zip(&dy) {
+            let i = (xx * 1e3).round() as usize;
+            assert_eq!(y[i], *yy);
+        }
+    }
+    // buckets == 0 behaves like 1.
+    let (dx, _) = decimate_minmax(&x, &y, 0);
+    assert!(dx.len() <= 2);
+}
+
+#[test]
+fn decimate_short_and_edge_cases() {
+    assert_eq!(decimate_minmax(&[], &[], 10), (vec![], vec![]));
+    assert_eq!(decimate_minmax(&[1.0], &[2.0], 10), (vec![1.0], vec![2.0]));
+    assert_eq!(decimate_minmax(&[1.0], &[2.0], 0), (vec![1.0], vec![2.0]));
+    // Short series (even with NaN) are returned unchanged.
+    let (dx, dy) = decimate_minmax(&[0.0, 1.0, 2.0], &[1.0, f64::NAN, 3.0], 2);
+    assert_eq!(dx, vec![0.0, 1.0, 2.0]);
+    assert!(dy[1].is_nan());
+    // Mismatched lengths use the common prefix.
+    let (dx, dy) = decimate_minmax(&[0.0, 1.0, 2.0], &[5.0, 6.0], 10);
+    assert_eq!((dx.len(), dy.len()), (2, 2));
+}
+
+#[test]
+fn decimate_handles_nan() {
+    let n = 50_000;
+    let x: Vec<f64> = (0..n).map(|i| i as f64).collect();
+    let mut y: Vec<f64> = x.iter().map(|t| (t * 0.01).cos()).collect();
+    for i in (0..n).step_by(97) {
+        y[i] = f64::NAN;
+    }
+    y[5] = f64::INFINITY;
+    y[40_000] = 9.0;
+    y[40_001] = -9.0;
+    let mut x2 = x.clone();
+    x2[100] = f64::NAN;
+    let (dx, dy) = decimate_minmax(&x2, &y, 50);
+    assert!(dx.len() <= 100);
+    assert!(dx.iter().chain(&dy).all(|v| v.is_finite()));
+    assert!(dy.contains(&9.0) && dy.contains(&-9.0));
+    assert!(is_sorted(&dx));
+    // Only non-finite data reduces to nothing, without panicking.
+    let nan = vec![f64::NAN; 1000];
+    assert_eq!(decimate_minmax(&nan, &nan, 10), (vec![], vec![]));
+    // Constant x (zero width: falls back to equal-count buckets).
+    let cx = vec![1.0; 1000];
+    let (dx, dy) = decimate_minmax(&cx, &y[..1000], 10);
+    assert!(dx.len() <= 20 && !dy.is_empty());
+}
+
+#[test]
+fn decimate_non_monotonic_x() {
+    // A hysteresis-like loop: x goes up and down.
+    let n = 20_000;
+    let t: Vec<f64> = (0..n)
+        .map(|i| i as f64 / n as f64 * std::f64::consts::TAU)
+        .collect();
+    let x: Vec<f64> = t.iter().map(|t| t.sin()).collect();
+    let y: Vec<f64> = t.iter().map(|t| (t + 0.5).sin()).collect();
+    let (dx, dy) = decimate_minmax(&x, &y, 100);
+    assert!(dx.len() <= 200 && dx.len() == dy.len());
+    let ymax = y.iter().copied().fold(f64::MIN, f64::max);
+    let ymin = y.iter().copied().fold(f64::MAX, f64::min);
+    assert!(dy.contains(&ymax) && dy.contains(&ymin));
+}
+
+#[test]
+fn ticks_and_labels_are_clean() {
+    let a = Axis::linear(0.0, 0.7, 8);
+    let labels: Vec<String> = a.major.iter().map(|&v| a.label(v)).collect();
+    assert_eq!(
+        labels,
+        ["0.0", "0.1", "0.2", "0.3", "0.4", "0.5", "0.6", "0.7"]
+    );
+    let a = Axis::linear(-3.3, 12.0, 8);
+    let labels: Vec<String> = a.major.iter().map(|&v| a.label(v)).collect();
+    assert_eq!(labels, ["-2", "0", "2", "4", "6", "8", "10", "12"]);
+    let a = Axis::linear(-2e-6, 3e-6, 6);
+    assert!(a.major.len() >= 3);
+    assert!(a.major.iter().all(|&v| !a.label(v).is_empty()));
+    let lg = Axis::log10(-1.0, 3.0);
+    let labels: Vec<String> = lg.major.iter().map(|&v| lg.label(v)).collect();
+    for want in ["0.1", "1", "10", "100", "1000"] {
+        assert!(labels.contains(&want.to_string()), "{labels:?}");
+    }
+    let lg = Axis::log10(2.0, 8.0);
+    let labels: Vec<String> = lg.major.iter().map(|&v| lg.label(v)).collect();
+    assert!(labels.contains(&"1e6".to_string()), "{labels:?}");
+    // Narrow log range still gets at least two ticks.
+    assert!(Axis::log10(0.0, 0.05).major.len() >= 2);
+    let a = Axis::linear(0.9e6, 1.7e6, 4);
+    let labels: Vec<String> = a.major.iter().map(|&v| a.label(v)).collect();
+    assert_eq!(labels, ["1.0e6", "1.2e6", "1.4e6", "1.6e6"]);
+    let a = Axis::linear(-f64::MAX, f64::MAX, 8);
+    let labels: Vec<String> = a.major.iter().map(|&v| a.label(v)).collect();
+    assert!(labels.contains(&"1.5e308".to_string()), "{labels:?}");
+    assert_eq!(fmt_log_tick(-240.0), "1e-240");
+    assert_eq!(fmt_log_tick(60.0 + 2f64.log10()), "2e60");
+    assert_eq!(fmt_log_tick(-2.0 + 5f64.log10()), "0.05");
+    assert_eq!(fmt_log_tick(6.0 - 1e-12), "1e6");
+    assert_eq!(fmt_general(0.002), "0.002");
+    assert_eq!(fmt_general(2e-5), "2e-5");
+}
+
+#[test]
+fn ranges_are_never_degenerate() {
+    let (a, b) = auto_range(3.0, 3.0, false);
+    assert!(b > a && a < 3.0 && b > 3.0);
+    let (a, b) = auto_range(0.0, 0.0, false);
+    assert!(b > a);
+    let (a, b) = auto_range(f64::INFINITY, f64::NEG_INFINITY, false);
+    assert!(b > a);
+    let (a, b) = explicit_range((2.0, 2.0), false, "y").expect("padded");
+    assert!(b > a);
+    let (a, b) = explicit_range((5.0, 1.0), false, "y").expect("swapped");
+    assert_eq!((a, b), (1.0, 5.0));
+    assert!(explicit_range((f64::NAN, 1.0), false, "y").is_err());
+    assert!(explicit_range((0.0, 10.0), true, "x").is_err());
+}
+
+#[test]
+fn zoomed_long_trace_keeps_resolution() {
+    // 200k samples over 0..100 s, viewing only 1..2 s: the visible second
+    // still gets about one bucket per pixel, and two series don't share it.
+    let n = 200_000;
+    let t: Vec<f64> = (0..n).map(|i| i as f64 * 5e-4).collect();
+    let y: Vec<f64> = t.iter().map(|t| (t * 50.0).sin()).collect();
+    let chart = Chart {
+        series: vec![
+            Series::line("a", t.clone(), y.clone()),
+            Series::step("b", t.clone(), y.clone()),
+        ],
+        x_range: Some((1.0, 2.0)),
+        ..Default::default()
+    };
+    let buckets = plot_buckets(CHART_SIZE.0);
+    let p = prepare_chart(&chart, buckets).expect("prepare");
+    let a: usize = p.series[0].lines.iter().map(Vec::len).sum();
+    assert!(a >= buckets, "only {a} points for {buckets} buckets");
+    assert!(a <= 2 * buckets + 4, "{a}");
+    for l in p.series.iter().flat_map(|s| &s.lines) {
+        assert!(l.iter().all(|q| (1.0..=2.0).contains(&q.0)));
+    }
+    // A segment crossing the whole view with both ends outside is kept.
+    let kept = trim_to_x(&[0.0, 10.0], &[1.0, 2.0], 4.0, 5.0);
+    assert_eq!(kept.len(), 1);
+    assert_eq!(kept[0].0, vec![0.0, 10.0]);
+    assert!(trim_to_x(&[0.0, 1.0], &[1.0, 2.0], 4.0, 5.0).is_empty());
+}
+
+#[test]
+fn clipping_splits_and_rejoins() {
+    let b = Bounds {
+        x0: 0.0,
+        x1: 10.0,
+        y0: 0.0,
+        y1: 1.0,
+    };
+    let pts = vec![(0.0, 0.5), (2.0, 0.5), (3.0, 2.0), (4.0, 0.5), (6.0, 0.5)];
+    let lines = clip_polyline(&pts, &b);
+    assert_eq!(lines.len(), 2, "{lines:?}");
+    assert_eq!(lines[0][0], (0.0, 0.5));
+    assert_eq!(lines[1].last(), Some(&(6.0, 0.5)));
+    for l in &lines {
+        for p in l {
+            assert!(b.contains(*p), "{p:?} outside");
+        }
+    }
+    assert!(clip_segment((-1.0, 5.0), (11.0, 5.0), &b).is_none());
+}
+
+#[test]
+fn contour_segments_are_chained() {
+    // An L-shaped edge path plus a separate segment.
+    let segs = vec![
+        ((1.0, 0.0), (1.0, 1.0)),
+        ((2.0, 5.0), (3.0, 5.0)),
+        ((1.0, 1.0), (2.0, 1.0)),
+        ((0.0, 0.0), (1.0, 0.0)),
+        ((2.0, 1.0), (3.0, 1.0)), // collinear continuation
+    ];
+    let mut lines = chain_segments(&segs);
+    lines.sort_by_key(|l| l.len());
+    assert_eq!(lines.len(), 2);
+    assert_eq!(lines[0].len(), 2);
+    assert_eq!(lines[1].len(), 4, "{lines:?}");
+    let ends = [lines[1][0], lines[1][3]];
+    assert!(ends.contains(&(0.0, 0.0)) && ends.contains(&(3.0, 1.0)));
+}
+
+#[test]
+fn save_chart_messy_data() {
+    let dir = out_dir("messy");
+    let t: Vec<f64> = (0..500).map(|i| i as f64 * 0.01).collect();
+    let mut err: Vec<f64> = t
+        .iter()
+        .map(|t| 0.15 * (-t).exp() * (t * 9.0).sin())
+        .collect();
+    err[100] = f64::NAN;
+    err[200] = f64::INFINITY;
+    err[201] = f64::NEG_INFINITY;
+    let mut t2 = t.clone();
+    t2[300] = f64::NAN;
+    let chart = Chart {
+        title: "Pointing error (messy data)".into(),
+        x_label: "time [s]".into(),
+        y_label: "error [mrad]".into(),
+        series: vec![
+            Series::line("az error", t2.clone(), err.clone()),
+            Series::line("empty", vec![], vec![]),
+            Series::line("constant", t.clone(), vec![0.05; t.len()]),
+            Series::step(
+                "command (ZOH)",
+                t.iter().step_by(50).copied().collect(),
+                err.iter().step_by(50).map(|v| v * 0.5).collect(),
+            ),
+            Series::points(
+                "samples",
+                t.iter().step_by(25).copied().collect(),
+                vec![-0.1; 20],
+            ),
+            Series::line("all nan", vec![f64::NAN; 3], vec![1.0; 3]),
+            Series::line("", vec![1.0, 2.0], vec![f64::NAN, 0.0]),
+        ],
+        bands: vec![
+            HBand {
+                lo: -0.1,
+                hi: 0.1,
+                label: "target ±0.1 mrad".into(),
+            },
+            HBand {
+                lo: f64::NAN,
+                hi: 1.0,
+                label: "invisible".into(),
+            },
+        ],
+        ..Default::default()
+    };
+    let paths = save_chart(&chart, &dir.join("messy")).expect("save");
+    check_outputs(&paths, CHART_SIZE);
+    let svg = fs::read_to_string(&paths[1]).expect("svg");
+    assert!(svg.contains("target ±0.1 mrad"));
+    assert!(svg.contains("az error"));
+    assert!(
+        !svg.contains("all nan"),
+        "all-NaN series must not be in legend"
+    );
+    assert!(!svg.contains("invisible"));
+    assert!(!svg.contains("NaN"));
+}
+
+#[test]
+fn save_chart_degenerate_and_empty() {
+    let dir = out_dir("degenerate");
+    // Only a constant series (single point, even).
+    let chart = Chart {
+        series: vec![Series::line("c", vec![1.0], vec![2.0])],
+        ..Default::default()
+    };
+    check_outputs(
+        &save_chart(&chart, &dir.join("single")).expect("single"),
+        CHART_SIZE,
+    );
+    // No finite data at all.
+    let chart = Chart {
+        title: "nothing".into(),
+        series: vec![
+            Series::line("nan", vec![f64::NAN; 4], vec![f64::NAN; 4]),
+            Series::points("empty", vec![], vec![]),
+        ],
+        ..Default::default()
+    };
+    let paths = save_chart(&chart, &dir.join("empty")).expect("empty");
+    check_outputs(&paths, CHART_SIZE);
+    assert!(fs::read_to_string(&paths[1])
+        .expect("svg")
+        .contains("no finite data"));
+    // Completely default chart.
+    check_outputs(
+        &save_chart(&Chart::default(), &dir.join("default")).expect("default"),
+        CHART_SIZE,
+    );
+    // Explicit ranges clip the data; dotted stem keeps its dot.
+    let chart = Chart {
+        series: vec![Series::line(
+            "clipped",
+            (0..100).map(f64::from).collect(),
+            (0..100).map(|i| f64::from(i) * 10.0).collect(),
+        )],
+        x_range: Some((90.0, 10.0)),
+        y_range: Some((100.0, 100.0)),
+        ..Default::default()
+    };
+    let paths = save_chart(&chart, &dir.join("run_0.1")).expect("ranges");
+    assert_eq!(paths[0].file_name().expect("name"), "run_0.1.png");
+    check_outputs(&paths, CHART_SIZE);
+}
+
+#[test]
+fn failed_write_leaves_no_temporary_files() {
+    let dir = out_dir("blocked");
+    // A directory where the PNG should go makes the final rename fail.
+    fs::create_dir_all(dir.join("fig.png").join("occupied")).expect("mkdir");
+    let chart = Chart {
+        series: vec![Series::line("a", vec![0.0, 1.0], vec![0.0, 1.0])],
+        ..Default::default()
+    };
+    let res = save_chart(&chart, &dir.join("fig"));
+    assert!(matches!(res, Err(PlotError::Io { .. })), "{res:?}");
+    assert!(!dir.join("fig.png.tmp").exists());
+    assert!(!dir.join("fig.svg.tmp").exists());
+    // A stale temporary from a crashed run does not block a new save.
+    fs::create_dir_all(dir.join("ok.png.tmp").join("junk")).expect("mkdir");
+    fs::write(dir.join("ok.svg.tmp"), b"half-written").expect("write");
+    let paths = save_chart(&chart, &dir.join("ok")).expect("save over stale tmp");
+    assert!(!dir.join("ok.png.tmp").exists() && !dir.join("ok.svg.tmp").exists());
+    assert!(paths.iter().all(|p| p.exists()));
+}
+
+#[test]
+fn save_chart_extreme_values() {
+    let dir = out_dir("extreme");
+    let big = f64::MAX;
+    let chart = Chart {
+        series: vec![
+            Series::line("huge", vec![-big, 0.0, big], vec![big, -big, 1e-320]),
+            Series::points("tiny", vec![1e-310, 2e-310], vec![5e-324, 0.0]),
+        ],
+        bands: vec![HBand {
+            lo: f64::NEG_INFINITY,
+            hi: f64::INFINITY,
+            label: "everything".into(),
+        }],
+        ..Default::default()
+    };
+    check_outputs(
+        &save_chart(&chart, &dir.join("huge")).expect("huge"),
+        CHART_SIZE,
+    );
+    let chart = Chart {
+        series: vec![Series::step(
+            "tiny",
+            vec![0.0, 1e-300, 2e-300],
+            vec![1.0, 1.0 + 1e-15, 1.0],
+        )],
+        log_x: true,
+        x_range: Some((1e-300, 1e300)),
+        ..Default::default()
+    };
+    check_outputs(
+        &save_chart(&chart, &dir.join("wide_log")).expect("wide"),
+        CHART_SIZE,
+    );
+    let map = Heatmap {
+        title: String::new(),
+        x_label: String::new(),
+        y_label: String::new(),
+        z_label: String::new(),
+        x: vec![0.0, 1.0],
+        y: vec![0.0, 1.0],
+        z: vec![vec![big, -big], vec![f64::INFINITY, 0.0]],
+        contour: Some(0.5),
+    };
+    check_outputs(
+        &save_heatmap(&map, &dir.join("heat")).expect("heat"),
+        HEATMAP_SIZE,
+    );
+}
+
+#[test]
+fn save_chart_log_x() {
+    let dir = out_dir("log");
+    let f: Vec<f64> = (-20..=60)
+        .map(|i| 10f64.powf(f64::from(i) / 20.0))
+        .collect();
+    let mag: Vec<f64> = f
+        .iter()
+        .map(|f| -20.0 * (1.0 + (f / 30.0).powi(2)).sqrt().log10())
+        .collect();
+    let mut fx = f.clone();
+    fx[0] = 0.0;
+    fx[1] = -5.0;
+    let chart = Chart {
+        title: "Closed-loop response".into(),
+        x_label: "frequency [Hz]".into(),
+        y_label: "magnitude [dB]".into(),
+        series: vec![
+            Series::line("|T(jω)|", fx.clone(), mag.clone()),
+            Series::points(
+                "measured",
+                fx.iter().step_by(7).copied().collect(),
+                mag.iter().step_by(7).map(|m| m + 0.5).collect(),
+            ),
+            Series::line("non-positive only", vec![0.0, -1.0], vec![1.0, 2.0]),
+        ],
+        bands: vec![HBand {
+            lo: -3.0,
+            hi: f64::INFINITY,
+            label: "-3 dB".into(),
+        }],
+        log_x: true,
+        ..Default::default()
+    };
+    check_outputs(
+        &save_chart(&chart, &dir.join("bode")).expect("log"),
+        CHART_SIZE,
+    );
+    // Invalid explicit log range is an error and leaves no files.
+    let bad = Chart {
+        log_x: true,
+        x_range: Some((0.0, 10.0)),
+        ..chart.clone()
+    };
+    assert!(matches!(
+        save_chart(&bad, &dir.join("bad")),
+        Err(PlotError::InvalidInput(_))
+    ));
+    assert!(!dir.join("bad.png").exists() && !dir.join("bad.svg").exists());
+    // Log axis with only non-positive x: empty figure, no panic.
+    let none = Chart {
+        series: vec![Series::line("neg", vec![-1.0, 0.0], vec![1.0, 2.0])],
+        log_x: true,
+        ..Default::default()
+    };
+    check_outputs(
+        &save_chart(&none, &dir.join("none")).expect("none"),
+        CHART_SIZE,
+    );
+}
+
+#[test]
+fn save_heatmap_nan_and_contour() {
+    let dir = out_dir("heat");
+    let x: Vec<f64> = (0..30).map(|i| 0.5 + f64::from(i) * 0.1).collect();
+    let y: Vec<f64> = (0..20).map(|i| 100.0 + f64::from(i) * 25.0).collect();
+    let z: Vec<Vec<f64>> = y
+        .iter()
+        .enumerate()
+        .map(|(iy, yv)| {
+            x.iter()
+                .enumerate()
+                .map(|(ix, xv)| {
+                    if (ix + iy) % 17 == 0 || (iy > 15 && ix > 25) {
+                        f64::NAN
+                    } else {
+                        0.02 + 0.3 * (xv - 1.5).powi(2) + yv / 5000.0
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let map = Heatmap {
+        title: "Pointing error over preload and stiffness".into(),
+        x_label: "preload [N]".into(),
+        y_label: "stiffness [N/mm]".into(),
+        z_label: "RMS error [mrad]".into(),
+        x,
+        y,
+        z,
+        contour: Some(0.1),
+    };
+    let prepared = prepare_heatmap(&map).expect("prepare");
+    assert!(prepared.has_missing);
+    assert!(!prepared.contour.as_ref().expect("contour").1.is_empty());
+    let paths = save_heatmap(&map, &dir.join("sweep")).expect("heatmap");
+    check_outputs(&paths, HEATMAP_SIZE);
+    let svg = fs::read_to_string(&paths[1]).expect("svg");
+    assert!(svg.contains("missing/failed") && svg.contains("contour 0.1"));
+
+    // All-NaN and single-cell maps still render.
+    let single = Heatmap {
+        x: vec![1.0],
+        y: vec![2.0],
+        z: vec![vec![f64::NAN]],
+        contour: None,
+        ..map.clone()
+    };
+    check_outputs(
+        &save_heatmap(&single, &dir.join("single")).expect("single"),
+        HEATMAP_SIZE,
+    );
+    // Bad dimensions are errors.
+    let bad = Heatmap {
+        z: vec![vec![1.0; 3]],
+        ..map.clone()
+    };
+    assert!(matches!(
+        save_heatmap(&bad, &dir.join("bad")),
+        Err(PlotError::InvalidInput(_))
+    ));
+    let bad = Heatmap { x: vec![], ..map };
+    assert!(save_heatmap(&bad, &dir.join("bad")).is_err());
+}
+
+#[test]
+fn save_panels_three_charts() {
+    let dir = out_dir("panels");
+    let t: Vec<f64> = (0..2000).map(|i| f64::from(i) * 1e-3).collect();
+    let angle = |f: f64| t.iter().map(|t| (t * f).sin()).collect::<Vec<_>>();
+    let charts = vec![
+        Chart {
+            title: "Gimbal angles".into(),
+            y_label: "angle [deg]".into(),
+            series: vec![
+                Series::line("azimuth", t.clone(), angle(3.0)),
+                Series::line("elevation", t.clone(), angle(5.0)),
+            ],
+            ..Default::default()
+        },
+        Chart {
+            title: "Pointing error".into(),
+            y_label: "error [mrad]".into(),
+            series: vec![Series::line(
+                "error",
+                t.clone(),
+                t.iter()
+                    .map(|t| 0.3 * (-3.0 * t).exp() * (t * 40.0).sin())
+                    .collect(),
+            )],
+            bands: vec![HBand {
+                lo: -0.1,
+                hi: 0.1,
+                label: "target".into(),
+            }],
+            ..Default::default()
+        },
+        Chart {
+            title: "Cable tensions".into(),
+            x_label: "time [s]".into(),
+            y_label: "tension [N]".into(),
+            series: vec![
+                Series::step(
+                    "T1",
+                    t.clone(),
+                    t.iter().map(|t| 120.0 + 30.0 * (t * 3.0).sin()).collect(),
+                ),
+                Series::step(
+                    "T2",
+                    t.clone(),
+                    t.iter().map(|t| 120.0 - 30.0 * (t * 3.0).sin()).collect(),
+                ),
+            ],
+            ..Default::default()
+        },
+    ];
+    let paths = save_panels(
+        "Step response, 10 deg",
+        &charts,
+        &dir.join("nested/dir/step"),
+    )
+    .expect("panels");
+    check_outputs(&paths, (PANEL_WIDTH, 50 + 3 * PANEL_HEIGHT));
+    assert!(matches!(
+        save_panels("x", &[], &dir.join("none")),
+        Err(PlotError::InvalidInput(_))
+    ));
+    let many = vec![Chart::default(); MAX_PANELS + 1];
+    assert!(matches!(
+        save_panels("x", &many, &dir.join("many")),
+        Err(PlotError::InvalidInput(_))
+    ));
+}
+
+#[test]
+fn save_chart_200k_points() {
+    let dir = out_dir("big");
+    let n = 200_000;
+    let t: Vec<f64> = (0..n).map(|i| i as f64 * 1e-4).collect();
+    let y: Vec<f64> = t
+        .iter()
+        .enumerate()
+        .map(|(i, t)| (t * 2.0).sin() + if i == 123_456 { 3.0 } else { 0.0 })
+        .collect();
+    let chart = Chart {
+        title: "200k samples".into(),
+        x_label: "time [s]".into(),
+        y_label: "signal".into(),
+        series: vec![
+            Series::line("trace", t.clone(), y.clone()),
+            Series::step("held", t.clone(), y.iter().map(|v| v * 0.5).collect()),
+        ],
+        ..Default::default()
+    };
+    let prepared = prepare_chart(&chart, plot_buckets(CHART_SIZE.0)).expect("prepare");
+    let drawn: usize = prepared.series[0].lines.iter().map(Vec::len).sum();
+    assert!(drawn <= 2 * plot_buckets(CHART_SIZE.0) + 2, "{drawn}");
+    let peak = prepared.series[0].lines.iter().flatten().any(|p| p.1 > 2.5);
+    assert!(peak, "spike lost by decimation");
+    let start = std::time::Instant::now();
+    let paths = save_chart(&chart, &dir.join("big")).expect("save");
+    eprintln!("200k-point chart saved in {:?}", start.elapsed());
+    check_outputs(&paths, CHART_SIZE);
+}
