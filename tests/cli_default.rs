@@ -30,7 +30,10 @@ fn no_arguments_runs_the_default_study_and_a_second_run_keeps_the_first() {
     let out = String::from_utf8_lossy(&second.stdout);
     assert_eq!(second.status.code(), Some(0), "{out}");
     assert!(out.contains("results: results/eots_tracking-2\n"), "{out}");
-    assert!(tmp.path().join("results/eots_tracking-2/summary.json").is_file());
+    assert!(tmp
+        .path()
+        .join("results/eots_tracking-2/summary.json")
+        .is_file());
     assert!(dir.join("summary.json").is_file());
 }
 
@@ -40,7 +43,12 @@ fn help_still_lists_the_commands() {
     let help = cable_servo(&["--help"], tmp.path());
     assert_eq!(help.status.code(), Some(0));
     let text = String::from_utf8_lossy(&help.stdout);
-    for cmd in ["run", "sweep", "merge", "design", "diagnose", "synth", "show"] {
-        assert!(text.contains(&format!("  {cmd} ")), "{cmd} missing:\n{text}");
+    for cmd in [
+        "run", "sweep", "merge", "design", "diagnose", "synth", "show",
+    ] {
+        assert!(
+            text.contains(&format!("  {cmd} ")),
+            "{cmd} missing:\n{text}"
+        );
     }
 }
