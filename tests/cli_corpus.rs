@@ -306,7 +306,6 @@ fn usage_errors_exit_2() {
     let tmp = tempfile::tempdir().unwrap();
     for args in [
         &["frobnicate"][..],
-        &[][..],
         &["run", "--bogus"][..],
         &["run", "--set"][..],
         &["sweep"][..],
