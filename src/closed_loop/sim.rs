@@ -478,9 +478,10 @@ fn run_mode(
         };
         prev_ref = r.value;
         let m_brake = brake_pred.update(delta);
-        // Without smooth loads the torque is exactly +0.0; the sine is not worth paying for.
-        let m_smooth = if coeff.smooth_load {
-            load.smooth_torque_nm(t, r.value)
+        // The compensator is given only the declared load models (unbalance, brake), from
+        // the reference: constant, sine and CSV torques reach it only through the sensors.
+        let m_smooth = if load.unbalance_nm != 0.0 {
+            load.known_torque_nm(r.value)
         } else {
             0.0
         };

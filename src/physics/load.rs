@@ -66,6 +66,54 @@ impl LoadParams {
         m
     }
 
+    /// The part of `smooth_torque_nm` a compensator may predict, N m: only the terms whose
+    /// `LoadTerm::known_to_compensator` is true (the unbalance, a declared model of the
+    /// payload). Constant, sine and CSV torques are disturbances a real controller meets
+    /// only when they act, so they are left out; the result depends on the angle alone.
+    pub fn known_torque_nm(&self, theta_out_rad: f64) -> f64 {
+        if LoadTerm::Unbalance.known_to_compensator() {
+            -self.unbalance_nm * (theta_out_rad + self.unbalance_phase_rad).sin()
+        } else {
+            0.0
+        }
+    }
+
+    /// Load terms present in this load whose torque the compensator is given in advance.
+    pub fn known_terms(&self) -> Vec<LoadTerm> {
+        self.present_terms()
+            .into_iter()
+            .filter(|t| t.known_to_compensator())
+            .collect()
+    }
+
+    /// Load terms present in this load that act on the plant unannounced.
+    pub fn unknown_terms(&self) -> Vec<LoadTerm> {
+        self.present_terms()
+            .into_iter()
+            .filter(|t| !t.known_to_compensator())
+            .collect()
+    }
+
+    fn present_terms(&self) -> Vec<LoadTerm> {
+        let mut v = Vec::new();
+        if self.brake_nm != 0.0 || self.breakaway_nm() != 0.0 {
+            v.push(LoadTerm::Brake);
+        }
+        if self.unbalance_nm != 0.0 {
+            v.push(LoadTerm::Unbalance);
+        }
+        if self.constant_nm != 0.0 {
+            v.push(LoadTerm::Constant);
+        }
+        if self.sine_nm != 0.0 {
+            v.push(LoadTerm::Sine);
+        }
+        if !self.disturbance.is_empty() || self.disturbance_csv.is_some() {
+            v.push(LoadTerm::Csv);
+        }
+        v
+    }
+
     /// Quasi-static load torque `Ml` (N m) when the drum moves in direction `direction`
     /// (+1, -1; 0 keeps the brake at zero).
     pub fn quasi_static_torque_nm(&self, t_s: f64, theta_out_rad: f64, direction: f64) -> f64 {
@@ -143,6 +191,31 @@ impl LoadParams {
     }
 }
 
+/// One term of the load on the drum.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LoadTerm {
+    /// Magnetic powder brake (declared model, direction from the reference).
+    Brake,
+    /// Mass unbalance (declared model, angle from the reference).
+    Unbalance,
+    /// Constant external torque (a disturbance).
+    Constant,
+    /// Sinusoidal disturbance torque.
+    Sine,
+    /// Measured external torque series.
+    Csv,
+}
+
+impl LoadTerm {
+    /// Whether the feedforward may use this term: true for modelled loads that follow
+    /// from the reference (brake, unbalance), false for time-driven disturbances, which a
+    /// real controller cannot know before they act.
+    pub fn known_to_compensator(self) -> bool {
+        matches!(self, LoadTerm::Brake | LoadTerm::Unbalance)
+    }
+}
+
 /// Linear interpolation in a time-sorted table, held constant outside it.
 pub fn interpolate(samples: &[(f64, f64)], t: f64) -> f64 {
     match samples {
@@ -160,5 +233,46 @@ pub fn interpolate(samples: &[(f64, f64)], t: f64) -> f64 {
                 v0 + (v1 - v0) * (t - t0) / (t1 - t0)
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn disturbances_are_not_known_to_the_compensator() {
+        let base = LoadParams {
+            brake_nm: 0.7,
+            unbalance_nm: 0.3,
+            unbalance_phase_rad: 0.4,
+            ..Default::default()
+        };
+        let disturbed = LoadParams {
+            constant_nm: 0.5,
+            sine_nm: 0.2,
+            sine_frequency_hz: 3.0,
+            disturbance: vec![(0.0, 0.1), (1.0, -0.4)],
+            ..base.clone()
+        };
+        for k in 0..50 {
+            let t = 0.02 * k as f64;
+            let th = 0.01 * k as f64 - 0.2;
+            assert_eq!(base.known_torque_nm(th), disturbed.known_torque_nm(th));
+            let want = -0.3 * (th + 0.4_f64).sin();
+            assert!((disturbed.known_torque_nm(th) - want).abs() < 1e-15);
+            assert_ne!(
+                base.smooth_torque_nm(t, th),
+                disturbed.smooth_torque_nm(t, th)
+            );
+        }
+        assert_eq!(
+            disturbed.unknown_terms(),
+            vec![LoadTerm::Constant, LoadTerm::Sine, LoadTerm::Csv]
+        );
+        assert_eq!(
+            disturbed.known_terms(),
+            vec![LoadTerm::Brake, LoadTerm::Unbalance]
+        );
     }
 }

@@ -10,4 +10,4 @@ pub mod wrap;
 
 pub use drive::{CableDrive, DriveFault, DriveParams, DriveState, Half, HysteresisModel, Routing};
 pub use effects::{EffectsParams, KinematicError};
-pub use load::LoadParams;
+pub use load::{LoadParams, LoadTerm};

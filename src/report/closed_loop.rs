@@ -43,6 +43,14 @@ struct ModeSummary<'a> {
 }
 
 #[derive(Serialize)]
+struct CompensatorGiven {
+    reference: bool,
+    known_load_terms: Vec<crate::physics::LoadTerm>,
+    unknown_load_terms: Vec<crate::physics::LoadTerm>,
+    note: &'static str,
+}
+
+#[derive(Serialize)]
 struct Summary<'a> {
     program_version: &'static str,
     scenario_name: &'a str,
@@ -51,6 +59,8 @@ struct Summary<'a> {
     complete: bool,
     command_unit: &'static str,
     modes: Vec<ModeSummary<'a>>,
+    /// What the memory and memoryless feedforward were given in advance.
+    compensator_given: CompensatorGiven,
     solver: SolverStats,
     scenario: &'a Scenario,
 }
@@ -142,6 +152,13 @@ pub fn write_closed_loop_outputs(
         complete: result.complete,
         command_unit,
         modes: result.modes.iter().map(mode_summary).collect(),
+        compensator_given: CompensatorGiven {
+            reference: true,
+            known_load_terms: scenario.load.known_terms(),
+            unknown_load_terms: scenario.load.unknown_terms(),
+            note: "the feedforward uses the reference and the known load terms only; \
+                   unknown terms act on the plant and reach the controller through its sensors",
+        },
         solver: total,
         scenario,
     };
