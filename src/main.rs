@@ -514,7 +514,7 @@ fn main() -> ExitCode {
                 let dir = out.unwrap_or_else(|| {
                     PathBuf::from("results").join(format!("{}-leave-one-out", scenario.name()))
                 });
-                return match cable_servo::run::run_leave_one_out(
+                return report(cable_servo::run::run_leave_one_out(
                     &scenario,
                     &data,
                     &effects,
@@ -522,42 +522,16 @@ fn main() -> ExitCode {
                     &OutputOptions { dir, force },
                     json.as_deref(),
                     save_model.as_deref(),
-                ) {
-                    Ok(r) => {
-                        say_raw!("{}", r.table);
-                        say!("results: {}", r.dir.display());
-                        ExitCode::SUCCESS
-                    }
-                    Err(e) => {
-                        tell!("error: {e}");
-                        ExitCode::from(match e {
-                            RunError::Output(_) | RunError::Report(_) => exit::OUTPUT,
-                            _ => exit::INPUT,
-                        })
-                    }
-                };
+                ));
             }
-            match cable_servo::run::run_diagnosis(
+            report(cable_servo::run::run_diagnosis(
                 &scenario,
                 &data,
                 &options,
                 &OutputOptions { dir, force },
                 json.as_deref(),
                 save_model.as_deref(),
-            ) {
-                Ok(r) => {
-                    say_raw!("{}", r.table);
-                    say!("results: {}", r.dir.display());
-                    ExitCode::SUCCESS
-                }
-                Err(e) => {
-                    tell!("error: {e}");
-                    ExitCode::from(match e {
-                        RunError::Output(_) | RunError::Report(_) => exit::OUTPUT,
-                        _ => exit::INPUT,
-                    })
-                }
-            }
+            ))
         }
         Command::Synth {
             scenario,

@@ -91,26 +91,9 @@ pub fn run_one_case(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sweep::engine::tests::{num, uniform};
     use crate::sweep::engine::{expand, run_cases, Plan, Shard};
     use crate::sweep::spec::{DistKind, SweepMode, SweepParameter, SweepSpec};
-
-    fn uniform(key: &str, lo: f64, hi: f64) -> SweepParameter {
-        SweepParameter {
-            key: key.into(),
-            dist: Some(DistKind::Uniform),
-            min: Some(lo),
-            max: Some(hi),
-            ..SweepParameter::default()
-        }
-    }
-
-    fn num(v: &toml::Value) -> f64 {
-        match v {
-            toml::Value::Float(f) => *f,
-            toml::Value::Integer(i) => *i as f64,
-            other => panic!("not a number: {other}"),
-        }
-    }
 
     #[test]
     fn rows_do_not_depend_on_threads_or_shards() {

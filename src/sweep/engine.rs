@@ -382,7 +382,7 @@ pub enum SweepError {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::sweep::spec::SweepParameter;
 
@@ -393,7 +393,8 @@ mod tests {
         )
     }
 
-    fn num(v: &toml::Value) -> f64 {
+    /// A swept value as a number (test helper shared with the sweep runner's tests).
+    pub(crate) fn num(v: &toml::Value) -> f64 {
         match v {
             toml::Value::Float(f) => *f,
             toml::Value::Integer(i) => *i as f64,
@@ -424,7 +425,8 @@ mod tests {
         assert_eq!(cases[0].assignments[0].1, "x");
     }
 
-    fn uniform(key: &str, lo: f64, hi: f64) -> SweepParameter {
+    /// A uniformly drawn parameter (test helper shared with the sweep runner's tests).
+    pub(crate) fn uniform(key: &str, lo: f64, hi: f64) -> SweepParameter {
         SweepParameter {
             key: key.into(),
             dist: Some(DistKind::Uniform),
