@@ -526,35 +526,33 @@ fn main() -> ExitCode {
             shards,
             force,
             partial,
-        } => {
-            match cable_servo::sweep::merge::merge_files(&shards, &out, force, partial) {
-                Ok(r) if r.complete() => {
-                    say!(
-                        "{} cases merged into {} (complete: every shard present)",
-                        r.rows,
-                        out.display()
-                    );
-                    ExitCode::SUCCESS
-                }
-                Ok(r) => {
-                    say!(
-                        "PARTIAL merge: {} of {} cases in {}",
-                        r.rows,
-                        r.cases_total
-                            .map_or_else(|| "an unknown number of".to_string(), |n| n.to_string()),
-                        out.display()
-                    );
-                    for g in &r.gaps {
-                        tell!("warning: partial merge: {g}");
-                    }
-                    ExitCode::SUCCESS
-                }
-                Err(e) => {
-                    tell!("error: {e}");
-                    ExitCode::from(e.exit_code())
-                }
+        } => match cable_servo::sweep::merge::merge_files(&shards, &out, force, partial) {
+            Ok(r) if r.complete() => {
+                say!(
+                    "{} cases merged into {} (complete: every shard present)",
+                    r.rows,
+                    out.display()
+                );
+                ExitCode::SUCCESS
             }
-        }
+            Ok(r) => {
+                say!(
+                    "PARTIAL merge: {} of {} cases in {}",
+                    r.rows,
+                    r.cases_total
+                        .map_or_else(|| "an unknown number of".to_string(), |n| n.to_string()),
+                    out.display()
+                );
+                for g in &r.gaps {
+                    tell!("warning: partial merge: {g}");
+                }
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                tell!("error: {e}");
+                ExitCode::from(e.exit_code())
+            }
+        },
         Command::Show { name } => match cable_servo::scenario::builtin(&name) {
             Some(text) => {
                 say_raw!("{text}");
@@ -646,10 +644,7 @@ fn report(result: Result<RunReport, RunError>) -> ExitCode {
             say_raw!("{}", r.table);
             say!("results: {}", r.dir.display());
             if let Some(sig) = r.signal {
-                tell!(
-                    "error: {}",
-                    r.failure.as_deref().unwrap_or("interrupted")
-                );
+                tell!("error: {}", r.failure.as_deref().unwrap_or("interrupted"));
                 tell!("results kept, marked INCOMPLETE: {}", r.dir.display());
                 return ExitCode::from(cable_servo::io::signals::exit_code(sig));
             }

@@ -81,7 +81,10 @@ fn force_replaces_only_results_this_program_wrote() {
     let o = quick_run(&out, &["--force"]);
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(5), "{err}");
-    assert!(err.contains("notes.txt") && err.contains("not results"), "{err}");
+    assert!(
+        err.contains("notes.txt") && err.contains("not results"),
+        "{err}"
+    );
     assert_eq!(entries(&out), vec!["notes.txt"]);
     assert_eq!(entries(tmp.path()), vec!["out"]);
     // Its own results are replaced.
@@ -202,15 +205,14 @@ fn merge_refuses_a_missing_truncated_duplicated_or_foreign_shard() {
     // A shard cut short: its last row removed.
     let table = fs::read_to_string(s3.join("sweep.csv")).unwrap();
     let cut: Vec<&str> = table.lines().collect();
-    fs::write(
-        s3.join("sweep.csv"),
-        cut[..cut.len() - 1].join("\n") + "\n",
-    )
-    .unwrap();
+    fs::write(s3.join("sweep.csv"), cut[..cut.len() - 1].join("\n") + "\n").unwrap();
     let o = merge(dir, &out, &[&s1, &s2, &s3], &[]);
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(3), "{err}");
-    assert!(err.contains("shard 3/3") && err.contains("truncated: 3 of its 4 cases"), "{err}");
+    assert!(
+        err.contains("shard 3/3") && err.contains("truncated: 3 of its 4 cases"),
+        "{err}"
+    );
     assert!(!out.exists());
     // A row cut mid-write.
     fs::write(s3.join("sweep.csv"), &table[..table.len() - 4]).unwrap();
@@ -223,7 +225,11 @@ fn merge_refuses_a_missing_truncated_duplicated_or_foreign_shard() {
     // Asked for: a partial merge, marked partial on the terminal and in its record.
     let o = merge(dir, &out, &[&s1, &s3], &["--partial"]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    assert!(stdout(&o).contains("PARTIAL merge: 8 of 12 cases"), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("PARTIAL merge: 8 of 12 cases"),
+        "{}",
+        stdout(&o)
+    );
     assert!(stderr(&o).contains("shard 2/3 missing"), "{}", stderr(&o));
     let record = fs::read_to_string(dir.join("merged.csv.merge.json")).unwrap();
     assert!(record.contains("\"partial\": true"), "{record}");
@@ -236,4 +242,113 @@ fn merge_refuses_a_missing_truncated_duplicated_or_foreign_shard() {
     assert!(stdout(&o).contains("12 cases merged"), "{}", stdout(&o));
     let record = fs::read_to_string(dir.join("merged.csv.merge.json")).unwrap();
     assert!(record.contains("\"complete\": true"), "{record}");
+}
+
+/// Wait until a staging directory appears in `dir` (the command is writing), up to 60 s.
+fn wait_for_staging(dir: &Path) {
+    let start = std::time::Instant::now();
+    while start.elapsed() < std::time::Duration::from_secs(60) {
+        if entries(dir).iter().any(|e| e.contains(".partial-")) {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    panic!("no staging directory appeared in {}", dir.display());
+}
+
+fn send(signal: &str, pid: u32) {
+    let ok = Command::new("kill")
+        .args([signal, &pid.to_string()])
+        .status()
+        .expect("kill runs")
+        .success();
+    assert!(ok, "kill {signal} {pid}");
+}
+
+#[cfg(unix)]
+#[test]
+fn sigint_during_a_sweep_keeps_finished_cases_marked_incomplete() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("tol");
+    let child = Command::new(EXE)
+        .args([
+            "sweep",
+            "eots_tolerance",
+            "--threads",
+            "2",
+            "--out",
+            p(&out),
+        ])
+        .current_dir(tmp.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_for_staging(tmp.path());
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    send("-INT", child.id());
+    let o = child.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(130), "{err}");
+    assert!(err.contains("interrupted by SIGINT"), "{err}");
+    no_panic(&o);
+    // Only the results directory: no hidden staging left.
+    assert_eq!(entries(tmp.path()), vec!["tol"]);
+    let marker = fs::read_to_string(out.join("INCOMPLETE.txt")).unwrap();
+    assert!(marker.contains("interrupted by SIGINT"), "{marker}");
+    assert!(marker.contains("kept: sweep.csv"), "{marker}");
+    let summary = fs::read_to_string(out.join("summary.json")).unwrap();
+    assert!(summary.contains("\"complete\": false"), "{summary}");
+    assert!(
+        summary.contains("\"interrupted_by\": \"SIGINT\""),
+        "{summary}"
+    );
+    let rows = fs::read_to_string(out.join("sweep.csv"))
+        .unwrap()
+        .lines()
+        .count();
+    assert!(rows < 1001, "all 1000 cases ran: the signal came too late");
+    // Such a shard is refused by merge as truncated.
+    let o = cable_servo(
+        &["merge", "--out", p(&tmp.path().join("m.csv")), p(&out)],
+        tmp.path(),
+    );
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(stderr(&o).contains("truncated"), "{}", stderr(&o));
+}
+
+#[cfg(unix)]
+#[test]
+fn sigterm_during_a_run_leaves_nothing_and_stale_staging_is_cleared() {
+    let tmp = tempfile::tempdir().unwrap();
+    // A staging directory left by a process that no longer exists.
+    let stale = tmp.path().join(".out.partial-4999999-0");
+    fs::create_dir(&stale).unwrap();
+    fs::write(stale.join("timeseries.csv"), b"t_s\n").unwrap();
+    let out = tmp.path().join("out");
+    let child = Command::new(EXE)
+        .args([
+            "run",
+            "eots_tracking",
+            "--set",
+            "closed_loop.duration_s=100",
+            "--out",
+            p(&out),
+        ])
+        .current_dir(tmp.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    assert!(!stale.exists() || entries(tmp.path()).len() <= 2);
+    wait_for_staging(tmp.path());
+    std::thread::sleep(std::time::Duration::from_millis(200));
+    send("-TERM", child.id());
+    let o = child.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(143), "{err}");
+    assert!(err.contains("interrupted by SIGTERM"), "{err}");
+    assert!(err.contains("partial results removed"), "{err}");
+    assert!(!stale.exists(), "stale staging directory kept");
+    assert!(entries(tmp.path()).is_empty(), "{:?}", entries(tmp.path()));
 }

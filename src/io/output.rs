@@ -352,7 +352,10 @@ mod tests {
         // Old results are untouched until commit.
         assert_eq!(fs::read(out.join("old.txt")).unwrap(), b"old");
         staged.commit().unwrap();
-        assert_eq!(entries(&out), vec![super::super::staging::MARKER_FILE, "new.txt"]);
+        assert_eq!(
+            entries(&out),
+            vec![super::super::staging::MARKER_FILE, "new.txt"]
+        );
         assert_eq!(entries(root.path()), vec!["run"]);
     }
 
@@ -420,7 +423,11 @@ mod tests {
         assert!(text.contains("solver diverged at t = 3.2 s"), "{text}");
         assert_eq!(
             entries(&out),
-            vec![super::super::staging::MARKER_FILE, INCOMPLETE_FILE, "partial.csv"]
+            vec![
+                super::super::staging::MARKER_FILE,
+                INCOMPLETE_FILE,
+                "partial.csv"
+            ]
         );
         assert_eq!(entries(root.path()), vec!["run"]);
     }

@@ -253,7 +253,9 @@ mod tests {
         let root = tempfile::tempdir().unwrap();
         let file = root.path().join("f");
         fs::write(&file, b"hello").unwrap();
-        assert!(foreign_content(&file).unwrap().contains("regular file of 5 bytes"));
+        assert!(foreign_content(&file)
+            .unwrap()
+            .contains("regular file of 5 bytes"));
         let dir = root.path().join("d");
         fs::create_dir(&dir).unwrap();
         assert_eq!(foreign_content(&dir), None, "empty directory");

@@ -203,7 +203,9 @@ pub fn merge_files(
     };
     let mut gaps = Vec::new();
     // The sweep the shards claim to belong to: the first shard with a record.
-    let reference = files.iter().find_map(|f| f.manifest.clone().map(|m| (m, f)));
+    let reference = files
+        .iter()
+        .find_map(|f| f.manifest.clone().map(|m| (m, f)));
     if let Some((r, first)) = &reference {
         let mut seen: Vec<Option<&Path>> = vec![None; r.count];
         for f in &files {
