@@ -383,7 +383,7 @@ mod tests {
         let stale = root.path().join(".run.partial-4999999-0");
         fs::create_dir(&stale).unwrap();
         let staged = StagedDir::create(&root.path().join("run"), false).unwrap();
-        assert_eq!(staged.stale_removed(), [stale.clone()]);
+        assert_eq!(staged.stale_removed(), std::slice::from_ref(&stale));
         assert!(!stale.exists());
     }
 
