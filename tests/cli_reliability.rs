@@ -244,55 +244,111 @@ fn merge_refuses_a_missing_truncated_duplicated_or_foreign_shard() {
     assert!(record.contains("\"complete\": true"), "{record}");
 }
 
-/// SIGINT or SIGTERM to a running sweep: the finished rows are kept, marked incomplete,
-/// with the signal's exit code; no hidden staging directory is left behind.
-#[test]
-fn a_signal_to_a_running_sweep_keeps_the_finished_cases_marked_incomplete() {
-    for (sig, code) in [("INT", 130), ("TERM", 143)] {
-        let tmp = tempfile::tempdir().unwrap();
-        let out = tmp.path().join("sweep");
-        let child = Command::new(EXE)
-            .args([
-                "sweep",
-                "eots_tolerance",
-                "--samples",
-                "400",
-                "--threads",
-                "2",
-                "--out",
-                p(&out),
-            ])
-            .current_dir(tmp.path())
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
-        // Long enough for some cases to finish, far shorter than the whole sweep.
-        std::thread::sleep(std::time::Duration::from_millis(1500));
-        let status = Command::new("kill")
-            .args([&format!("-{sig}"), &child.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(status.success());
-        let o = child.wait_with_output().unwrap();
-        no_panic(&o);
-        assert_eq!(o.status.code(), Some(code), "SIG{sig}: {}", stderr(&o));
-        assert!(stderr(&o).contains("interrupted"), "{}", stderr(&o));
-        let left = entries(tmp.path());
-        assert!(
-            left.iter().all(|e| !e.contains("partial")),
-            "staging left behind: {left:?}"
-        );
-        if out.exists() {
-            let files = entries(&out);
-            assert!(files.contains(&"INCOMPLETE.txt".to_string()), "{files:?}");
-            let summary = fs::read_to_string(out.join("summary.json")).unwrap();
-            assert!(summary.contains("\"complete\": false"), "{summary}");
-            let rows = fs::read_to_string(out.join("sweep.csv"))
-                .unwrap()
-                .lines()
-                .count();
-            assert!(rows < 401, "{rows} rows: the sweep was not interrupted");
+/// Wait until a staging directory appears in `dir` (the command is writing), up to 60 s.
+fn wait_for_staging(dir: &Path) {
+    let start = std::time::Instant::now();
+    while start.elapsed() < std::time::Duration::from_secs(60) {
+        if entries(dir).iter().any(|e| e.contains(".partial-")) {
+            return;
         }
+        std::thread::sleep(std::time::Duration::from_millis(20));
     }
+    panic!("no staging directory appeared in {}", dir.display());
+}
+
+fn send(signal: &str, pid: u32) {
+    let ok = Command::new("kill")
+        .args([signal, &pid.to_string()])
+        .status()
+        .expect("kill runs")
+        .success();
+    assert!(ok, "kill {signal} {pid}");
+}
+
+#[cfg(unix)]
+#[test]
+fn sigint_during_a_sweep_keeps_finished_cases_marked_incomplete() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("tol");
+    let child = Command::new(EXE)
+        .args([
+            "sweep",
+            "eots_tolerance",
+            "--threads",
+            "2",
+            "--out",
+            p(&out),
+        ])
+        .current_dir(tmp.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_for_staging(tmp.path());
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    send("-INT", child.id());
+    let o = child.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(130), "{err}");
+    assert!(err.contains("interrupted by SIGINT"), "{err}");
+    no_panic(&o);
+    // Only the results directory: no hidden staging left.
+    assert_eq!(entries(tmp.path()), vec!["tol"]);
+    let marker = fs::read_to_string(out.join("INCOMPLETE.txt")).unwrap();
+    assert!(marker.contains("interrupted by SIGINT"), "{marker}");
+    assert!(marker.contains("kept: sweep.csv"), "{marker}");
+    let summary = fs::read_to_string(out.join("summary.json")).unwrap();
+    assert!(summary.contains("\"complete\": false"), "{summary}");
+    assert!(
+        summary.contains("\"interrupted_by\": \"SIGINT\""),
+        "{summary}"
+    );
+    let rows = fs::read_to_string(out.join("sweep.csv"))
+        .unwrap()
+        .lines()
+        .count();
+    assert!(rows < 1001, "all 1000 cases ran: the signal came too late");
+    // Such a shard is refused by merge as truncated.
+    let o = cable_servo(
+        &["merge", "--out", p(&tmp.path().join("m.csv")), p(&out)],
+        tmp.path(),
+    );
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(stderr(&o).contains("truncated"), "{}", stderr(&o));
+}
+
+#[cfg(unix)]
+#[test]
+fn sigterm_during_a_run_leaves_nothing_and_stale_staging_is_cleared() {
+    let tmp = tempfile::tempdir().unwrap();
+    // A staging directory left by a process that no longer exists.
+    let stale = tmp.path().join(".out.partial-4999999-0");
+    fs::create_dir(&stale).unwrap();
+    fs::write(stale.join("timeseries.csv"), b"t_s\n").unwrap();
+    let out = tmp.path().join("out");
+    let child = Command::new(EXE)
+        .args([
+            "run",
+            "eots_tracking",
+            "--set",
+            "closed_loop.duration_s=100",
+            "--out",
+            p(&out),
+        ])
+        .current_dir(tmp.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    assert!(!stale.exists() || entries(tmp.path()).len() <= 2);
+    wait_for_staging(tmp.path());
+    std::thread::sleep(std::time::Duration::from_millis(200));
+    send("-TERM", child.id());
+    let o = child.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(143), "{err}");
+    assert!(err.contains("interrupted by SIGTERM"), "{err}");
+    assert!(err.contains("partial results removed"), "{err}");
+    assert!(!stale.exists(), "stale staging directory kept");
+    assert!(entries(tmp.path()).is_empty(), "{:?}", entries(tmp.path()));
 }
