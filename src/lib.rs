@@ -3,6 +3,7 @@
 
 pub mod closed_loop;
 pub mod design;
+pub mod fmu;
 pub mod identify;
 pub mod io;
 pub mod metrics;

@@ -8,6 +8,7 @@
 
 pub mod controller;
 pub mod params;
+pub mod period;
 pub mod plant;
 pub mod report;
 pub mod sim;

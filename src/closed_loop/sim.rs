@@ -3,14 +3,13 @@
 
 use std::time::Instant;
 
-use ode_solvers::Rk4;
 use serde::{Deserialize, Serialize};
 
 use super::controller::{BrakePredictor, Compensator, Pid, Sensors};
 use super::params::{Amplifier, ClosedLoopParams, CompensationMode, Feedback};
+use super::period::{integrate_period, settle_boundary};
 use super::plant::{
-    damped, load_torque, update_brake, BrakeState, Forces, PeriodRhs, PlantCable,
-    PlantCoefficients, State, CURRENT, OMEGA_O, THETA_M, THETA_O,
+    load_torque, BrakeState, PlantCable, PlantCoefficients, State, CURRENT, THETA_M, THETA_O,
 };
 use crate::metrics::{Metrics, MetricsAccumulator, MetricsConfig, Sample, StepEvent};
 use crate::physics::{DriveFault, Half};
@@ -412,10 +411,9 @@ fn run_mode(
 
     for k in 0..=n {
         let t = k as f64 * ts;
-        let kin = coeff.kinematics(&x, t);
         boundary_solves += 1;
-        let el = match cable.commit(kin.d) {
-            Ok(el) => el,
+        let forces = match settle_boundary(&coeff, &mut cable, load, &mut brake, &mut x, t) {
+            Ok(f) => f,
             Err(f) => {
                 completion = Completion::Incomplete {
                     fault: describe(&f, t, mode, last_torque, coeff.ro),
@@ -424,24 +422,8 @@ fn run_mode(
                 break;
             }
         };
-        let (tu, tl) = damped(&coeff, el, &kin);
-        let forces = Forces {
-            tension_upper_n: tu,
-            tension_lower_n: tl,
-            cable_torque_nm: kin.lever_out * (tu - tl),
-            smooth_load_nm: if coeff.smooth_load {
-                load.smooth_torque_nm(t, x[THETA_O])
-            } else {
-                0.0
-            },
-        };
+        let (tu, tl) = (forces.tension_upper_n, forces.tension_lower_n);
         last_torque = forces.cable_torque_nm;
-        brake = update_brake(
-            &coeff,
-            brake,
-            forces.cable_torque_nm + forces.smooth_load_nm,
-            &mut x,
-        );
 
         // Controller at t_k.
         let ym = sensors.motor.read(x[THETA_M], &mut sensors.rng);
@@ -526,41 +508,19 @@ fn run_mode(
         }
 
         // Plant over [t_k, t_k+1) with u_k held; the integrator restarts here.
-        let rhs = PeriodRhs {
-            c: &coeff,
-            cable: &cable,
-            load,
-            brake,
-            command: u,
-            t0: t,
-            h: ts / f64::from(sub),
-            steps: f64::from(sub),
-            fault: std::cell::Cell::new(None),
-        };
-        // End point 2N: room for all N + 1 results; `solout` stops the run at N.
-        let mut solver = Rk4::new(&rhs, 0.0, x, 2.0 * f64::from(sub), 1.0);
-        // Rk4 never fails; a cable fault is reported through the RHS.
-        let st = solver
-            .integrate()
-            .unwrap_or(ode_solvers::dop_shared::Stats {
-                num_eval: 0,
-                accepted_steps: 0,
-                rejected_steps: 0,
-            });
+        let end = integrate_period(&coeff, &cable, load, brake, u, t, ts, sub, &mut x);
+        let st = end.stats;
         stats.steps += u64::from(st.accepted_steps);
         stats.rhs_evaluations += u64::from(st.num_eval);
         stats.rejected_steps += u64::from(st.rejected_steps);
         stats.periods += 1;
-        if let Some(f) = rhs.fault.get() {
+        if let Some(f) = end.fault {
             completion = Completion::Incomplete {
                 fault: describe(&f, t + ts, mode, last_torque, coeff.ro),
                 time_s: t + ts,
             };
             reached = t + ts;
             break;
-        }
-        if let Some(y) = solver.y_out().last() {
-            x = *y;
         }
         if !x.iter().all(|v| v.is_finite()) {
             completion = Completion::Incomplete {
@@ -573,9 +533,6 @@ fn run_mode(
             };
             reached = t + ts;
             break;
-        }
-        if let BrakeState::Stuck = brake {
-            x[OMEGA_O] = 0.0;
         }
     }
     // Every right-hand side and every boundary solves both halves.
