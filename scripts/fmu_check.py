@@ -19,12 +19,12 @@ Exit status 0 when every check passes, 1 otherwise, 2 when FMPy is missing.
 import argparse
 import ctypes
 import json
-import math
 import resource
 import shutil
 import sys
-import tempfile
 import time
+import tomllib
+from pathlib import Path
 
 try:
     import fmpy
@@ -40,6 +40,9 @@ try:
 except ImportError:
     print("skipped: FMPy is not installed (python3 -m pip install fmpy)")
     sys.exit(2)
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from fmu_example import closed_loop  # noqa: E402  (the README's example is what runs here)
 
 
 class Log:
@@ -64,8 +67,8 @@ class Log:
 
 
 class Plant:
-    """One FMU instance with raw ctypes calls for the 10 kHz loop (FMPy's wrappers cost
-    more than the plant step)."""
+    """One FMU instance, its status codes returned rather than raised (the bad-input
+    checks want them), messages kept."""
 
     def __init__(self, md, unzipdir, name="plant", logging_on=False):
         self.log = Log()
@@ -132,108 +135,14 @@ class Plant:
         self.fmu.freeInstance()  # also unloads the library
 
 
-class Pid:
-    """src/closed_loop/controller.rs `Pid`, line for line."""
-
-    def __init__(self, c, limit):
-        t = 1.0 / c["sample_rate_hz"]
-        self.kp = c["kp"]
-        self.ki_t = c.get("ki", 0.0) * t
-        self.kd_t = c.get("kd", 0.0) / t
-        self.a = math.exp(-math.tau * c.get("derivative_filter_hz", 1000.0) * t)
-        self.limit = limit
-        self.integral = 0.0
-        self.deriv = 0.0
-        self.last_y = None
-
-    def update(self, r, y, u_ff):
-        e = r - y
-        dy = y - (y if self.last_y is None else self.last_y)
-        self.last_y = y
-        self.deriv = self.a * self.deriv - (1.0 - self.a) * self.kd_t * dy
-        candidate = self.integral + self.ki_t * e
-        v = self.kp * e + candidate + self.deriv + u_ff
-        u = min(max(v, -self.limit), self.limit)
-        winding_up = u != v and e * (v - u) > 0.0
-        if not winding_up:
-            self.integral = candidate
-        return u
-
-
-def sine_reference(ref):
-    """The scenario's sine reference: value, rate, acceleration (src/signal.rs)."""
-    if ref.get("kind") != "sine":
-        raise SystemExit(f"fmu_check: reference kind {ref.get('kind')!r}: this check implements the sine reference only")
-    a = ref["amplitude_rad"]
-    w = math.tau * ref["frequency_hz"]
-    ph0 = ref.get("phase_rad", 0.0)
-    off = ref.get("offset_rad", 0.0)
-
-    def at(t):
-        ph = w * t + ph0
-        return off + a * math.sin(ph), a * w * math.cos(ph), -a * w * w * math.sin(ph)
-
-    return at
-
-
-def closed_loop(md, unzipdir, scenario, duration_s):
-    """Mode none of `cable-servo run` with the plant in the FMU; returns (rms, peak, n,
-    wall seconds)."""
-    cl = scenario["closed_loop"]
-    c = cl["controller"]
-    if c.get("load_feedforward", False):
-        raise SystemExit("fmu_check: load_feedforward = true is not implemented in this check")
-    drive = scenario["drive"]
-    ic = drive["drum_radius_m"] / drive["pulley_radius_m"]
-    motor = cl.get("motor", {})
-    voltage = motor.get("amplifier", "current") == "voltage"
-    limit = motor.get("voltage_limit_v" if voltage else "current_limit_a")
-    limit = math.inf if limit is None else limit
-    feedback_output = c.get("feedback", "motor") == "output"
-    ts = 1.0 / c["sample_rate_hz"]
-    n = round(duration_s * c["sample_rate_hz"])
-    start = cl.get("metrics_start_s", 2.0)
-    ref = sine_reference(cl["reference"])
-    vff = c.get("velocity_feedforward", 0.0)
-    aff = c.get("acceleration_feedforward", 0.0)
-
-    plant = Plant(md, unzipdir)
-    status = plant.status_init(0.0, n * ts)
-    if status != 0:
-        raise RuntimeError(f"initialisation failed: {plant.log.last()}")
-    read = plant.reader(["motor_encoder_rad", "output_encoder_rad", "output_angle_rad"])
-    command = plant.writer("motor_voltage_command_v" if voltage else "motor_current_command_a")
-    pid = Pid(c, limit)
-    sum_sq = 0.0
-    peak = 0.0
-    count = 0
-    wall = time.perf_counter()
-    for k in range(n + 1):
-        t = k * ts
-        ym, yo, theta_o = read()
-        r, rate, accel = ref(t)
-        # Mode none: no predicted transmission error, so no reference shift.
-        r_m = ic * r
-        u_ff = vff * (ic * rate) + aff * ic * accel
-        if feedback_output:
-            u = pid.update(ic * r, ic * yo, u_ff)
-        else:
-            u = pid.update(r_m, ym, u_ff)
-        if t >= start:
-            e = (theta_o - r) * 1e3
-            sum_sq += e * e
-            peak = max(peak, abs(e))
-            count += 1
-        if k == n:
-            break
-        command(u)
-        s = plant.step(t, ts)
-        if s != 0:
-            raise RuntimeError(f"fmi2DoStep at t = {t} s returned {s}: {plant.log.last()}")
-    wall = time.perf_counter() - wall
-    plant.fmu.terminate()
-    plant.free()
-    return math.sqrt(sum_sq / count), peak, count, wall
+def plain(x, drop=None):
+    """A scenario section with unset (null) keys and the key `drop` left out, for
+    comparing the packed TOML with the summary's JSON."""
+    if isinstance(x, dict):
+        return {k: plain(v) for k, v in x.items() if v is not None and k != drop}
+    if isinstance(x, list):
+        return [plain(v) for v in x]
+    return x
 
 
 def rss_mb():
@@ -368,17 +277,33 @@ def main():
     native = next((m for m in summary["modes"] if m["name"] == "none"), None)
     if native is None:
         raise SystemExit("fmu_check: the summary holds no mode none")
-    scenario = summary["scenario"]
     md = read_model_description(args.fmu)
     unzipdir = extract(args.fmu)
     try:
-        rms, peak, count, wall = closed_loop(md, unzipdir, scenario, summary["duration_s"])
+        packed = tomllib.loads(Path(unzipdir, "resources", "scenario.toml").read_text())
+        # The modes list may differ (the native run may be limited to mode none).
+        same = all(
+            plain(packed.get(k), drop="modes") == plain(summary["scenario"].get(k), drop="modes")
+            for k in ("drive", "load", "closed_loop", "effects")
+        )
+        print(f"scenario packed in the FMU equals the native run's (drive, load, closed loop, effects): {'ok' if same else 'FAIL'}")
+        if not same:
+            failures.append("scenario")
+        log = Log()
+        wall = time.perf_counter()
+        try:
+            rms, peak, count = closed_loop(args.fmu, callbacks=log.callbacks)
+        except Exception as e:  # FMPy raises on a failed call; the FMU logged why
+            print(f"closed loop FAILED: {e}: {log.last()}")
+            return 1
+        wall = time.perf_counter() - wall
         d_rms = abs(rms - native["rms_mrad"]) / native["rms_mrad"]
         d_peak = abs(peak - native["peak_mrad"]) / native["peak_mrad"]
         ok = d_rms <= args.tolerance and d_peak <= args.tolerance
+        cl = packed["closed_loop"]
         print(
-            f"closed loop, {summary['duration_s']} s at {scenario['closed_loop']['controller']['sample_rate_hz']} Hz "
-            f"({count} samples in the window, {wall:.1f} s wall):\n"
+            f"closed loop (scripts/fmu_example.py), {cl['duration_s']} s at {cl['controller']['sample_rate_hz']} Hz, "
+            f"{count} samples in the window, {wall:.1f} s wall:\n"
             f"   FMU + Python PID: rms {rms:.6f} mrad, peak {peak:.6f} mrad\n"
             f"   native run:       rms {native['rms_mrad']:.6f} mrad, peak {native['peak_mrad']:.6f} mrad\n"
             f"   relative difference: rms {d_rms:.2e}, peak {d_peak:.2e} (tolerance {args.tolerance}): {'ok' if ok else 'FAIL'}"

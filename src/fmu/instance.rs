@@ -761,13 +761,3 @@ fn unit_suffix(var: &Variable) -> String {
         format!(" {}", var.unit)
     }
 }
-
-/// The closed-loop parameters of a default `eots_tracking` FMU, for tests.
-#[cfg(test)]
-pub(crate) fn bench_scenario() -> Scenario {
-    let text = crate::scenario::builtin("eots_tracking").unwrap_or_default();
-    match Scenario::from_toml(text, "eots_tracking", "eots_tracking", &[]) {
-        Ok(s) => s,
-        Err(e) => panic!("{e}"),
-    }
-}

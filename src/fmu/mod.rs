@@ -14,6 +14,8 @@
 pub mod export;
 pub mod ffi;
 pub mod instance;
+#[cfg(test)]
+mod tests;
 pub mod variables;
 mod zip;
 
@@ -50,20 +52,4 @@ pub fn guid(scenario_toml: &str) -> String {
         b >> 48,
         b & 0xffff_ffff_ffff
     )
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn guid_is_a_uuid_that_depends_on_the_text() {
-        let g = guid("a = 1");
-        assert_eq!(g.len(), 38, "{g}");
-        assert!(g.starts_with('{') && g.ends_with('}'));
-        let parts: Vec<usize> = g[1..37].split('-').map(str::len).collect();
-        assert_eq!(parts, [8, 4, 4, 4, 12]);
-        assert_eq!(g, guid("a = 1"));
-        assert_ne!(g, guid("a = 2"));
-    }
 }
