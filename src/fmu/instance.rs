@@ -220,7 +220,9 @@ fn check_params(p: &PlantParams) -> Result<(), String> {
             .map_err(|(k, m)| format!("effects.{k} (from the scenario): {m}"))?;
     }
     let modes = p.closed_loop.plant_modes(&p.drive);
-    if !(modes.fastest_rad_s * p.max_step_s <= 1.0) {
+    // Written so a NaN rate fails the check too.
+    let stable = modes.fastest_rad_s * p.max_step_s <= 1.0;
+    if !stable {
         return Err(format!(
             "solver.max_step_s = {} s is too long for the plant's fastest rate ({:.0} rad/s: drive mode {:.0} Hz, drum-held mode {:.0} Hz); use at most {:.3e} s",
             crate::number(p.max_step_s),
