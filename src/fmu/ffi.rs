@@ -351,17 +351,19 @@ pub unsafe extern "C" fn fmi2SetDebugLogging(
     n: usize,
     categories: *const *const c_char,
 ) -> c_int {
-    // SAFETY: per the contract above.
-    let names: Result<Vec<String>, String> = (0..n)
-        .map(|i| {
-            let s = unsafe { text(*categories.add(i)) };
-            s.map(str::to_string)
-                .ok_or_else(|| "a null or non-UTF-8 category".to_string())
-        })
-        .collect();
     unsafe {
         with(c, "fmi2SetDebugLogging", |inst| {
-            let names = names.map_err(FmuError::error)?;
+            if n > 0 && categories.is_null() {
+                return Err(FmuError::error("null category array"));
+            }
+            // SAFETY: per the contract above.
+            let names: Vec<String> = (0..n)
+                .map(|i| {
+                    text(*categories.add(i))
+                        .map(str::to_string)
+                        .ok_or_else(|| FmuError::error("a null or non-UTF-8 category"))
+                })
+                .collect::<Result<_, _>>()?;
             for n in &names {
                 if !LOG_CATEGORIES.iter().any(|(c, _)| c == n) {
                     let known: Vec<&str> = LOG_CATEGORIES.iter().map(|c| c.0).collect();

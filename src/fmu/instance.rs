@@ -645,8 +645,18 @@ impl Instance {
             return Ok(x);
         }
         if self.plant.is_none() && var.causality == Causality::Output {
-            // Before initialisation the outputs are those of the plant at rest.
-            self.values.outputs = rest_outputs(&self.values.params);
+            // Before initialisation the outputs are those of the plant at rest, with the
+            // parameters set so far (those in range).
+            let mut values = self.values.clone();
+            for (&vr, &x) in &self.pending {
+                if let Some(set) = variables::find(vr, self.amplifier)
+                    .filter(|v| v.range.check(x).is_none())
+                    .and_then(|v| v.set)
+                {
+                    set(&mut values, x);
+                }
+            }
+            self.values.outputs = rest_outputs(&values.params);
         }
         Ok((var.get)(&self.values))
     }

@@ -511,3 +511,21 @@ fn guid_is_a_uuid_that_depends_on_the_text() {
     assert_eq!(g, super::guid("a = 1"));
     assert_ne!(g, super::guid("a = 2"));
 }
+
+#[test]
+fn memoryless_cable_runs_and_reports_slip() {
+    let r = resources(&scenario(&[]));
+    let f = Fmu::new(&r);
+    f.ok(unsafe { fmi2EnterInitializationMode(f.c) });
+    let memoryless: c_int = 1;
+    f.ok(unsafe { fmi2SetInteger(f.c, &VR_CABLE_MODEL, 1, &memoryless) });
+    f.ok(f.set(VR_PRELOAD, 90.0));
+    // Outputs before the end of initialisation: the plant at rest with the new preload.
+    assert_eq!(f.get(VR_TENSION_UPPER), 90.0);
+    f.ok(unsafe { fmi2ExitInitializationMode(f.c) });
+    assert_eq!(f.get_int(VR_REGIME), 0);
+    // 1 A winds the cable up against the held drum: slip zones grow on the wraps.
+    f.run(0.0, 1e-4, 1.0, 200);
+    assert_eq!(f.get_int(VR_REGIME), 1);
+    assert!(f.get(VR_TORQUE) > 0.1, "{}", f.get(VR_TORQUE));
+}
