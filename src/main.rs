@@ -278,6 +278,25 @@ enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },
+    /// Export the plant of a closed-loop scenario as an FMI 2.0 Co-Simulation FMU (motor,
+    /// cable drive, drum, loads, encoders; the host closes the loop). Needs the shared
+    /// library built next to this binary (`cargo build --release` builds both).
+    ExportFmu {
+        /// Closed-loop scenario file or built-in name (its values become the FMU's defaults).
+        scenario: String,
+        /// FMU file to write.
+        #[arg(long, default_value = "drive.fmu")]
+        out: PathBuf,
+        /// Override a scenario value (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Shared library to pack (default: libcable_servo.so next to this binary).
+        #[arg(long, value_name = "PATH")]
+        library: Option<PathBuf>,
+        /// Replace an existing file.
+        #[arg(long)]
+        force: bool,
+    },
     /// Print a built-in scenario (to copy and edit).
     Show {
         /// Built-in scenario name.
@@ -661,6 +680,48 @@ fn main() -> ExitCode {
                 Err(why) => {
                     say!("signable: no: {why}");
                     ExitCode::from(exit::PHYSICAL)
+                }
+            }
+        }
+        Command::ExportFmu {
+            scenario,
+            out,
+            set,
+            library,
+            force,
+        } => {
+            let scenario = match load(&scenario, &set) {
+                Ok(s) => s,
+                Err(code) => return code,
+            };
+            let library = match library {
+                Some(l) => l,
+                None => match std::env::current_exe() {
+                    Ok(exe) => cable_servo::fmu::export::library_beside(&exe),
+                    Err(e) => {
+                        tell!("error: cannot locate this executable to find the shared library ({e}); give --library PATH");
+                        return ExitCode::from(exit::INPUT);
+                    }
+                },
+            };
+            use cable_servo::fmu::export::{export_fmu, ExportError};
+            match export_fmu(&scenario, &library, &out, force) {
+                Ok(r) => {
+                    say!(
+                        "FMU written: {} ({} variables, {} bytes, GUID {})",
+                        r.path.display(),
+                        r.variables,
+                        r.bytes,
+                        r.guid
+                    );
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    tell!("error: {e}");
+                    ExitCode::from(match e {
+                        ExportError::Exists(_) | ExportError::Io { .. } => exit::OUTPUT,
+                        _ => exit::INPUT,
+                    })
                 }
             }
         }

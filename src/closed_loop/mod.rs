@@ -11,6 +11,7 @@
 pub mod controller;
 pub mod linear;
 pub mod params;
+pub mod period;
 pub mod plant;
 pub mod sim;
 

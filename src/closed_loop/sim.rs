@@ -3,14 +3,13 @@
 
 use std::time::Instant;
 
-use ode_solvers::Rk4;
 use serde::{Deserialize, Serialize};
 
 use super::controller::{BrakePredictor, CommandDelay, Compensator, Pid, Sensors};
 use super::params::{Amplifier, ClosedLoopParams, CompensationMode, Feedback};
+use super::period::{integrate_period, settle_boundary};
 use super::plant::{
-    damped, load_torque, update_brake, BrakeState, Forces, PeriodRhs, PlantCable,
-    PlantCoefficients, State, CURRENT, OMEGA_O, THETA_M, THETA_O,
+    load_torque, BrakeState, PlantCable, PlantCoefficients, State, CURRENT, THETA_M, THETA_O,
 };
 use crate::metrics::{Metrics, MetricsAccumulator, MetricsConfig, Sample, StepEvent};
 use crate::physics::{DriveFault, DriveParams, EffectsParams, Half, LoadParams};
@@ -436,10 +435,9 @@ fn run_mode(
 
     for k in 0..=n {
         let t = k as f64 * ts;
-        let kin = coeff.kinematics(&x, t);
         boundary_solves += 1;
-        let el = match cable.commit(kin.d) {
-            Ok(el) => el,
+        let forces = match settle_boundary(&coeff, &mut cable, load, &mut brake, &mut x, t) {
+            Ok(f) => f,
             Err(f) => {
                 completion = Completion::Incomplete {
                     fault: describe(&f, t, mode, last_torque, coeff.ro),
@@ -448,24 +446,8 @@ fn run_mode(
                 break;
             }
         };
-        let (tu, tl) = damped(&coeff, el, &kin);
-        let forces = Forces {
-            tension_upper_n: tu,
-            tension_lower_n: tl,
-            cable_torque_nm: kin.lever_out * (tu - tl),
-            smooth_load_nm: if coeff.smooth_load {
-                load.smooth_torque_nm(t, x[THETA_O])
-            } else {
-                0.0
-            },
-        };
+        let (tu, tl) = (forces.tension_upper_n, forces.tension_lower_n);
         last_torque = forces.cable_torque_nm;
-        brake = update_brake(
-            &coeff,
-            brake,
-            forces.cable_torque_nm + forces.smooth_load_nm,
-            &mut x,
-        );
 
         // Controller at t_k.
         let ym = sensors.motor.read(x[THETA_M], &mut sensors.rng);
@@ -574,34 +556,21 @@ fn run_mode(
             if !voltage_mode {
                 x[CURRENT] = command;
             }
-            let rhs = PeriodRhs {
-                c: &coeff,
-                cable: &cable,
+            let end = integrate_period(
+                &coeff,
+                &cable,
                 load,
                 brake,
                 command,
-                t0: t + from * ts,
-                h: (to - from) * ts / f64::from(sub),
-                steps: f64::from(sub),
-                fault: std::cell::Cell::new(None),
-            };
-            // End point 2N: room for all N + 1 results; `solout` stops the run at N.
-            let mut solver = Rk4::new(&rhs, 0.0, x, 2.0 * f64::from(sub), 1.0);
-            // Rk4 never fails; a cable fault is reported through the RHS.
-            let st = solver
-                .integrate()
-                .unwrap_or(ode_solvers::dop_shared::Stats {
-                    num_eval: 0,
-                    accepted_steps: 0,
-                    rejected_steps: 0,
-                });
-            stats.steps += u64::from(st.accepted_steps);
-            stats.rhs_evaluations += u64::from(st.num_eval);
-            stats.rejected_steps += u64::from(st.rejected_steps);
-            if let Some(y) = solver.y_out().last() {
-                x = *y;
-            }
-            fault = rhs.fault.get();
+                t + from * ts,
+                (to - from) * ts,
+                sub,
+                &mut x,
+            );
+            stats.steps += u64::from(end.stats.accepted_steps);
+            stats.rhs_evaluations += u64::from(end.stats.num_eval);
+            stats.rejected_steps += u64::from(end.stats.rejected_steps);
+            fault = end.fault;
             if fault.is_some() {
                 break;
             }
@@ -626,9 +595,6 @@ fn run_mode(
             };
             reached = t + ts;
             break;
-        }
-        if let BrakeState::Stuck = brake {
-            x[OMEGA_O] = 0.0;
         }
     }
     // Every right-hand side and every boundary solves both halves.
