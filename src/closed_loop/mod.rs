@@ -9,6 +9,7 @@
 //! written at the edge, by `report::closed_loop`.
 
 pub mod controller;
+pub mod freqresp;
 pub mod linear;
 pub mod params;
 pub mod period;
@@ -21,5 +22,6 @@ pub use params::{
 };
 pub use sim::{
     run_closed_loop, run_closed_loop_metrics, ClosedLoopError, ClosedLoopResult, ClosedLoopSetup,
-    ClosedLoopSource, Completion, ModeResult, RunOptions, SolverStats, TimeSeries,
+    ClosedLoopSource, Completion, Injection, InjectionSite, ModeResult, RunOptions, SolverStats,
+    TimeSeries,
 };

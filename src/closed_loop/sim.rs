@@ -11,6 +11,7 @@ use super::period::{integrate_period, settle_boundary};
 use super::plant::{
     load_torque, BrakeState, PlantCable, PlantCoefficients, State, CURRENT, THETA_M, THETA_O,
 };
+use crate::metrics::limit_cycle::{LimitCycle, LimitCycleDetector};
 use crate::metrics::{Metrics, MetricsAccumulator, MetricsConfig, Sample, StepEvent};
 use crate::physics::{DriveFault, DriveParams, EffectsParams, Half, LoadParams};
 use crate::signal::Signal;
@@ -24,6 +25,38 @@ pub struct RunOptions {
     pub decimation: usize,
     /// Run only these modes (those of the scenario that are listed here); `None` = all.
     pub modes: Option<Vec<CompensationMode>>,
+    /// A sinusoid added inside the loop (frequency-response measurement); `None` in
+    /// every ordinary run.
+    pub injection: Option<Injection>,
+}
+
+/// Where an injected sinusoid enters the sampled loop.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InjectionSite {
+    /// Added to the controller's command before the computation delay and the hold (A or
+    /// V), clipped to the amplifier's limit with it.
+    Command,
+    /// Added to the measurement the controller reads (motor rad: `ic` times the output
+    /// angle under output feedback).
+    Measurement,
+}
+
+/// `amplitude * sin(2 pi f t_k)` added at `site` at every sample `t_k`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Injection {
+    /// Where it enters.
+    pub site: InjectionSite,
+    /// Amplitude in the site's unit (A or V at the command, motor rad at the measurement).
+    pub amplitude: f64,
+    /// Frequency, Hz (below Nyquist).
+    pub frequency_hz: f64,
+}
+
+impl Injection {
+    /// The injected value at `t_s`.
+    pub fn at(&self, t_s: f64) -> f64 {
+        self.amplitude * (std::f64::consts::TAU * self.frequency_hz * t_s).sin()
+    }
 }
 
 impl Default for RunOptions {
@@ -32,6 +65,7 @@ impl Default for RunOptions {
             record: true,
             decimation: 1,
             modes: None,
+            injection: None,
         }
     }
 }
@@ -186,6 +220,10 @@ pub struct ModeResult {
     pub simulated_s: f64,
     /// Time series (`None` when not recorded).
     pub series: Option<TimeSeries>,
+    /// Sustained oscillation while the reference rests (hunting), judged over the
+    /// metrics window.
+    #[serde(default)]
+    pub limit_cycle: LimitCycle,
 }
 
 /// Result of a closed-loop run.
@@ -390,7 +428,8 @@ fn run_mode(
     let coeff = PlantCoefficients::new(p, drive, load, scenario.effects);
     let mut cable = PlantCable::new(p.cable, drive);
     let mut sensors = Sensors::new(&p.sensors);
-    let mut pid = Pid::new(&p.controller, p.motor.command_limit());
+    let command_limit = p.motor.command_limit();
+    let mut pid = Pid::new(&p.controller, command_limit);
     let mut delay = CommandDelay::new(p.controller.computation_delay_samples);
     let mut comp = mode
         .model()
@@ -418,6 +457,7 @@ fn run_mode(
         settle_band_mrad: p.settle_band_mrad.unwrap_or(p.target_mrad),
         steps: step_events(&p.reference, p.duration_s),
     });
+    let mut hunting = LimitCycleDetector::default();
     let decimation = options.decimation.max(1) as u64;
     let mut series = options
         .record
@@ -495,11 +535,18 @@ fn run_mode(
             let i_ff = m_pred / (ic * coeff.kt);
             u_ff += if voltage_mode { coeff.r * i_ff } else { i_ff };
         }
-        let (rr, yy) = match c.feedback {
+        let (rr, mut yy) = match c.feedback {
             Feedback::Motor => (r_m, ym),
             Feedback::Output => (ic * r.value, ic * yo),
         };
-        let u = pid.update(rr, yy, u_ff);
+        let injected = options.injection.map(|i| (i.site, i.at(t)));
+        if let Some((InjectionSite::Measurement, d)) = injected {
+            yy += d;
+        }
+        let mut u = pid.update(rr, yy, u_ff);
+        if let Some((InjectionSite::Command, d)) = injected {
+            u = (u + d).clamp(-command_limit, command_limit);
+        }
         let held = delay.push(u);
         if !voltage_mode {
             x[CURRENT] = if held.split > 0.0 {
@@ -518,6 +565,9 @@ fn run_mode(
             current_a: Some(x[CURRENT]),
         };
         metrics.push(&sample);
+        if t >= p.metrics_start_s {
+            hunting.push(t, r.value, x[THETA_O]);
+        }
         if let Some(s) = series.as_mut().filter(|_| k % decimation == 0) {
             s.t_s.push(t);
             s.reference_rad.push(r.value);
@@ -610,5 +660,6 @@ fn run_mode(
         completion,
         simulated_s: reached,
         series,
+        limit_cycle: hunting.finish(),
     }
 }
