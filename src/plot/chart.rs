@@ -115,8 +115,15 @@ pub(super) fn draw_chart<DB: DrawingBackend>(
             SeriesStyle::Points => (4, 3),
             _ => (3, 2),
         };
-        cc.draw_series(s.lines.iter().map(|l| PathElement::new(l.clone(), line)))
-            .map_err(err)?;
+        // Segment by segment: the bitmap backend joins a thick polyline with mitres, which
+        // shoot far past the data where a min/max-reduced trace turns sharply (spikes the
+        // data lacks); separate segments have no joins.
+        cc.draw_series(s.lines.iter().flat_map(|l| {
+            l.windows(2)
+                .map(move |w| PathElement::new(vec![w[0], w[1]], line))
+                .chain((l.len() == 1).then(|| PathElement::new(l.clone(), line)))
+        }))
+        .map_err(err)?;
         cc.draw_series(s.dots.iter().map(|&d| Circle::new(d, dot, color.filled())))
             .map_err(err)?;
         if s.has_data && !s.label.is_empty() {

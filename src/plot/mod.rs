@@ -156,9 +156,18 @@ pub struct Series {
     pub y: Vec<f64>,
     /// Drawing style.
     pub style: SeriesStyle,
+    /// Palette slot (0 to 9) that fixes the colour, so one quantity (a compensation mode)
+    /// keeps its colour in every figure; `None` = the series' position in the chart.
+    pub palette_slot: Option<usize>,
 }
 
 impl Series {
+    /// The same series in palette slot `slot` (0 to 9, wrapping).
+    pub fn in_slot(mut self, slot: usize) -> Self {
+        self.palette_slot = Some(slot);
+        self
+    }
+
     /// A series drawn as a connected line.
     pub fn line(label: impl Into<String>, x: Vec<f64>, y: Vec<f64>) -> Self {
         Self {
@@ -166,6 +175,7 @@ impl Series {
             x,
             y,
             style: SeriesStyle::Line,
+            palette_slot: None,
         }
     }
 
@@ -176,6 +186,7 @@ impl Series {
             x,
             y,
             style: SeriesStyle::Points,
+            palette_slot: None,
         }
     }
 
@@ -186,6 +197,7 @@ impl Series {
             x,
             y,
             style: SeriesStyle::Step,
+            palette_slot: None,
         }
     }
 }

@@ -321,7 +321,7 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
         }
         series.push(PreparedSeries {
             label: s.label.clone(),
-            color: PALETTE[idx % PALETTE.len()],
+            color: PALETTE[s.palette_slot.unwrap_or(idx) % PALETTE.len()],
             style: s.style,
             lines,
             dots,

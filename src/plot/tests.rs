@@ -650,3 +650,76 @@ fn save_chart_200k_points() {
     eprintln!("200k-point chart saved in {:?}", start.elapsed());
     check_outputs(&paths, CHART_SIZE);
 }
+
+/// The chart rasterised in memory as the PNG is (RGB, row by row).
+fn raster(chart: &Chart) -> (Vec<u8>, u32) {
+    output::ensure_fonts().expect("fonts");
+    let fig =
+        chart::SingleFigure(prepare_chart(chart, plot_buckets(CHART_SIZE.0)).expect("prepared"));
+    let (w, h) = fig.size();
+    let mut buf = vec![0u8; (w * h * 3) as usize];
+    output::draw(
+        &fig,
+        plotters::prelude::BitMapBackend::with_buffer(&mut buf, (w, h)),
+        Path::new("memory"),
+    )
+    .expect("drawn");
+    (buf, w)
+}
+
+/// Rows (top, bottom) of the pixels where two rasters differ.
+fn changed_rows(a: &[u8], b: &[u8], width: u32) -> (usize, usize) {
+    let row_bytes = width as usize * 3;
+    let rows: Vec<usize> = a
+        .chunks(row_bytes)
+        .zip(b.chunks(row_bytes))
+        .enumerate()
+        .filter(|(_, (ra, rb))| ra != rb)
+        .map(|(i, _)| i)
+        .collect();
+    (
+        rows.first().copied().unwrap_or(0),
+        rows.last().copied().unwrap_or(0),
+    )
+}
+
+/// A long trace with sharp steps and noise, drawn as a bitmap, stays within the rows of
+/// its own data range (one pixel of tolerance): the bitmap shows no spike the data lacks.
+#[test]
+fn bitmap_trace_stays_within_its_data_range() {
+    let n = 200_000;
+    let x: Vec<f64> = (0..n).map(|i| i as f64 * 1e-4).collect();
+    let y: Vec<f64> = (0..n)
+        .map(|i| {
+            let level = if (i / 25_000) % 2 == 0 { 0.21 } else { -0.22 };
+            level + 0.004 * ((i as f64 * 0.37).sin() + (i as f64 * 1.91).cos())
+        })
+        .collect();
+    let (lo, hi) = y
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(*v), h.max(*v))
+        });
+    let chart = |series: Vec<Series>| Chart {
+        title: "raster".into(),
+        x_label: "t [s]".into(),
+        y_label: "e [mrad]".into(),
+        series,
+        x_range: Some((0.0, 20.0)),
+        y_range: Some((-0.5, 0.5)),
+        ..Chart::default()
+    };
+    let (base, w) = raster(&chart(vec![Series::line("", vec![], vec![])]));
+    let (trace, _) = raster(&chart(vec![Series::line("", x.clone(), y)]));
+    let (bounds, _) = raster(&chart(vec![
+        Series::line("", vec![0.0, 20.0], vec![hi, hi]),
+        Series::line("", vec![0.0, 20.0], vec![lo, lo]),
+    ]));
+    let (trace_top, trace_bottom) = changed_rows(&base, &trace, w);
+    let (bound_top, bound_bottom) = changed_rows(&base, &bounds, w);
+    assert!(trace_bottom > trace_top, "nothing drawn");
+    assert!(
+        trace_top + 1 >= bound_top && trace_bottom <= bound_bottom + 1,
+        "trace rows {trace_top}..{trace_bottom}, data rows {bound_top}..{bound_bottom}"
+    );
+}

@@ -5,9 +5,11 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::closed_loop::{ClosedLoopResult, Completion, ModeResult, SolverStats, TimeSeries};
+use crate::closed_loop::{
+    ClosedLoopResult, CompensationMode, Completion, ModeResult, SolverStats, TimeSeries,
+};
 use crate::metrics::Metrics;
-use crate::plot::{save_chart, Chart, HBand, PlotError, Series};
+use crate::plot::{save_chart, save_panels, Chart, HBand, PlotError, Series};
 use crate::report::ReportError;
 use crate::scenario::Scenario;
 
@@ -212,14 +214,40 @@ pub fn format_table(result: &ClosedLoopResult) -> String {
     out
 }
 
-/// The closed-loop charts as `(file stem, chart)`: pointing error of every mode against
-/// time with the +-target band, pointing error against output angle, span tensions and
-/// motor command. Built from recorded series only (empty when nothing was recorded).
-pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(String, Chart)> {
-    let recorded: Vec<(&str, &TimeSeries)> = result
+/// A figure of a run: one chart, or charts stacked under one title.
+#[derive(Clone, Debug)]
+pub enum Figure {
+    /// One chart.
+    Chart(Chart),
+    /// Panels sharing a title.
+    Panels {
+        /// Figure title.
+        title: String,
+        /// Panels, top to bottom.
+        charts: Vec<Chart>,
+    },
+}
+
+/// The palette slot of a mode, the same in every figure: none blue, memoryless orange,
+/// memory green.
+pub fn mode_slot(mode: CompensationMode) -> usize {
+    match mode {
+        CompensationMode::None => 0,
+        CompensationMode::Memoryless => 1,
+        CompensationMode::Memory => 2,
+    }
+}
+
+/// The closed-loop figures as `(file stem, figure)`: pointing error against time (every
+/// mode with the +-target band; below, the compensated modes on an axis fitted to them),
+/// pointing error against output angle, span tensions (upper and lower panels) and motor
+/// command; one colour per mode throughout. Built from recorded series only (empty when
+/// nothing was recorded, and then no figure is written).
+pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(String, Figure)> {
+    let recorded: Vec<(CompensationMode, &TimeSeries)> = result
         .modes
         .iter()
-        .filter_map(|m| m.series.as_ref().map(|s| (m.mode.name(), s)))
+        .filter_map(|m| m.series.as_ref().map(|s| (m.mode, s)))
         .collect();
     if recorded.is_empty() {
         return Vec::new();
@@ -231,12 +259,13 @@ pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(S
             label: format!("target +-{target_mrad} mrad"),
         }]
     };
-    let curves = |f: &Columns, suffix: &str| -> Vec<Series> {
+    let curves = |f: &Columns, only_compensated: bool| -> Vec<Series> {
         recorded
             .iter()
-            .map(|(name, s)| {
+            .filter(|(mode, _)| !only_compensated || *mode != CompensationMode::None)
+            .map(|(mode, s)| {
                 let (x, y) = f(s);
-                Series::line(format!("{name}{suffix}"), x, y)
+                Series::line(mode.name(), x, y).in_slot(mode_slot(*mode))
             })
             .collect()
     };
@@ -248,30 +277,86 @@ pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(S
         bands,
         ..Chart::default()
     };
-    let mut tensions = curves(&|s| (s.t_s.clone(), s.tension_upper_n.clone()), " upper");
-    tensions.extend(curves(
-        &|s| (s.t_s.clone(), s.tension_lower_n.clone()),
-        " lower",
-    ));
+    let error = |s: &TimeSeries| (s.t_s.clone(), s.pointing_error_mrad.clone());
+    let all_modes = chart(
+        "every mode",
+        "time [s]",
+        "pointing error [mrad]",
+        curves(&error, false),
+        band(),
+    );
+    let compensated = recorded.iter().any(|(m, _)| *m != CompensationMode::None);
+    let has_none = recorded.iter().any(|(m, _)| *m == CompensationMode::None);
+    let pointing = if compensated && has_none {
+        // The uncompensated error sets the first panel's scale; the second is fitted to
+        // the compensated modes (and the band) so they can be told apart.
+        // Over the metrics window, where the modes are judged (the start-up transient
+        // would set the scale otherwise).
+        let (from, to) = result
+            .modes
+            .iter()
+            .find(|m| m.mode != CompensationMode::None && m.metrics.samples > 0)
+            .map_or((f64::NEG_INFINITY, f64::INFINITY), |m| {
+                (m.metrics.window_s[0], m.metrics.window_s[1])
+            });
+        let largest = recorded
+            .iter()
+            .filter(|(m, _)| *m != CompensationMode::None)
+            .flat_map(|(_, s)| {
+                s.t_s
+                    .iter()
+                    .zip(&s.pointing_error_mrad)
+                    .filter(move |(t, _)| **t >= from && **t <= to)
+                    .map(|(_, e)| e.abs())
+            })
+            .filter(|e| e.is_finite())
+            .fold(0.0_f64, f64::max);
+        let y = (1.1 * largest).max(1.2 * target_mrad);
+        let mut fitted = chart(
+            &format!(
+                "compensated modes over the metrics window, axis fitted to them (from {from:.1} s)"
+            ),
+            "time [s]",
+            "pointing error [mrad]",
+            curves(&error, true),
+            band(),
+        );
+        if from.is_finite() && to > from {
+            fitted.x_range = Some((from, to));
+            fitted.y_range = Some((-y, y));
+        }
+        Figure::Panels {
+            title: "Pointing error".into(),
+            charts: vec![all_modes, fitted],
+        }
+    } else {
+        Figure::Chart(Chart {
+            title: "Pointing error".into(),
+            ..all_modes
+        })
+    };
+    let tension_panel = |title: &str, f: &Columns| {
+        chart(
+            title,
+            "time [s]",
+            "tension [N]",
+            curves(f, false),
+            Vec::new(),
+        )
+    };
     // Commands are held between samples: drawn as staircases.
     let commands = recorded
         .iter()
-        .map(|(name, s)| Series::step(*name, s.t_s.clone(), s.motor_command.clone()))
+        .map(|(mode, s)| {
+            Series::step(mode.name(), s.t_s.clone(), s.motor_command.clone())
+                .in_slot(mode_slot(*mode))
+        })
         .collect();
     vec![
-        (
-            "pointing_error".into(),
-            chart(
-                "Pointing error",
-                "time [s]",
-                "pointing error [mrad]",
-                curves(&|s| (s.t_s.clone(), s.pointing_error_mrad.clone()), ""),
-                band(),
-            ),
-        ),
+        ("pointing_error".into(), pointing),
         (
             "error_vs_angle".into(),
-            chart(
+            Figure::Chart(chart(
                 "Pointing error against output angle",
                 "output angle [mrad]",
                 "pointing error [mrad]",
@@ -282,30 +367,34 @@ pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(S
                             s.pointing_error_mrad.clone(),
                         )
                     },
-                    "",
+                    false,
                 ),
                 band(),
-            ),
+            )),
         ),
         (
             "tensions".into(),
-            chart(
-                "Span tensions",
-                "time [s]",
-                "tension [N]",
-                tensions,
-                Vec::new(),
-            ),
+            Figure::Panels {
+                title: "Span tensions".into(),
+                charts: vec![
+                    tension_panel("upper span", &|s| {
+                        (s.t_s.clone(), s.tension_upper_n.clone())
+                    }),
+                    tension_panel("lower span", &|s| {
+                        (s.t_s.clone(), s.tension_lower_n.clone())
+                    }),
+                ],
+            },
         ),
         (
             "motor_command".into(),
-            chart(
+            Figure::Chart(chart(
                 "Motor command",
                 "time [s]",
                 "command [A or V]",
                 commands,
                 Vec::new(),
-            ),
+            )),
         ),
     ]
 }
@@ -320,8 +409,11 @@ pub fn plot_closed_loop(
     target_mrad: f64,
 ) -> Result<Vec<PathBuf>, PlotError> {
     let mut files = Vec::new();
-    for (stem, chart) in closed_loop_charts(result, target_mrad) {
-        files.extend(save_chart(&chart, &dir.join(stem))?);
+    for (stem, figure) in closed_loop_charts(result, target_mrad) {
+        files.extend(match figure {
+            Figure::Chart(chart) => save_chart(&chart, &dir.join(stem))?,
+            Figure::Panels { title, charts } => save_panels(&title, &charts, &dir.join(stem))?,
+        });
     }
     Ok(files)
 }

@@ -160,12 +160,27 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
     };
     let mut error_charts = Vec::new();
     for t in &d.traces {
-        let mr = |v: &[f64]| v.iter().map(|x| x * 1e3).collect::<Vec<f64>>();
+        // A log whose encoders were zeroed a turn apart sits a constant away from the
+        // others; each panel shows its curves about the measured mean, and says by how
+        // much (traces.csv keeps the values as they are).
+        let finite: Vec<f64> = t
+            .measured_rad
+            .iter()
+            .copied()
+            .filter(|v| v.is_finite())
+            .collect();
+        let mean = if finite.is_empty() {
+            0.0
+        } else {
+            finite.iter().sum::<f64>() / finite.len() as f64
+        };
+        let mr = |v: &[f64]| v.iter().map(|x| (x - mean) * 1e3).collect::<Vec<f64>>();
         error_charts.push(Chart {
             title: format!(
-                "{}{}: transmission error",
+                "{}{}: transmission error, measured mean {:.1} mrad removed",
                 short(&t.log),
-                if t.held_out { " (held out)" } else { "" }
+                if t.held_out { " (held out)" } else { "" },
+                mean * 1e3
             ),
             x_label: "time (s)".into(),
             y_label: "error (mrad)".into(),
@@ -243,20 +258,37 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
             .map_err(perr)?,
         );
     }
+    // One series per candidate, so the legend names each; the base model as a line.
+    let round_one: Vec<&crate::identify::CandidateScore> =
+        d.candidates.iter().filter(|c| c.round == 1).collect();
+    let mut series: Vec<Series> = round_one
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            Series::points(
+                format!(
+                    "{} ({:.2} mrad{})",
+                    c.name,
+                    c.rmse_heldout_mrad,
+                    if c.accepted { ", accepted" } else { "" }
+                ),
+                vec![i as f64 + 1.0],
+                vec![c.rmse_heldout_mrad],
+            )
+        })
+        .collect();
+    let n = round_one.len().max(1) as f64;
+    series.push(Series::line(
+        format!("base model ({:.2} mrad)", d.rmse_base_mrad),
+        vec![0.5, n + 0.5],
+        vec![d.rmse_base_mrad, d.rmse_base_mrad],
+    ));
     let cands = Chart {
-        title: "Held-out RMSE of candidates (round 1)".into(),
-        x_label: "candidate index".into(),
+        title: "Held-out RMSE of each candidate effect added to the base model (round 1)".into(),
+        x_label: "candidate (named in the legend)".into(),
         y_label: "held-out RMSE (mrad)".into(),
-        series: vec![Series::points(
-            "candidates",
-            (0..d.candidates.len()).map(|i| i as f64).collect(),
-            d.candidates.iter().map(|c| c.rmse_heldout_mrad).collect(),
-        )],
-        bands: vec![HBand {
-            lo: 0.0,
-            hi: d.rmse_base_mrad,
-            label: "base model".into(),
-        }],
+        series,
+        x_range: Some((0.5, n + 0.5)),
         ..Chart::default()
     };
     files.extend(save_chart(&cands, &dir.join("candidates")).map_err(perr)?);
