@@ -210,7 +210,7 @@ fn run_closed_loop(
     }
     let failure = result.modes.iter().find_map(|m| match &m.completion {
         closed_loop::Completion::Complete => None,
-        closed_loop::Completion::Incomplete { fault, time_s } => Some(format!(
+        closed_loop::Completion::Incomplete { fault, time_s, .. } => Some(format!(
             "mode {} stopped at t = {time_s:.4} s: {fault}",
             m.mode.name()
         )),
@@ -258,6 +258,7 @@ impl CaseRunner for BacklashRunner {
             "regime",
             "anchor_reached",
             "tension_upper_n",
+            "status",
         ]
         .map(String::from)
         .to_vec()
@@ -275,6 +276,13 @@ impl CaseRunner for BacklashRunner {
             Cell::Text(r.regime.as_str().into()),
             Cell::Text(r.anchor_reached.to_string()),
             Cell::Num(r.tension_upper_n),
+            Cell::Text(
+                match r.regime {
+                    quasi_static::Regime::Ok => "ok",
+                    other => other.as_str(),
+                }
+                .into(),
+            ),
         ]
     }
 }
@@ -291,7 +299,8 @@ impl CaseRunner for QuasiStaticRunner {
             "largest_jump_mrad",
             "tension_min_n",
             "tension_max_n",
-            "complete",
+            "status",
+            "stop",
         ]
         .map(String::from)
         .to_vec()
@@ -335,8 +344,20 @@ impl CaseRunner for QuasiStaticRunner {
 impl QuasiStaticRunner {
     fn cells(trace: &quasi_static::QsTrace) -> Vec<Cell> {
         let f = trace.figures();
-        // An empty trace has no figures (its zeros would read as results).
-        let some = |v: f64| (!trace.samples.is_empty()).then_some(v);
+        // A case that stopped (or holds no sample) has no figures: its partial ones would
+        // read as results.
+        let finished = trace.stop.is_none() && !trace.samples.is_empty();
+        let some = |v: f64| finished.then_some(v);
+        let (status, stop) = match &trace.stop {
+            None if trace.samples.is_empty() => ("stopped".to_string(), "no samples".to_string()),
+            None => ("ok".to_string(), String::new()),
+            Some(st) => (
+                crate::closed_loop::StopKind::of(&st.fault)
+                    .name()
+                    .to_string(),
+                format!("t = {:.4} s: {}", st.t_s, st.fault),
+            ),
+        };
         vec![
             Cell::Num(some(f.peak_error_mrad)),
             Cell::Num(some(f.peak_to_peak_error_mrad)),
@@ -344,7 +365,8 @@ impl QuasiStaticRunner {
             Cell::Num(some(f.largest_jump_mrad)),
             Cell::Num(some(f.tension_min_n)),
             Cell::Num(some(f.tension_max_n)),
-            Cell::Text(f.complete.to_string()),
+            Cell::Text(status),
+            Cell::Text(stop),
         ]
     }
 }
@@ -366,13 +388,14 @@ impl ClosedLoopRunner {
         }
     }
 
-    const FIGURES: [&'static str; 6] = [
+    const FIGURES: [&'static str; 7] = [
         "rms_mrad",
         "peak_mrad",
         "p95_mrad",
         "within_target_fraction",
         "passes_target",
-        "complete",
+        "status",
+        "stop",
     ];
 }
 
@@ -391,21 +414,54 @@ impl CaseRunner for ClosedLoopRunner {
     fn run(&self, scenario: &Scenario, _case: &Case) -> Vec<Cell> {
         let result = match closed_loop::run_closed_loop_metrics(scenario) {
             Ok(r) => r,
-            Err(e) => return vec![Cell::Text(format!("error: {e}"))],
+            // Could not run at all: every mode is an error, apart from a physical stop.
+            Err(e) => {
+                return self
+                    .modes
+                    .iter()
+                    .flat_map(|_| {
+                        let mut cells: Vec<Cell> = (0..4).map(|_| Cell::Num(None)).collect();
+                        cells.extend([
+                            Cell::Text("false".into()),
+                            Cell::Text("error".into()),
+                            Cell::Text(e.to_string()),
+                        ]);
+                        cells
+                    })
+                    .collect();
+            }
         };
         let mut cells = Vec::new();
         for mode in &self.modes {
             match result.modes.iter().find(|r| r.mode == *mode) {
                 Some(r) => {
-                    let complete = matches!(r.completion, closed_loop::Completion::Complete);
+                    // A stopped mode has no metrics: what it ran is not the design's answer.
+                    let done = matches!(r.completion, closed_loop::Completion::Complete)
+                        && r.metrics.samples > 0;
                     let m = &r.metrics;
+                    let some = |v: f64| done.then_some(v);
+                    let stop = match &r.completion {
+                        closed_loop::Completion::Complete if r.metrics.samples == 0 => {
+                            "no samples in the metrics window".to_string()
+                        }
+                        closed_loop::Completion::Complete => String::new(),
+                        closed_loop::Completion::Incomplete { fault, .. } => fault.clone(),
+                    };
+                    let status = if done || stop.is_empty() {
+                        r.completion.status()
+                    } else if matches!(r.completion, closed_loop::Completion::Complete) {
+                        "stopped"
+                    } else {
+                        r.completion.status()
+                    };
                     cells.extend([
-                        Cell::Num(Some(m.rms_mrad)),
-                        Cell::Num(Some(m.peak_mrad)),
-                        Cell::Num(Some(m.p95_mrad)),
-                        Cell::Num(Some(m.within_target_fraction)),
-                        Cell::Text((m.passes_target && complete).to_string()),
-                        Cell::Text(complete.to_string()),
+                        Cell::Num(some(m.rms_mrad)),
+                        Cell::Num(some(m.peak_mrad)),
+                        Cell::Num(some(m.p95_mrad)),
+                        Cell::Num(some(m.within_target_fraction)),
+                        Cell::Text((m.passes_target && done).to_string()),
+                        Cell::Text(status.into()),
+                        Cell::Text(stop),
                     ]);
                 }
                 None => cells.extend(Self::FIGURES.iter().map(|_| Cell::Num(None))),
@@ -524,6 +580,7 @@ pub fn run_sweep(
     } else {
         design_answers(scenario, &parameter_columns, &figure_columns, &table.rows)
     };
+    let outcomes = report::sweep::outcomes(&parameter_columns, &figure_columns, &table.rows);
     report::write_summary(
         &dir.join("summary.json"),
         scenario,
@@ -531,6 +588,7 @@ pub fn run_sweep(
         &serde_json::json!({
             "cases_total": cases.len(),
             "cases_written": table.rows.len(),
+            "outcomes": outcomes.0,
             "interrupted_by": signal.map(crate::io::signals::name),
             "shard": crate::io::manifest::ShardManifest::new(&cases, options.shard.k, options.shard.n),
             "mode": spec.mode.as_str(),
@@ -557,6 +615,7 @@ pub fn run_sweep(
         table.rows.len(),
         cases.len()
     );
+    text.push_str(&outcomes.1);
     text.push_str(&answers.1);
     let mut report = finish(staged, text, failure, warnings)?;
     report.signal = signal;

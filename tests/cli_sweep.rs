@@ -126,3 +126,74 @@ fn least_preload_answer() {
     assert!(out.contains("least preload at M = 0.72 N m"), "{out}");
     assert!(out.contains("definition:"), "{out}");
 }
+
+/// Cases the physics stops are rows with a status, the stop's reason and empty figures;
+/// they stay out of the statistics and count as not meeting the target.
+#[test]
+fn stopped_cases_are_named_and_never_numbers() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("low");
+    let o = cable_servo(&[
+        "sweep",
+        "eots_tracking",
+        "--vary",
+        "drive.preload_n=1.5,60",
+        "--set",
+        "closed_loop.modes=[\"memory\"]",
+        "--set",
+        "closed_loop.duration_s=0.6",
+        "--set",
+        "closed_loop.metrics_start_s=0.1",
+        "--out",
+        path(&out),
+    ]);
+    let console = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(
+        o.status.success(),
+        "{console}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let table = text(&out.join("sweep.csv"));
+    let header: Vec<&str> = table.lines().next().unwrap_or("").split(',').collect();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|c| *c == name)
+            .unwrap_or_else(|| panic!("{name} not in {header:?}"))
+    };
+    let rows: Vec<Vec<String>> = table
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let mut r = csv::ReaderBuilder::new()
+                .has_headers(false)
+                .from_reader(l.as_bytes());
+            r.records()
+                .next()
+                .and_then(Result::ok)
+                .map(|rec| rec.iter().map(str::to_string).collect())
+                .unwrap_or_default()
+        })
+        .collect();
+    assert_eq!(rows.len(), 2, "{table}");
+    let (low, high) = (&rows[0], &rows[1]);
+    assert_eq!(low[col("memory_status")], "gross_slip", "{table}");
+    assert!(low[col("memory_stop")].contains("gross slip"), "{table}");
+    for figure in ["memory_rms_mrad", "memory_peak_mrad", "memory_p95_mrad"] {
+        assert_eq!(low[col(figure)], "", "{figure}: {table}");
+        assert!(!high[col(figure)].is_empty(), "{figure}: {table}");
+    }
+    assert_eq!(low[col("memory_passes_target")], "false");
+    assert_eq!(high[col("memory_status")], "ok");
+    assert!(
+        console
+            .contains("memory: 1 of 2 cases finished, 1 stopped by the physics, 0 could not run"),
+        "{console}"
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&text(&out.join("summary.json"))).unwrap();
+    let m = &summary["outcomes"]["memory"];
+    assert_eq!(m["stopped"], 1, "{m}");
+    assert_eq!(m["first_not_finished"][0]["case"], 0, "{m}");
+    assert_eq!(m["first_not_finished"][0]["status"], "gross_slip", "{m}");
+}

@@ -252,7 +252,7 @@ fn slack_ends_the_run_with_a_clear_message() {
     let r = run_closed_loop(&s, &RunOptions::default()).unwrap();
     assert!(!r.complete);
     match &r.modes[0].completion {
-        Completion::Incomplete { fault, time_s } => {
+        Completion::Incomplete { fault, time_s, .. } => {
             // Whichever capacity limit comes first, the message says what to change.
             assert!(
                 (fault.contains("slack") || fault.contains("gross slip"))

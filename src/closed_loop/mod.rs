@@ -23,5 +23,5 @@ pub use params::{
 pub use sim::{
     run_closed_loop, run_closed_loop_metrics, ClosedLoopError, ClosedLoopResult, ClosedLoopSetup,
     ClosedLoopSource, Completion, Injection, InjectionSite, ModeResult, RunOptions, SolverStats,
-    TimeSeries,
+    StopKind, TimeSeries,
 };

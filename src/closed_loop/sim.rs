@@ -125,7 +125,55 @@ pub enum Completion {
         fault: String,
         /// When, s.
         time_s: f64,
+        /// What kind of stop it was.
+        #[serde(default)]
+        kind: StopKind,
     },
+}
+
+/// What stopped a run: the short name a sweep row carries in its status column.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopKind {
+    /// A span went slack.
+    Slack,
+    /// The cable slid around the pulley.
+    GrossSlip,
+    /// The loop diverged (the plant state stopped being finite).
+    Unstable,
+    /// Anything else.
+    #[default]
+    Stopped,
+}
+
+impl StopKind {
+    /// The status name (`slack`, `gross_slip`, `unstable`, `stopped`).
+    pub fn name(self) -> &'static str {
+        match self {
+            StopKind::Slack => "slack",
+            StopKind::GrossSlip => "gross_slip",
+            StopKind::Unstable => "unstable",
+            StopKind::Stopped => "stopped",
+        }
+    }
+
+    /// The kind of a cable fault.
+    pub fn of(fault: &DriveFault) -> Self {
+        match fault {
+            DriveFault::Slack { .. } => StopKind::Slack,
+            DriveFault::GrossSlip { .. } => StopKind::GrossSlip,
+        }
+    }
+}
+
+impl Completion {
+    /// `ok`, or the kind of stop.
+    pub fn status(&self) -> &'static str {
+        match self {
+            Completion::Complete => "ok",
+            Completion::Incomplete { kind, .. } => kind.name(),
+        }
+    }
 }
 
 /// Integration statistics of one mode.
@@ -482,6 +530,7 @@ fn run_mode(
                 completion = Completion::Incomplete {
                     fault: describe(&f, t, mode, last_torque, coeff.ro),
                     time_s: t,
+                    kind: StopKind::of(&f),
                 };
                 break;
             }
@@ -630,6 +679,7 @@ fn run_mode(
             completion = Completion::Incomplete {
                 fault: describe(&f, t + ts, mode, last_torque, coeff.ro),
                 time_s: t + ts,
+                kind: StopKind::of(&f),
             };
             reached = t + ts;
             break;
@@ -642,6 +692,7 @@ fn run_mode(
                     mode.name()
                 ),
                 time_s: t + ts,
+                kind: StopKind::Unstable,
             };
             reached = t + ts;
             break;

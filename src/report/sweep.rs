@@ -99,13 +99,18 @@ pub fn plot(
     }
     let param =
         |r: &(Case, Vec<Cell>), i: usize| r.0.assignments.get(i).and_then(|a| numeric(&a.2));
-    let numeric_figures: Vec<usize> = (0..figure_columns.len())
-        .filter(|&j| {
-            rows.iter()
-                .any(|r| matches!(r.1.get(j), Some(Cell::Num(Some(_)))))
-        })
-        .take(max_figures)
-        .collect();
+    if parameter_columns.len() < 2 {
+        // One parameter: one chart per metric, every mode a curve in its own colour.
+        return by_metric(
+            dir,
+            parameter_columns,
+            figure_columns,
+            rows,
+            max_figures,
+            true,
+        );
+    }
+    let numeric_figures = drawn_figures(figure_columns, rows, max_figures);
     let value = |r: &(Case, Vec<Cell>), j: usize| match r.1.get(j) {
         Some(Cell::Num(Some(v))) if v.is_finite() => Some(*v),
         _ => None,
@@ -145,11 +150,18 @@ pub fn plot(
                     })
                     .collect()
             };
+            let series = match mode_and_metric(fig).0 {
+                Some((_, slot)) if gi == usize::MAX => {
+                    series.into_iter().map(|s| s.in_slot(slot)).collect()
+                }
+                _ => series,
+            };
             let chart = Chart {
                 title: format!("{fig} against {}", parameter_columns[xi]),
                 x_label: parameter_columns[xi].clone(),
                 y_label: fig.clone(),
                 series,
+                log_x: log_spaced(&distinct(xi)),
                 ..Chart::default()
             };
             files.extend(save_chart(
@@ -193,6 +205,66 @@ pub fn plot(
         }
     }
     Ok(files)
+}
+
+/// Mode and metric of a closed-loop figure column (`memory_rms_mrad` -> memory,
+/// rms_mrad), with the mode's fixed palette slot; other columns have no mode.
+fn mode_and_metric(column: &str) -> (Option<(&str, usize)>, &str) {
+    for (slot, mode) in ["none", "memoryless", "memory"].iter().enumerate() {
+        if let Some(metric) = column
+            .strip_prefix(mode)
+            .and_then(|rest| rest.strip_prefix('_'))
+        {
+            return (Some((mode, slot)), metric);
+        }
+    }
+    (None, column)
+}
+
+/// The numeric figure columns to draw: every column (every mode) of the first
+/// `max_metrics` metrics that hold a number in some row.
+fn drawn_figures(
+    figure_columns: &[String],
+    rows: &[(Case, Vec<Cell>)],
+    max_metrics: usize,
+) -> Vec<usize> {
+    let numeric: Vec<usize> = (0..figure_columns.len())
+        .filter(|&j| {
+            rows.iter()
+                .any(|r| matches!(r.1.get(j), Some(Cell::Num(Some(_)))))
+        })
+        .collect();
+    let mut metrics: Vec<&str> = Vec::new();
+    for &j in &numeric {
+        let m = mode_and_metric(&figure_columns[j]).1;
+        if !metrics.contains(&m) {
+            metrics.push(m);
+        }
+    }
+    metrics.truncate(max_metrics);
+    numeric
+        .into_iter()
+        .filter(|&j| metrics.contains(&mode_and_metric(&figure_columns[j]).1))
+        .collect()
+}
+
+/// Whether swept values are spread over decades evenly in their logarithm (a log axis
+/// shows them evenly): all positive, over more than a decade, and their log-spacing more
+/// uniform than their linear spacing.
+fn log_spaced(values: &[f64]) -> bool {
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    v.sort_by(f64::total_cmp);
+    v.dedup();
+    if v.len() < 3 || v[0] <= 0.0 || v[v.len() - 1] / v[0] < 10.0 {
+        return false;
+    }
+    let spread = |d: Vec<f64>| {
+        let m = d.iter().sum::<f64>() / d.len() as f64;
+        (d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / d.len() as f64).sqrt() / m.abs()
+    };
+    let lin = spread(v.windows(2).map(|w| w[1] - w[0]).collect());
+    let log = spread(v.windows(2).map(|w| (w[1] / w[0]).ln()).collect());
+    log < lin
 }
 
 /// Spread of each numeric figure over the cases of a sampled (tolerance) sweep: mean,
@@ -253,38 +325,217 @@ pub fn plot_samples(
     rows: &[(Case, Vec<Cell>)],
     max_figures: usize,
 ) -> Result<Vec<PathBuf>, ReportError> {
+    by_metric(
+        dir,
+        parameter_columns,
+        figure_columns,
+        rows,
+        max_figures,
+        false,
+    )
+}
+
+/// One chart per metric and parameter with every mode in it in its own colour: points for
+/// sampled sweeps, curves in parameter order for a one-parameter grid.
+fn by_metric(
+    dir: &Path,
+    parameter_columns: &[String],
+    figure_columns: &[String],
+    rows: &[(Case, Vec<Cell>)],
+    max_figures: usize,
+    lines: bool,
+) -> Result<Vec<PathBuf>, ReportError> {
     let mut files = Vec::new();
-    let figures = (0..figure_columns.len())
-        .filter(|&j| {
-            rows.iter()
-                .any(|r| matches!(r.1.get(j), Some(Cell::Num(Some(_)))))
-        })
-        .take(max_figures);
-    for j in figures {
+    let figures = drawn_figures(figure_columns, rows, max_figures);
+    // One chart per metric and parameter, every mode in it in its own colour.
+    let mut metrics: Vec<&str> = Vec::new();
+    for &j in &figures {
+        let m = mode_and_metric(&figure_columns[j]).1;
+        if !metrics.contains(&m) {
+            metrics.push(m);
+        }
+    }
+    for metric in metrics {
         for (i, param) in parameter_columns.iter().enumerate().take(4) {
-            let (x, y): (Vec<f64>, Vec<f64>) = rows
+            let mut series = Vec::new();
+            let mut xs_all = Vec::new();
+            let mut cases = 0;
+            for &j in figures
                 .iter()
-                .filter_map(|r| {
-                    let x = r.0.assignments.get(i).and_then(|a| numeric(&a.2))?;
-                    match r.1.get(j) {
-                        Some(Cell::Num(Some(v))) if v.is_finite() => Some((x, *v)),
-                        _ => None,
-                    }
-                })
-                .unzip();
-            if x.is_empty() {
+                .filter(|&&j| mode_and_metric(&figure_columns[j]).1 == metric)
+            {
+                let mut pts: Vec<(f64, f64)> = rows
+                    .iter()
+                    .filter_map(|r| {
+                        let x = r.0.assignments.get(i).and_then(|a| numeric(&a.2))?;
+                        match r.1.get(j) {
+                            Some(Cell::Num(Some(v))) if v.is_finite() => Some((x, *v)),
+                            _ => None,
+                        }
+                    })
+                    .collect();
+                if lines {
+                    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+                }
+                let (x, y): (Vec<f64>, Vec<f64>) = pts.into_iter().unzip();
+                if x.is_empty() {
+                    continue;
+                }
+                cases = cases.max(x.len());
+                xs_all.extend(x.iter().copied());
+                let fig = &figure_columns[j];
+                let (label, slot) = match mode_and_metric(fig).0 {
+                    Some((mode, slot)) => (mode.to_string(), Some(slot)),
+                    None => (fig.clone(), None),
+                };
+                let s = if lines {
+                    Series::line(label, x, y)
+                } else {
+                    Series::points(label, x, y)
+                };
+                let s = match slot {
+                    Some(k) => s.in_slot(k),
+                    None => s,
+                };
+                series.push(s);
+            }
+            if series.is_empty() {
                 continue;
             }
-            let fig = &figure_columns[j];
             let chart = Chart {
-                title: format!("{fig} against {param} ({} cases)", x.len()),
+                title: format!("{metric} against {param} ({cases} finished cases)"),
                 x_label: param.clone(),
-                y_label: fig.clone(),
-                series: vec![Series::points(fig.clone(), x, y)],
+                y_label: metric.to_string(),
+                series,
+                log_x: log_spaced(&xs_all),
                 ..Chart::default()
             };
-            files.extend(save_chart(&chart, &dir.join(format!("{fig}_vs_{param}")))?);
+            files.extend(save_chart(
+                &chart,
+                &dir.join(format!("{metric}_vs_{param}")),
+            )?);
         }
     }
     Ok(files)
+}
+
+/// How the cases of a sweep ended, per status column (`status`, or `<mode>_status`):
+/// finished (`ok`), stopped by the physics (slack, gross slip, unstable, ...) or not run
+/// at all (`error`, invalid parameters), the pass rate with every stopped or failed case
+/// counted as not meeting the target, and the first stopped cases with their values and
+/// reason. Returns JSON and a printable text.
+pub fn outcomes(
+    parameter_columns: &[String],
+    figure_columns: &[String],
+    rows: &[(Case, Vec<Cell>)],
+) -> (serde_json::Value, String) {
+    const SHOWN: usize = 5;
+    let mut json = serde_json::Map::new();
+    let mut text = String::new();
+    let text_of = |cells: &[Cell], j: Option<usize>| match j.and_then(|j| cells.get(j)) {
+        Some(Cell::Text(t)) => t.clone(),
+        _ => String::new(),
+    };
+    for (j, name) in figure_columns.iter().enumerate() {
+        let Some(prefix) = name.strip_suffix("status") else {
+            continue;
+        };
+        let passes = figure_columns
+            .iter()
+            .position(|c| *c == format!("{prefix}passes_target"));
+        let stop = figure_columns
+            .iter()
+            .position(|c| *c == format!("{prefix}stop"));
+        let (mut ok, mut stopped, mut errors, mut passed) = (0usize, 0usize, 0usize, 0usize);
+        let mut first = Vec::new();
+        for (case, cells) in rows {
+            let status = text_of(cells, Some(j));
+            match status.as_str() {
+                "ok" => ok += 1,
+                "error" => errors += 1,
+                _ => stopped += 1,
+            }
+            if text_of(cells, passes) == "true" && status == "ok" {
+                passed += 1;
+            }
+            if status != "ok" && first.len() < SHOWN {
+                let values: serde_json::Map<String, serde_json::Value> = parameter_columns
+                    .iter()
+                    .zip(&case.assignments)
+                    .map(|(c, a)| (c.clone(), serde_json::json!(render_value(&a.2))))
+                    .collect();
+                first.push(serde_json::json!({
+                    "case": case.index,
+                    "values": values,
+                    "status": status,
+                    "reason": text_of(cells, stop),
+                }));
+            }
+        }
+        let label = prefix.trim_end_matches('_');
+        let label = if label.is_empty() { "cases" } else { label };
+        let n = rows.len();
+        text.push_str(&format!(
+            "{label}: {ok} of {n} cases finished, {stopped} stopped by the physics, {errors} could not run{}\n",
+            passes.map_or(String::new(), |_| format!(
+                "; {passed} meet the target ({:.1} %, stopped and failed cases counted as not meeting it)",
+                if n > 0 { 100.0 * passed as f64 / n as f64 } else { 0.0 }
+            ))
+        ));
+        for f in &first {
+            text.push_str(&format!(
+                "  case {} ({}): {} {}\n",
+                f["case"],
+                f["values"]
+                    .as_object()
+                    .map(|m| m
+                        .iter()
+                        .map(|(k, v)| format!("{k} = {}", v.as_str().unwrap_or_default()))
+                        .collect::<Vec<_>>()
+                        .join(", "))
+                    .unwrap_or_default(),
+                f["status"].as_str().unwrap_or_default(),
+                f["reason"].as_str().unwrap_or_default()
+            ));
+        }
+        json.insert(
+            label.to_string(),
+            serde_json::json!({
+                "cases": n,
+                "finished": ok,
+                "stopped": stopped,
+                "errors": errors,
+                "meet_target": passes.map(|_| passed),
+                "pass_rate": passes.map(|_| if n > 0 { passed as f64 / n as f64 } else { 0.0 }),
+                "first_not_finished": first,
+            }),
+        );
+    }
+    (serde_json::Value::Object(json), text)
+}
+
+#[cfg(test)]
+mod plot_choice_tests {
+    use super::*;
+
+    #[test]
+    fn log_spaced_values_are_told_from_linear_ones() {
+        assert!(log_spaced(&[5.0, 15.8, 50.0, 158.0, 500.0]));
+        assert!(!log_spaced(&[10.0, 20.0, 30.0, 40.0, 50.0]));
+        assert!(!log_spaced(&[1.0, 2.0, 3.0]));
+        assert!(!log_spaced(&[-1.0, 10.0, 100.0]));
+    }
+
+    #[test]
+    fn a_figure_column_names_its_mode_and_metric() {
+        assert_eq!(
+            mode_and_metric("memoryless_rms_mrad"),
+            (Some(("memoryless", 1)), "rms_mrad")
+        );
+        assert_eq!(
+            mode_and_metric("memory_peak_mrad"),
+            (Some(("memory", 2)), "peak_mrad")
+        );
+        assert_eq!(mode_and_metric("reversal_mrad"), (None, "reversal_mrad"));
+    }
 }
