@@ -530,3 +530,92 @@ fn effects_options_are_validated_by_key() {
         r => panic!("expected a validation error, got {r:?}"),
     }
 }
+
+/// The step-and-stare drive, one 2 mrad step from rest at 0.05 s, 0.35 s in all.
+fn step_from_rest() -> Scenario {
+    let mut s = builtin("step_stare");
+    let p = params(&mut s);
+    p.duration_s = 0.35;
+    p.metrics_start_s = 0.0;
+    p.reference = Signal::Step {
+        amplitude_rad: 0.002,
+        time_s: 0.05,
+    };
+    s
+}
+
+/// From rest the brake holds whatever the cable transmits once the reference stops, so
+/// the compensated modes must not predict a standing brake torque: they may not overshoot
+/// more than `none`, nor stand further off the target after settling.
+#[test]
+fn compensation_does_not_worsen_a_step_from_rest() {
+    let r = run_closed_loop(&step_from_rest(), &RunOptions::metrics_only()).unwrap();
+    let summary = |m: CompensationMode| {
+        let mr = r.modes.iter().find(|x| x.mode == m).unwrap();
+        assert_eq!(mr.completion, Completion::Complete, "{m:?}");
+        assert_eq!(mr.metrics.steps.len(), 1, "{m:?}");
+        mr.metrics.step_summary.unwrap()
+    };
+    let none = summary(CompensationMode::None);
+    let after = |s: &cable_servo::metrics::StepSummary| {
+        s.error_after_settling_peak_mrad
+            .expect("the step settles in every mode")
+    };
+    for mode in [CompensationMode::Memoryless, CompensationMode::Memory] {
+        let comp = summary(mode);
+        assert!(
+            comp.max_overshoot_percent <= none.max_overshoot_percent + 1.0,
+            "{mode:?}: {comp:?} vs none {none:?}"
+        );
+        assert!(
+            after(&comp) <= after(&none) + 0.005,
+            "{mode:?}: {comp:?} vs none {none:?}"
+        );
+    }
+}
+
+/// The feedforward is computed from the reference and the declared loads only: an
+/// unknown constant torque and a sine torque on the drum change the output but leave the
+/// feedforward and the compensated motor reference bit for bit the same.
+#[test]
+fn feedforward_does_not_see_unknown_disturbances() {
+    let mut quiet = builtin("eots_tracking");
+    {
+        let p = params(&mut quiet);
+        p.duration_s = 0.3;
+        p.metrics_start_s = 0.0;
+        p.modes = vec![CompensationMode::Memoryless, CompensationMode::Memory];
+    }
+    let mut disturbed = quiet.clone();
+    disturbed.load.constant_nm = 0.2;
+    disturbed.load.sine_nm = 0.1;
+    disturbed.load.sine_frequency_hz = 7.0;
+    let a = run_closed_loop(&quiet, &RunOptions::default()).unwrap();
+    let b = run_closed_loop(&disturbed, &RunOptions::default()).unwrap();
+    for (ma, mb) in a.modes.iter().zip(&b.modes) {
+        assert_eq!(mb.completion, Completion::Complete);
+        let (sa, sb) = (ma.series.as_ref().unwrap(), mb.series.as_ref().unwrap());
+        assert_eq!(sa.len(), sb.len());
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(
+            bits(&sa.feedforward),
+            bits(&sb.feedforward),
+            "{:?}",
+            ma.mode
+        );
+        assert_eq!(
+            bits(&sa.motor_reference_rad),
+            bits(&sb.motor_reference_rad),
+            "{:?}",
+            ma.mode
+        );
+        assert!(sa.feedforward.iter().any(|&u| u != 0.0));
+        let moved = sa
+            .output_angle_rad
+            .iter()
+            .zip(&sb.output_angle_rad)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max);
+        assert!(moved > 1e-6, "{:?}: output moved {moved} rad", ma.mode);
+    }
+}
