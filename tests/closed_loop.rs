@@ -341,9 +341,14 @@ fn outputs_are_written_and_metrics_do_not_depend_on_recording() {
     assert_eq!(files.len(), 2);
     let text = std::fs::read_to_string(dir.path().join("timeseries.csv")).unwrap();
     let mut lines = text.lines();
-    assert!(lines.next().unwrap().starts_with(
+    let header = lines.next().unwrap();
+    assert!(header.starts_with(
         "mode,t_s,reference_rad,motor_angle_rad,output_angle_rad,pointing_error_mrad"
     ));
+    assert!(
+        header.ends_with(",load_torque_nm,feedforward_a,motor_reference_rad"),
+        "{header}"
+    );
     assert_eq!(
         lines.count(),
         2 * rec.modes[0].series.as_ref().unwrap().len()
@@ -364,7 +369,12 @@ fn outputs_are_written_and_metrics_do_not_depend_on_recording() {
         assert!(!json["modes"][0][key].is_null(), "{key}");
     }
     assert_eq!(json["scenario"]["study"], "closed_loop");
-    assert!(format_table(&rec).contains("memory"));
+    // A step reference is judged on its steps, and the console says how.
+    assert_eq!(json["modes"][0]["metrics"]["criterion"], "steps");
+    assert_eq!(json["modes"][0]["metrics"]["step_summary"]["judged"], 2);
+    let table = format_table(&rec);
+    assert!(table.contains("memory"));
+    assert!(table.contains("settling_ms"), "{table}");
     let charts = closed_loop_charts(&rec, 0.1);
     assert_eq!(charts.len(), 4);
     let pictures = plot_closed_loop(dir.path(), &rec, 0.1).unwrap();
