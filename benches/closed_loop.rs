@@ -19,9 +19,8 @@ fn case(cable: CableModel) -> Scenario {
 
 fn options(mode: CompensationMode) -> RunOptions {
     RunOptions {
-        record: false,
-        decimation: 1,
         modes: Some(vec![mode]),
+        ..RunOptions::metrics_only()
     }
 }
 

@@ -13,6 +13,7 @@
 
 pub mod closed_loop;
 pub mod design;
+pub mod fmu;
 pub mod identify;
 pub mod io;
 pub mod measurement;

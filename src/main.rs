@@ -278,6 +278,66 @@ enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
     },
+    /// Frequency response of the simulated (nonlinear) loop by sinusoidal injection at one
+    /// loop point and one or more amplitudes; margins, sensitivity peak and bandwidth of
+    /// each amplitude beside the exact linear reference; CSV, JSON, Bode and Nyquist plots.
+    /// Settings default to the scenario's [closed_loop.freqresp] section; flags override.
+    /// Exit 4 when a requirement (PM, GM, Ms) is not met or a frequency failed.
+    Freqresp {
+        /// Closed-loop scenario file or built-in name (default: eots_tracking).
+        scenario: Option<String>,
+        /// Loop point: plant_input (L), output_disturbance (S), input_disturbance (PS),
+        /// reference (T_r).
+        #[arg(long)]
+        point: Option<String>,
+        /// Injection amplitudes, comma-separated: A (or V) at the plant input, output mrad
+        /// elsewhere.
+        #[arg(long, value_delimiter = ',', num_args = 1..)]
+        amplitudes: Vec<f64>,
+        /// Frequencies, Hz, comma-separated (instead of the log range).
+        #[arg(long, value_delimiter = ',', num_args = 1..)]
+        frequencies: Vec<f64>,
+        /// Lowest frequency of the log range, Hz.
+        #[arg(long)]
+        f_min: Option<f64>,
+        /// Highest frequency of the log range, Hz (default 0.4 x Nyquist).
+        #[arg(long)]
+        f_max: Option<f64>,
+        /// Frequencies in the log range.
+        #[arg(long)]
+        points: Option<usize>,
+        /// Worker threads (default: all cores).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// Results directory (default: results/<scenario name>-freqresp, or the next free).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Override a scenario value (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Replace an existing results directory written by this program.
+        #[arg(long)]
+        force: bool,
+    },
+    /// Export the plant of a closed-loop scenario as an FMI 2.0 Co-Simulation FMU (motor,
+    /// cable drive, drum, loads, encoders; the host closes the loop). Needs the shared
+    /// library built next to this binary (`cargo build --release` builds both).
+    ExportFmu {
+        /// Closed-loop scenario file or built-in name (its values become the FMU's defaults).
+        scenario: String,
+        /// FMU file to write.
+        #[arg(long, default_value = "drive.fmu")]
+        out: PathBuf,
+        /// Override a scenario value (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Shared library to pack (default: libcable_servo.so next to this binary).
+        #[arg(long, value_name = "PATH")]
+        library: Option<PathBuf>,
+        /// Replace an existing file.
+        #[arg(long)]
+        force: bool,
+    },
     /// Print a built-in scenario (to copy and edit).
     Show {
         /// Built-in scenario name.
@@ -664,6 +724,154 @@ fn main() -> ExitCode {
                 }
             }
         }
+        Command::Freqresp {
+            scenario,
+            point,
+            amplitudes,
+            frequencies,
+            f_min,
+            f_max,
+            points,
+            threads,
+            out,
+            set,
+            force,
+        } => {
+            let name = scenario.as_deref().unwrap_or(DEFAULT_SCENARIO);
+            let scenario = match load(name, &set) {
+                Ok(s) => s,
+                Err(code) => return code,
+            };
+            let mut spec = scenario
+                .closed_loop
+                .as_ref()
+                .and_then(|c| c.freqresp.clone())
+                .unwrap_or_default();
+            if let Some(point) = point {
+                match cable_servo::closed_loop::freqresp::LoopPoint::parse(&point) {
+                    Ok(p) => spec.point = p,
+                    Err(e) => {
+                        tell!("error: --point: {e}");
+                        return ExitCode::from(exit::INPUT);
+                    }
+                }
+            }
+            if !amplitudes.is_empty() {
+                spec.amplitudes = amplitudes;
+            }
+            if !frequencies.is_empty() {
+                spec.frequencies_hz = frequencies;
+            }
+            if let Some(f) = f_min {
+                spec.f_min_hz = f;
+                spec.frequencies_hz.clear();
+            }
+            if let Some(f) = f_max {
+                spec.f_max_hz = Some(f);
+                spec.frequencies_hz.clear();
+            }
+            if let Some(n) = points {
+                spec.points = n;
+                spec.frequencies_hz.clear();
+            }
+            let dir = out.unwrap_or_else(|| {
+                run::default_results_dir(
+                    &PathBuf::from("results").join(format!("{}-freqresp", scenario.name())),
+                    force,
+                )
+            });
+            let bar = indicatif::ProgressBar::new(0);
+            bar.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{elapsed_precise} [{bar:40}] {pos}/{len} measurements (eta {eta})",
+                )
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            );
+            if let Some(p) = scenario.closed_loop.as_ref() {
+                let n = spec
+                    .frequencies(p.controller.sample_rate_hz)
+                    .map_or(0, |f| f.len())
+                    * spec
+                        .amplitudes(p.motor.command_limit())
+                        .map_or(0, |a| a.len());
+                bar.set_length(n as u64);
+            }
+            let tick = || bar.inc(1);
+            let result = run::run_freqresp(
+                &scenario,
+                &spec,
+                threads,
+                &OutputOptions { dir, force },
+                &tick,
+            );
+            bar.finish_and_clear();
+            match result {
+                Ok(r) => {
+                    for w in &r.warnings {
+                        tell!("warning: {w}");
+                    }
+                    say!(
+                        "{}: {} at the {} ({} runs, {:.1} s simulated)",
+                        scenario.name(),
+                        spec.point.transfer(),
+                        spec.point.name(),
+                        r.runs.0,
+                        r.runs.1
+                    );
+                    say_raw!("{}", r.table);
+                    say!("results: {}", r.dir.display());
+                    if r.passes {
+                        ExitCode::SUCCESS
+                    } else {
+                        tell!("requirements not met (see above; failed frequencies are listed in freqresp.csv with their reason)");
+                        ExitCode::from(exit::PHYSICAL)
+                    }
+                }
+                Err(e) => report(Err(e)),
+            }
+        }
+        Command::ExportFmu {
+            scenario,
+            out,
+            set,
+            library,
+            force,
+        } => {
+            let scenario = match load(&scenario, &set) {
+                Ok(s) => s,
+                Err(code) => return code,
+            };
+            let library = match library {
+                Some(l) => l,
+                None => match std::env::current_exe() {
+                    Ok(exe) => cable_servo::fmu::export::library_beside(&exe),
+                    Err(e) => {
+                        tell!("error: cannot locate this executable to find the shared library ({e}); give --library PATH");
+                        return ExitCode::from(exit::INPUT);
+                    }
+                },
+            };
+            use cable_servo::fmu::export::{export_fmu, ExportError};
+            match export_fmu(&scenario, &library, &out, force) {
+                Ok(r) => {
+                    say!(
+                        "FMU written: {} ({} variables, {} bytes, GUID {})",
+                        r.path.display(),
+                        r.variables,
+                        r.bytes,
+                        r.guid
+                    );
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    tell!("error: {e}");
+                    ExitCode::from(match e {
+                        ExportError::Exists(_) | ExportError::Io { .. } => exit::OUTPUT,
+                        _ => exit::INPUT,
+                    })
+                }
+            }
+        }
         Command::Show { name } => match cable_servo::scenario::builtin(&name) {
             Some(text) => {
                 say_raw!("{text}");
@@ -776,6 +984,7 @@ fn report(result: Result<RunReport, RunError>) -> ExitCode {
                 | RunError::ClosedLoop(_)
                 | RunError::Identify(_)
                 | RunError::Log(_)
+                | RunError::FreqResp(_)
                 | RunError::Unsupported(_) => exit::INPUT,
                 RunError::Output(_) | RunError::Report(_) => exit::OUTPUT,
             })

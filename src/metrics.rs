@@ -6,6 +6,8 @@
 //! the same way. Samples are assumed uniformly spaced in time (fractions are sample
 //! fractions).
 
+pub mod limit_cycle;
+
 use std::sync::OnceLock;
 
 use serde::{Deserialize, Serialize};

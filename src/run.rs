@@ -44,6 +44,9 @@ pub enum RunError {
     /// A bench log cannot be read.
     #[error(transparent)]
     Log(#[from] crate::io::benchlog::LogError),
+    /// A frequency response cannot be measured with these settings.
+    #[error(transparent)]
+    FreqResp(#[from] crate::closed_loop::freqresp::FreqRespError),
 }
 
 /// What a run produced.
@@ -738,4 +741,54 @@ pub fn run_leave_one_out(
         crate::io::output::write_atomic(path, (header + &model).as_bytes())?;
     }
     finish(staged, text, None, Vec::new())
+}
+
+/// What `freqresp` measured and where it went.
+#[derive(Debug)]
+pub struct FreqRespReport {
+    /// Results directory.
+    pub dir: PathBuf,
+    /// Console table.
+    pub table: String,
+    /// Whether every amplitude met the requirements with every frequency measured.
+    pub passes: bool,
+    /// Plots that could not be drawn.
+    pub warnings: Vec<String>,
+    /// Simulation runs and simulated seconds.
+    pub runs: (usize, f64),
+}
+
+/// Measure the frequency response of a closed-loop scenario (`spec` already merged from
+/// the scenario and the command line), write its files, then its plots.
+pub fn run_freqresp(
+    scenario: &Scenario,
+    spec: &closed_loop::freqresp::FreqRespParams,
+    threads: usize,
+    out: &OutputOptions,
+    progress: &(dyn Fn() + Sync),
+) -> Result<FreqRespReport, RunError> {
+    let p = scenario.closed_loop.as_ref().ok_or_else(|| {
+        RunError::Unsupported(format!(
+            "{} is not a closed-loop scenario (study = \"closed_loop\"): a frequency response needs a loop",
+            scenario.name()
+        ))
+    })?;
+    // Bad settings stop here, before a results directory exists.
+    spec.validate(p)?;
+    let setup = closed_loop::ClosedLoopSource::closed_loop_setup(scenario)?;
+    let staged = StagedDir::create(&out.dir, out.force)?;
+    let dir = staged.path().to_path_buf();
+    let r = closed_loop::freqresp::measure(setup, spec, threads, progress)?;
+    report::freqresp::write_outputs(&dir, scenario, &r)?;
+    let mut warnings = scenario.warnings();
+    let lin = closed_loop::linear::LinearLoop::new(p, &scenario.drive);
+    plots(report::freqresp::plot(&dir, &r, &lin), &mut warnings);
+    let dir = staged.commit()?;
+    Ok(FreqRespReport {
+        dir,
+        table: report::freqresp::format_table(&r),
+        passes: r.amplitudes.iter().all(|a| a.passes()),
+        warnings,
+        runs: (r.runs, r.simulated_s),
+    })
 }

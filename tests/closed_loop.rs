@@ -215,8 +215,7 @@ fn eots_tracking_memory_compensation_meets_target() {
     let s = builtin("eots_tracking");
     let opts = RunOptions {
         record: false,
-        decimation: 1,
-        modes: None,
+        ..RunOptions::default()
     };
     let r = run_closed_loop(&s, &opts).unwrap();
     assert!(r.complete);

@@ -316,7 +316,9 @@ fn check_err(e: &ScenarioError, text: &str, context: &str) {
         }
         ScenarioError::Override { .. } => assert!(msg.starts_with("--set "), "{msg}"),
         ScenarioError::Invalid { .. } => assert!(msg.starts_with(NAME), "{msg}\n{context}"),
-        ScenarioError::Io { .. } => panic!("I/O error from text: {msg}"),
+        ScenarioError::Io { .. } | ScenarioError::NotFound { .. } => {
+            panic!("file error from text: {msg}")
+        }
     }
 }
 

@@ -67,7 +67,7 @@ impl Pid {
 }
 
 /// An encoder: quantisation to whole counts and white noise.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct Encoder {
     rad_per_count: Option<f64>,
     noise: Option<Normal<f64>>,
@@ -101,7 +101,7 @@ impl Encoder {
 }
 
 /// Both encoders and their random source.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct Sensors {
     /// Motor encoder.
     pub motor: Encoder,

@@ -176,6 +176,14 @@ impl LinearLoop {
             + (one - zi) * ((1.0 - self.a) * self.kd_t) / (one - zi * self.a)
     }
 
+    /// The part of the controller acting on the error, `kp + ki T / (1 - z^-1)` (the
+    /// derivative acts on the measurement alone): the reference reaches the output
+    /// through `P Kr S`.
+    pub fn error_path(&self, f_hz: f64) -> Complex<f64> {
+        let zi = Complex::from_polar(1.0, -std::f64::consts::TAU * f_hz * self.ts);
+        Complex::from(self.kp) + Complex::from(self.ki_t) / (Complex::from(1.0) - zi)
+    }
+
     /// Loop gain broken at the plant input, `L = K P`.
     pub fn loop_gain(&self, f_hz: f64) -> Complex<f64> {
         self.controller(f_hz) * self.plant(f_hz)

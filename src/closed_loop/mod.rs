@@ -9,8 +9,10 @@
 //! written at the edge, by `report::closed_loop`.
 
 pub mod controller;
+pub mod freqresp;
 pub mod linear;
 pub mod params;
+pub mod period;
 pub mod plant;
 pub mod sim;
 
@@ -20,5 +22,6 @@ pub use params::{
 };
 pub use sim::{
     run_closed_loop, run_closed_loop_metrics, ClosedLoopError, ClosedLoopResult, ClosedLoopSetup,
-    ClosedLoopSource, Completion, ModeResult, RunOptions, SolverStats, TimeSeries,
+    ClosedLoopSource, Completion, Injection, InjectionSite, ModeResult, RunOptions, SolverStats,
+    TimeSeries,
 };

@@ -411,6 +411,10 @@ pub struct ClosedLoopParams {
     /// (same keys and units); defaults to the plant's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub compensator_effects: Option<EffectsParams>,
+    /// How `cable-servo freqresp` measures this loop (`[closed_loop.freqresp]`): loop
+    /// point, frequencies, amplitudes and the requirements the margins are judged by.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub freqresp: Option<super::freqresp::FreqRespParams>,
 }
 
 fn default_metrics_start() -> f64 {

@@ -3,15 +3,15 @@
 
 use std::time::Instant;
 
-use ode_solvers::Rk4;
 use serde::{Deserialize, Serialize};
 
 use super::controller::{BrakePredictor, CommandDelay, Compensator, Pid, Sensors};
 use super::params::{Amplifier, ClosedLoopParams, CompensationMode, Feedback};
+use super::period::{integrate_period, settle_boundary};
 use super::plant::{
-    damped, load_torque, update_brake, BrakeState, Forces, PeriodRhs, PlantCable,
-    PlantCoefficients, State, CURRENT, OMEGA_O, THETA_M, THETA_O,
+    load_torque, BrakeState, PlantCable, PlantCoefficients, State, CURRENT, THETA_M, THETA_O,
 };
+use crate::metrics::limit_cycle::{LimitCycle, LimitCycleDetector};
 use crate::metrics::{Metrics, MetricsAccumulator, MetricsConfig, Sample, StepEvent};
 use crate::physics::{DriveFault, DriveParams, EffectsParams, Half, LoadParams, LoadTerm};
 use crate::signal::Signal;
@@ -25,6 +25,38 @@ pub struct RunOptions {
     pub decimation: usize,
     /// Run only these modes (those of the scenario that are listed here); `None` = all.
     pub modes: Option<Vec<CompensationMode>>,
+    /// A sinusoid added inside the loop (frequency-response measurement); `None` in
+    /// every ordinary run.
+    pub injection: Option<Injection>,
+}
+
+/// Where an injected sinusoid enters the sampled loop.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InjectionSite {
+    /// Added to the controller's command before the computation delay and the hold (A or
+    /// V), clipped to the amplifier's limit with it.
+    Command,
+    /// Added to the measurement the controller reads (motor rad: `ic` times the output
+    /// angle under output feedback).
+    Measurement,
+}
+
+/// `amplitude * sin(2 pi f t_k)` added at `site` at every sample `t_k`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Injection {
+    /// Where it enters.
+    pub site: InjectionSite,
+    /// Amplitude in the site's unit (A or V at the command, motor rad at the measurement).
+    pub amplitude: f64,
+    /// Frequency, Hz (below Nyquist).
+    pub frequency_hz: f64,
+}
+
+impl Injection {
+    /// The injected value at `t_s`.
+    pub fn at(&self, t_s: f64) -> f64 {
+        self.amplitude * (std::f64::consts::TAU * self.frequency_hz * t_s).sin()
+    }
 }
 
 impl Default for RunOptions {
@@ -33,6 +65,7 @@ impl Default for RunOptions {
             record: true,
             decimation: 1,
             modes: None,
+            injection: None,
         }
     }
 }
@@ -196,6 +229,10 @@ pub struct ModeResult {
     pub simulated_s: f64,
     /// Time series (`None` when not recorded).
     pub series: Option<TimeSeries>,
+    /// Sustained oscillation while the reference rests (hunting), judged over the
+    /// metrics window.
+    #[serde(default)]
+    pub limit_cycle: LimitCycle,
 }
 
 /// Result of a closed-loop run.
@@ -400,7 +437,8 @@ fn run_mode(
     let coeff = PlantCoefficients::new(p, drive, load, scenario.effects);
     let mut cable = PlantCable::new(p.cable, drive);
     let mut sensors = Sensors::new(&p.sensors);
-    let mut pid = Pid::new(&p.controller, p.motor.command_limit());
+    let command_limit = p.motor.command_limit();
+    let mut pid = Pid::new(&p.controller, command_limit);
     let mut delay = CommandDelay::new(p.controller.computation_delay_samples);
     let mut comp = mode
         .model()
@@ -435,6 +473,7 @@ fn run_mode(
         settle_band_mrad: p.settle_band_mrad.unwrap_or(p.target_mrad),
         steps: step_events(&p.reference, p.duration_s),
     });
+    let mut hunting = LimitCycleDetector::default();
     let decimation = options.decimation.max(1) as u64;
     let mut series = options
         .record
@@ -452,10 +491,9 @@ fn run_mode(
 
     for k in 0..=n {
         let t = k as f64 * ts;
-        let kin = coeff.kinematics(&x, t);
         boundary_solves += 1;
-        let el = match cable.commit(kin.d) {
-            Ok(el) => el,
+        let forces = match settle_boundary(&coeff, &mut cable, load, &mut brake, &mut x, t) {
+            Ok(f) => f,
             Err(f) => {
                 completion = Completion::Incomplete {
                     fault: describe(&f, t, mode, last_torque, coeff.ro),
@@ -464,24 +502,8 @@ fn run_mode(
                 break;
             }
         };
-        let (tu, tl) = damped(&coeff, el, &kin);
-        let forces = Forces {
-            tension_upper_n: tu,
-            tension_lower_n: tl,
-            cable_torque_nm: kin.lever_out * (tu - tl),
-            smooth_load_nm: if coeff.smooth_load {
-                load.smooth_torque_nm(t, x[THETA_O])
-            } else {
-                0.0
-            },
-        };
+        let (tu, tl) = (forces.tension_upper_n, forces.tension_lower_n);
         last_torque = forces.cable_torque_nm;
-        brake = update_brake(
-            &coeff,
-            brake,
-            forces.cable_torque_nm + forces.smooth_load_nm,
-            &mut x,
-        );
 
         // Controller at t_k.
         let ym = sensors.motor.read(x[THETA_M], &mut sensors.rng);
@@ -529,11 +551,18 @@ fn run_mode(
             let i_ff = m_pred / (ic * coeff.kt);
             u_ff += if voltage_mode { coeff.r * i_ff } else { i_ff };
         }
-        let (rr, yy) = match c.feedback {
+        let (rr, mut yy) = match c.feedback {
             Feedback::Motor => (r_m, ym),
             Feedback::Output => (ic * r.value, ic * yo),
         };
-        let u = pid.update(rr, yy, u_ff);
+        let injected = options.injection.map(|i| (i.site, i.at(t)));
+        if let Some((InjectionSite::Measurement, d)) = injected {
+            yy += d;
+        }
+        let mut u = pid.update(rr, yy, u_ff);
+        if let Some((InjectionSite::Command, d)) = injected {
+            u = (u + d).clamp(-command_limit, command_limit);
+        }
         let held = delay.push(u);
         if !voltage_mode {
             x[CURRENT] = if held.split > 0.0 {
@@ -552,6 +581,9 @@ fn run_mode(
             current_a: Some(x[CURRENT]),
         };
         metrics.push(&sample);
+        if t >= p.metrics_start_s {
+            hunting.push(t, r.value, x[THETA_O]);
+        }
         if let Some(s) = series.as_mut().filter(|_| k % decimation == 0) {
             s.t_s.push(t);
             s.reference_rad.push(r.value);
@@ -592,34 +624,21 @@ fn run_mode(
             if !voltage_mode {
                 x[CURRENT] = command;
             }
-            let rhs = PeriodRhs {
-                c: &coeff,
-                cable: &cable,
+            let end = integrate_period(
+                &coeff,
+                &cable,
                 load,
                 brake,
                 command,
-                t0: t + from * ts,
-                h: (to - from) * ts / f64::from(sub),
-                steps: f64::from(sub),
-                fault: std::cell::Cell::new(None),
-            };
-            // End point 2N: room for all N + 1 results; `solout` stops the run at N.
-            let mut solver = Rk4::new(&rhs, 0.0, x, 2.0 * f64::from(sub), 1.0);
-            // Rk4 never fails; a cable fault is reported through the RHS.
-            let st = solver
-                .integrate()
-                .unwrap_or(ode_solvers::dop_shared::Stats {
-                    num_eval: 0,
-                    accepted_steps: 0,
-                    rejected_steps: 0,
-                });
-            stats.steps += u64::from(st.accepted_steps);
-            stats.rhs_evaluations += u64::from(st.num_eval);
-            stats.rejected_steps += u64::from(st.rejected_steps);
-            if let Some(y) = solver.y_out().last() {
-                x = *y;
-            }
-            fault = rhs.fault.get();
+                t + from * ts,
+                (to - from) * ts,
+                sub,
+                &mut x,
+            );
+            stats.steps += u64::from(end.stats.accepted_steps);
+            stats.rhs_evaluations += u64::from(end.stats.num_eval);
+            stats.rejected_steps += u64::from(end.stats.rejected_steps);
+            fault = end.fault;
             if fault.is_some() {
                 break;
             }
@@ -645,9 +664,6 @@ fn run_mode(
             reached = t + ts;
             break;
         }
-        if let BrakeState::Stuck = brake {
-            x[OMEGA_O] = 0.0;
-        }
     }
     // Every right-hand side and every boundary solves both halves.
     if let PlantCable::Hysteretic(_) = cable {
@@ -662,5 +678,6 @@ fn run_mode(
         completion,
         simulated_s: reached,
         series,
+        limit_cycle: hunting.finish(),
     }
 }

@@ -43,6 +43,7 @@ struct ModeSummary<'a> {
     solver: &'a SolverStats,
     completion: &'a Completion,
     simulated_s: f64,
+    limit_cycle: &'a crate::metrics::limit_cycle::LimitCycle,
 }
 
 #[derive(Serialize)]
@@ -80,6 +81,7 @@ fn mode_summary(m: &ModeResult) -> ModeSummary<'_> {
         solver: &m.stats,
         completion: &m.completion,
         simulated_s: m.simulated_s,
+        limit_cycle: &m.limit_cycle,
     }
 }
 
@@ -199,6 +201,20 @@ pub fn format_table(result: &ClosedLoopResult) -> String {
             if m.metrics.passes_target { "yes" } else { "no" },
             status
         ));
+    }
+    for m in &result.modes {
+        if let crate::metrics::limit_cycle::LimitCycle::Detected {
+            amplitude_mrad,
+            frequency_hz,
+            start_s,
+            cycles,
+        } = m.limit_cycle
+        {
+            out.push_str(&format!(
+                "{}: LIMIT CYCLE at rest: {amplitude_mrad:.4} mrad at {frequency_hz:.2} Hz from t = {start_s:.3} s ({cycles} cycles judged)\n",
+                m.mode.name()
+            ));
+        }
     }
     if result
         .modes

@@ -4,6 +4,7 @@
 
 pub mod closed_loop;
 pub mod diagnosis;
+pub mod freqresp;
 pub mod quasi_static;
 pub mod sweep;
 

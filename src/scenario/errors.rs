@@ -11,6 +11,16 @@ pub enum ScenarioError {
         /// Underlying error.
         source: std::io::Error,
     },
+    /// Neither a file nor a built-in scenario of that name exists.
+    #[error("no scenario file {name} and no built-in scenario of that name{} (built-in: {builtins})", suggestion.as_ref().map_or(String::new(), |s| format!("; did you mean {s}?")))]
+    NotFound {
+        /// The name given.
+        name: String,
+        /// The nearest built-in name, when one is close.
+        suggestion: Option<String>,
+        /// Every built-in name, comma-separated.
+        builtins: String,
+    },
     /// Syntax or type error in the file.
     #[error("{source_name}:{line}:{column}: {}", printable(message))]
     Parse {

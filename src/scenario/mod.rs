@@ -96,6 +96,9 @@ impl Scenario {
                 return Scenario::from_toml(text, &format!("{path} (built-in)"), path, overrides);
             }
         }
+        if !p.exists() {
+            return Err(not_found(path));
+        }
         let bytes = std::fs::read(p).map_err(|source| ScenarioError::Io {
             path: path.to_string(),
             source,
@@ -138,24 +141,62 @@ impl Scenario {
         if !overrides.is_empty() {
             let mut table: toml::Table =
                 toml::from_str(text).map_err(|e| parse_error(source_name, text, &e))?;
-            for arg in overrides {
-                let (path, value) = parse_assignment(arg)?;
-                set_path(&mut table, &path, value).map_err(|message| ScenarioError::Override {
-                    arg: arg.clone(),
-                    message,
+            let parsed = overrides
+                .iter()
+                .map(|arg| parse_assignment(arg).map(|(path, value)| (arg, path, value)))
+                .collect::<Result<Vec<_>, _>>()?;
+            // A new `kind` replaces its table's keys: switched first, so the new kind's
+            // keys may come in any order around it.
+            let mut switched: Vec<(Vec<String>, Vec<String>)> = Vec::new();
+            for (arg, path, value) in &parsed {
+                if path.last().map(String::as_str) == Some("kind") {
+                    let dropped =
+                        switch_kind(&mut table, path, value.clone()).map_err(|message| {
+                            ScenarioError::Override {
+                                arg: (*arg).clone(),
+                                message,
+                            }
+                        })?;
+                    if !dropped.is_empty() {
+                        switched.push((path[..path.len() - 1].to_vec(), dropped));
+                    }
+                }
+            }
+            for (arg, path, value) in &parsed {
+                if path.last().map(String::as_str) == Some("kind") {
+                    continue;
+                }
+                set_path(&mut table, path, value.clone()).map_err(|message| {
+                    ScenarioError::Override {
+                        arg: (*arg).clone(),
+                        message,
+                    }
                 })?;
-                // Each override is checked on its own so the message names it.
+                // Each override is checked on its own so the message names it (inside a
+                // switched table the new kind is complete only after all its keys).
+                if switched.iter().any(|(t, _)| path.starts_with(t)) {
+                    continue;
+                }
                 Scenario::deserialize(toml::Value::Table(table.clone())).map_err(|e| {
                     ScenarioError::Override {
-                        arg: arg.clone(),
+                        arg: (*arg).clone(),
                         message: plain_message(&with_suggestion(e.message())),
                     }
                 })?;
             }
             scenario = Scenario::deserialize(toml::Value::Table(table)).map_err(|e| {
+                let mut message = plain_message(&with_suggestion(e.message()));
+                for (t, dropped) in &switched {
+                    message.push_str(&format!(
+                        "; the new {}.kind replaced the old kind's keys ({}): give the new kind's keys with --set {}.KEY=VALUE",
+                        t.join("."),
+                        dropped.join(", "),
+                        t.join(".")
+                    ));
+                }
                 ScenarioError::Override {
                     arg: overrides.join(" "),
-                    message: plain_message(&with_suggestion(e.message())),
+                    message,
                 }
             })?;
             shown_name = format!("{source_name} with --set");
@@ -276,4 +317,75 @@ impl crate::identify::IdentifySource for Scenario {
             quasi_static: self.quasi_static.as_ref(),
         }
     }
+}
+
+/// Edit distance between two names (insertions, deletions, substitutions).
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let here = row[j + 1];
+            row[j + 1] = (prev + usize::from(ca != *cb))
+                .min(row[j] + 1)
+                .min(here + 1);
+            prev = here;
+        }
+    }
+    row[b.len()]
+}
+
+/// The error for a name that is neither a file nor built in, with the nearest built-in
+/// name when it is within a third of the name's length.
+fn not_found(name: &str) -> ScenarioError {
+    let names: Vec<&str> = BUILTIN.iter().map(|(n, _)| *n).collect();
+    let stem = std::path::Path::new(name)
+        .file_stem()
+        .map_or(name.to_string(), |s| s.to_string_lossy().into_owned());
+    let suggestion = names
+        .iter()
+        .map(|n| (edit_distance(&stem, n), *n))
+        .min()
+        .filter(|(d, _)| *d > 0 && *d <= stem.chars().count().div_ceil(3))
+        .map(|(_, n)| n.to_string());
+    ScenarioError::NotFound {
+        name: name.to_string(),
+        suggestion,
+        builtins: names.join(", "),
+    }
+}
+
+/// Sets `path` (ending in `kind`) to `value`; when its table held another kind, the old
+/// kind's other keys are removed first. Returns the keys removed.
+fn switch_kind(
+    table: &mut toml::Table,
+    path: &[String],
+    value: toml::Value,
+) -> Result<Vec<String>, String> {
+    let mut cur: &toml::Table = table;
+    for part in &path[..path.len() - 1] {
+        match cur.get(part) {
+            Some(toml::Value::Table(t)) => cur = t,
+            _ => {
+                set_path(table, path, value)?;
+                return Ok(Vec::new());
+            }
+        }
+    }
+    let same = cur.get("kind") == Some(&value) || cur.get("kind").is_none();
+    let dropped: Vec<String> = if same {
+        Vec::new()
+    } else {
+        cur.keys().filter(|k| *k != "kind").cloned().collect()
+    };
+    let mut parent = toml::Table::new();
+    if !same {
+        parent.insert("kind".into(), value.clone());
+        set_path(table, &path[..path.len() - 1], toml::Value::Table(parent))?;
+    } else {
+        set_path(table, path, value)?;
+    }
+    Ok(dropped)
 }

@@ -126,3 +126,52 @@ fn messages_stay_on_one_line() {
     .to_string();
     assert!(!err.contains('\n'), "{err}");
 }
+
+#[test]
+fn an_unknown_name_lists_the_builtins_and_suggests_the_nearest() {
+    let err = Scenario::load("eots_trackin", &[]).unwrap_err().to_string();
+    assert!(err.contains("did you mean eots_tracking?"), "{err}");
+    assert!(err.contains("paper_bench"), "{err}");
+    let err = Scenario::load("no/such/thing.toml", &[])
+        .unwrap_err()
+        .to_string();
+    assert!(!err.contains("did you mean"), "{err}");
+    assert!(err.contains("eots_tracking"), "{err}");
+}
+
+#[test]
+fn a_new_kind_replaces_the_old_kinds_keys_in_any_order() {
+    let step = |sets: &[&str]| {
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        Scenario::load("eots_tracking", &sets)
+    };
+    // The new kind's keys before or after the switch.
+    for sets in [
+        &[
+            "closed_loop.reference.kind=\"step\"",
+            "closed_loop.reference.amplitude_rad=0.002",
+        ][..],
+        &[
+            "closed_loop.reference.amplitude_rad=0.002",
+            "closed_loop.reference.kind=\"step\"",
+        ][..],
+    ] {
+        let s = step(sets).unwrap_or_else(|e| panic!("{sets:?}: {e}"));
+        let r = &s.closed_loop.as_ref().unwrap().reference;
+        assert!(
+            matches!(r, crate::signal::Signal::Step { amplitude_rad, .. } if *amplitude_rad == 0.002),
+            "{r:?}"
+        );
+    }
+    // A key the new kind needs and was not given: the message says what was dropped and how.
+    let err = step(&["closed_loop.reference.kind=\"ramp\""])
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("rate_rad_s"), "{err}");
+    assert!(
+        err.contains("replaced the old kind's keys (amplitude_rad, frequency_hz)"),
+        "{err}"
+    );
+    // Setting the same kind keeps the keys.
+    assert!(step(&["closed_loop.reference.kind=\"sine\""]).is_ok());
+}

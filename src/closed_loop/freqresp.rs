@@ -1,0 +1,1095 @@
+//! Frequency response of the nonlinear sampled loop by sinusoidal injection (sinestream).
+//!
+//! Linearising at a backlash or a Coulomb friction gives zero or undefined gain, so the
+//! response is measured as a bench would: a sinusoid of one frequency and amplitude is
+//! injected at a loop point of the full simulation (hysteretic cable, brake, encoders,
+//! computation delay), the loop is left to settle, and whole periods are correlated at the
+//! injected frequency. The frequency is snapped so that the window holds a whole number of
+//! periods *and* of samples: the correlation of sampled sinusoids is then exact (no
+//! leakage), and with a linear cable the estimate equals the exact discrete transfer at
+//! `z = exp(j 2 pi f T)`. The loop is measured as feedback alone: the reference is held at
+//! zero (or is the injected sinusoid), feedforward and compensation are off.
+//!
+//! | point | injected | measured | transfer |
+//! |---|---|---|---|
+//! | `plant_input` | `d` added to the command | `u = u_c + d` | `L = -U_c/U = D/U - 1` |
+//! | `output_disturbance` | `d` added to the measurement | `y + d` | `S = (Y + D)/D` |
+//! | `input_disturbance` | `d` added to the command | `y` | `PS = Y/D` |
+//! | `reference` | the reference is `d` | `y` | `T_r = Y/R` |
+//!
+//! `y` is the measured angle in motor rad (the motor angle, or `ic` times the output
+//! angle under output feedback). The PID differentiates the measurement, not the error,
+//! so the reference-to-output response `T_r = P (kp + ki T/(1 - z^-1)) / (1 + L)` is not
+//! the complementary sensitivity `T = L/(1 + L)`; `T` is derived from `L` or `S`.
+
+use nalgebra::Complex;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::linear::{LinearLoop, Margins};
+use super::params::{ClosedLoopParams, CompensationMode, Feedback};
+use super::sim::{
+    run_closed_loop, ClosedLoopError, ClosedLoopSetup, Completion, Injection, InjectionSite,
+    RunOptions,
+};
+use crate::signal::Signal;
+
+/// Where the sinusoid enters the loop.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LoopPoint {
+    /// Added to the controller's command: the loop gain `L` (margins).
+    #[default]
+    PlantInput,
+    /// Added to the measurement: the sensitivity `S` (margins through `L = 1/S - 1`).
+    OutputDisturbance,
+    /// Added to the command, the measurement observed: `P S`.
+    InputDisturbance,
+    /// The reference itself: reference to measured output, `T_r`.
+    Reference,
+    /// Motion of the base: not modelled yet (the plant has no base).
+    BaseMotion,
+}
+
+impl LoopPoint {
+    /// Every name accepted in a scenario or on the command line.
+    pub const NAMES: [&'static str; 5] = [
+        "plant_input",
+        "output_disturbance",
+        "input_disturbance",
+        "reference",
+        "base_motion",
+    ];
+
+    /// Name as written in a scenario.
+    pub fn name(self) -> &'static str {
+        match self {
+            LoopPoint::PlantInput => "plant_input",
+            LoopPoint::OutputDisturbance => "output_disturbance",
+            LoopPoint::InputDisturbance => "input_disturbance",
+            LoopPoint::Reference => "reference",
+            LoopPoint::BaseMotion => "base_motion",
+        }
+    }
+
+    /// The point by name.
+    pub fn parse(name: &str) -> Result<Self, FreqRespError> {
+        Self::NAMES
+            .iter()
+            .position(|n| *n == name)
+            .map(|i| {
+                [
+                    LoopPoint::PlantInput,
+                    LoopPoint::OutputDisturbance,
+                    LoopPoint::InputDisturbance,
+                    LoopPoint::Reference,
+                    LoopPoint::BaseMotion,
+                ][i]
+            })
+            .ok_or_else(|| FreqRespError::Invalid {
+                key: "closed_loop.freqresp.point".into(),
+                message: format!(
+                    "unknown loop point {name:?}; allowed: {}",
+                    Self::NAMES.join(", ")
+                ),
+            })
+    }
+
+    /// Symbol of the measured transfer.
+    pub fn transfer(self) -> &'static str {
+        match self {
+            LoopPoint::PlantInput => "L",
+            LoopPoint::OutputDisturbance => "S",
+            LoopPoint::InputDisturbance => "PS",
+            LoopPoint::Reference | LoopPoint::BaseMotion => "T_r",
+        }
+    }
+
+    /// Unit of the injection amplitude: the command's (A, or V with a voltage amplifier)
+    /// at the plant input, mrad of output angle elsewhere.
+    pub fn amplitude_unit(self, voltage: bool) -> &'static str {
+        match self {
+            LoopPoint::PlantInput | LoopPoint::InputDisturbance if voltage => "V",
+            LoopPoint::PlantInput | LoopPoint::InputDisturbance => "A",
+            _ => "mrad",
+        }
+    }
+
+    /// Whether the loop gain (and so the margins) follows from this point's transfer.
+    pub fn gives_loop_gain(self) -> bool {
+        matches!(self, LoopPoint::PlantInput | LoopPoint::OutputDisturbance)
+    }
+}
+
+/// Settings of a frequency-response measurement (`[closed_loop.freqresp]`, every key
+/// optional).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FreqRespParams {
+    /// Loop point (`plant_input`).
+    pub point: LoopPoint,
+    /// Frequencies, Hz; empty = `points` log-spaced from `f_min_hz` to `f_max_hz`.
+    pub frequencies_hz: Vec<f64>,
+    /// Lowest frequency of the log range, Hz (1).
+    pub f_min_hz: f64,
+    /// Highest frequency of the log range, Hz; `None` = 0.4 x Nyquist.
+    pub f_max_hz: Option<f64>,
+    /// Frequencies in the log range (20).
+    pub points: usize,
+    /// Injection amplitudes in the point's unit (A or V at the plant input, output mrad
+    /// elsewhere); empty = 0.1 %, 1 % and 10 % of the amplifier limit at the plant input,
+    /// 0.01, 0.1 and 1 mrad elsewhere.
+    pub amplitudes: Vec<f64>,
+    /// Periods left to settle before measuring (3), at least `settle_min_s`.
+    pub settle_periods: f64,
+    /// Shortest settling time, s (0.2: the integral action's transient).
+    pub settle_min_s: f64,
+    /// Whole periods measured (4), more at high frequency to reach `min_samples`.
+    pub measure_periods: u32,
+    /// Fewest samples measured (2000): bounds the frequency snap to 1/2000.
+    pub min_samples: u32,
+    /// Harmonics (2nd to this) in the distortion figure (5).
+    pub harmonics: u32,
+    /// Extra measurements per margin, peak and bandwidth to refine them between grid
+    /// frequencies (6; 0 = interpolate only).
+    pub refine_iterations: u32,
+    /// Requirement: phase margin at least this, deg (35).
+    pub min_phase_margin_deg: f64,
+    /// Requirement: gain margin (upward and downward) at least this, dB (6).
+    pub min_gain_margin_db: f64,
+    /// Requirement: sensitivity peak at most this (2).
+    pub max_ms: f64,
+}
+
+impl Default for FreqRespParams {
+    fn default() -> Self {
+        FreqRespParams {
+            point: LoopPoint::PlantInput,
+            frequencies_hz: Vec::new(),
+            f_min_hz: 1.0,
+            f_max_hz: None,
+            points: 20,
+            amplitudes: Vec::new(),
+            settle_periods: 3.0,
+            settle_min_s: 0.2,
+            measure_periods: 4,
+            min_samples: 2000,
+            harmonics: 5,
+            refine_iterations: 6,
+            min_phase_margin_deg: 35.0,
+            min_gain_margin_db: 6.0,
+            max_ms: 2.0,
+        }
+    }
+}
+
+/// Why a frequency response cannot be measured.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FreqRespError {
+    /// A setting out of range.
+    #[error("{key}: {message}")]
+    Invalid {
+        /// Dotted scenario key.
+        key: String,
+        /// What is wrong and what is allowed.
+        message: String,
+    },
+    /// The loop itself cannot run.
+    #[error(transparent)]
+    ClosedLoop(#[from] ClosedLoopError),
+    /// Worker threads could not start.
+    #[error("cannot start worker threads: {0}")]
+    Threads(String),
+}
+
+fn invalid(key: &str, message: String) -> FreqRespError {
+    FreqRespError::Invalid {
+        key: format!("closed_loop.freqresp.{key}"),
+        message,
+    }
+}
+
+impl FreqRespParams {
+    /// The frequencies to measure, Hz, checked against Nyquist.
+    pub fn frequencies(&self, sample_rate_hz: f64) -> Result<Vec<f64>, FreqRespError> {
+        let nyquist = 0.5 * sample_rate_hz;
+        let check = |key: &str, f: f64| {
+            if !(f.is_finite() && f > 0.0) {
+                Err(invalid(
+                    key,
+                    format!("frequency {f} Hz: must be a finite number > 0"),
+                ))
+            } else if f >= nyquist {
+                Err(invalid(key, format!("frequency {f} Hz is at or above Nyquist ({nyquist} Hz, half of closed_loop.controller.sample_rate_hz); measure below it (0.4 x Nyquist = {} Hz keeps several samples per period)", 0.4 * nyquist)))
+            } else {
+                Ok(f)
+            }
+        };
+        if !self.frequencies_hz.is_empty() {
+            let mut f = self
+                .frequencies_hz
+                .iter()
+                .map(|&f| check("frequencies_hz", f))
+                .collect::<Result<Vec<f64>, _>>()?;
+            f.sort_by(f64::total_cmp);
+            f.dedup();
+            return Ok(f);
+        }
+        let lo = check("f_min_hz", self.f_min_hz)?;
+        let hi = check("f_max_hz", self.f_max_hz.unwrap_or(0.4 * nyquist))?;
+        if hi <= lo {
+            return Err(invalid(
+                "f_max_hz",
+                format!("{hi} Hz must be above f_min_hz = {lo} Hz"),
+            ));
+        }
+        if !(2..=500).contains(&self.points) {
+            return Err(invalid(
+                "points",
+                format!("{}: allowed 2 to 500", self.points),
+            ));
+        }
+        Ok((0..self.points)
+            .map(|i| lo * (hi / lo).powf(i as f64 / (self.points - 1) as f64))
+            .collect())
+    }
+
+    /// The amplitudes to measure, in the point's unit.
+    pub fn amplitudes(&self, command_limit: f64) -> Result<Vec<f64>, FreqRespError> {
+        let list = if !self.amplitudes.is_empty() {
+            self.amplitudes.clone()
+        } else if matches!(
+            self.point,
+            LoopPoint::PlantInput | LoopPoint::InputDisturbance
+        ) {
+            let full = if command_limit.is_finite() {
+                command_limit
+            } else {
+                10.0
+            };
+            vec![0.001 * full, 0.01 * full, 0.1 * full]
+        } else {
+            vec![0.01, 0.1, 1.0]
+        };
+        for &a in &list {
+            if !(a.is_finite() && a > 0.0) {
+                return Err(invalid(
+                    "amplitudes",
+                    format!("amplitude {a}: must be a finite number > 0"),
+                ));
+            }
+            if matches!(
+                self.point,
+                LoopPoint::PlantInput | LoopPoint::InputDisturbance
+            ) && a >= command_limit
+            {
+                return Err(invalid("amplitudes", format!("amplitude {a} reaches the amplifier limit {command_limit}: the loop would only saturate; use amplitudes below it")));
+            }
+        }
+        Ok(list)
+    }
+
+    /// Checks every setting (keys named in the messages).
+    pub fn validate(&self, p: &ClosedLoopParams) -> Result<(), FreqRespError> {
+        if self.point == LoopPoint::BaseMotion {
+            return Err(invalid("point", "base_motion: the plant has no base motion yet; allowed now: plant_input, output_disturbance, input_disturbance, reference".into()));
+        }
+        self.frequencies(p.controller.sample_rate_hz)?;
+        self.amplitudes(p.motor.command_limit())?;
+        let positive = |key: &str, v: f64, hi: f64| {
+            if v.is_finite() && v >= 0.0 && v <= hi {
+                Ok(())
+            } else {
+                Err(invalid(key, format!("{v}: allowed 0 to {hi}")))
+            }
+        };
+        positive("settle_periods", self.settle_periods, 1000.0)?;
+        positive("settle_min_s", self.settle_min_s, 100.0)?;
+        if !(1..=10_000).contains(&self.measure_periods) {
+            return Err(invalid(
+                "measure_periods",
+                format!("{}: allowed 1 to 10000", self.measure_periods),
+            ));
+        }
+        if !(16..=10_000_000).contains(&self.min_samples) {
+            return Err(invalid(
+                "min_samples",
+                format!("{}: allowed 16 to 10000000", self.min_samples),
+            ));
+        }
+        if self.harmonics > 50 {
+            return Err(invalid(
+                "harmonics",
+                format!("{}: allowed 0 to 50", self.harmonics),
+            ));
+        }
+        if self.refine_iterations > 50 {
+            return Err(invalid(
+                "refine_iterations",
+                format!("{}: allowed 0 to 50", self.refine_iterations),
+            ));
+        }
+        positive("min_phase_margin_deg", self.min_phase_margin_deg, 180.0)?;
+        positive("min_gain_margin_db", self.min_gain_margin_db, 100.0)?;
+        if !(self.max_ms.is_finite() && self.max_ms >= 1.0) {
+            return Err(invalid(
+                "max_ms",
+                format!("{}: must be at least 1", self.max_ms),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The measurement at one frequency and amplitude.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FreqPoint {
+    /// Frequency asked for, Hz.
+    pub requested_hz: f64,
+    /// Frequency measured (snapped to whole periods in whole samples), Hz.
+    pub frequency_hz: f64,
+    /// Measured transfer of the point (`None` when the point failed).
+    #[serde(serialize_with = "polar_opt")]
+    pub response: Option<Complex<f64>>,
+    /// Loop gain `L` derived from it (plant input and output disturbance only).
+    #[serde(serialize_with = "polar_opt")]
+    pub loop_gain: Option<Complex<f64>>,
+    /// The exact linear reference of the same transfer at `frequency_hz`.
+    #[serde(serialize_with = "polar")]
+    pub exact: Complex<f64>,
+    /// Harmonic distortion of the measured signal: RMS of the 2nd to the highest
+    /// harmonic below Nyquist over the fundamental, percent.
+    pub distortion_percent: Option<f64>,
+    /// Amplitude of the output angle at the injected frequency, mrad.
+    pub output_amplitude_mrad: Option<f64>,
+    /// Whether this frequency was added to refine a margin, peak or bandwidth.
+    pub refinement: bool,
+    /// Why the point has no result (slack, gross slip, saturation, divergence).
+    pub failure: Option<String>,
+}
+
+/// A complex response as magnitude (dB), phase (deg) and its parts.
+fn polar<S: serde::Serializer>(c: &Complex<f64>, s: S) -> Result<S::Ok, S::Error> {
+    use serde::ser::SerializeMap;
+    let mut m = s.serialize_map(Some(4))?;
+    m.serialize_entry("mag_db", &(20.0 * c.norm().log10()))?;
+    m.serialize_entry("phase_deg", &c.arg().to_degrees())?;
+    m.serialize_entry("re", &c.re)?;
+    m.serialize_entry("im", &c.im)?;
+    m.end()
+}
+
+fn polar_opt<S: serde::Serializer>(c: &Option<Complex<f64>>, s: S) -> Result<S::Ok, S::Error> {
+    match c {
+        Some(c) => polar(c, s),
+        None => s.serialize_none(),
+    }
+}
+
+/// Margins, peaks and bandwidth read from a measured loop gain.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct EstimatedMargins {
+    /// Phase margin, deg (smallest over gain crossovers).
+    pub phase_margin_deg: Option<f64>,
+    /// Its gain crossover, Hz.
+    pub crossover_hz: Option<f64>,
+    /// Upward gain margin, dB.
+    pub gain_margin_db: Option<f64>,
+    /// Its phase crossover, Hz.
+    pub phase_crossover_hz: Option<f64>,
+    /// Downward gain margin, dB (crossings of -180 deg with `|L| > 1`).
+    pub lower_gain_margin_db: Option<f64>,
+    /// Sensitivity peak `max |S|`.
+    pub ms: Option<f64>,
+    /// Where it peaks, Hz.
+    pub ms_hz: Option<f64>,
+    /// Complementary sensitivity peak `max |T|`.
+    pub mt: Option<f64>,
+    /// Closed-loop bandwidth: first frequency where `|T|` falls below -3 dB, Hz.
+    pub bandwidth_hz: Option<f64>,
+}
+
+/// Everything measured at one amplitude.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct AmplitudeResponse {
+    /// Injection amplitude, in `unit`.
+    pub amplitude: f64,
+    /// Unit of the amplitude (A, V or mrad).
+    pub unit: String,
+    /// Every frequency, ascending (refinements included).
+    pub points: Vec<FreqPoint>,
+    /// Margins from the measured `L` (plant input, output disturbance).
+    pub margins: Option<EstimatedMargins>,
+    /// Requirements not met, and frequencies that failed (empty = passes).
+    pub shortfalls: Vec<String>,
+}
+
+impl AmplitudeResponse {
+    /// Whether every requirement is met and every frequency measured.
+    pub fn passes(&self) -> bool {
+        self.shortfalls.is_empty()
+    }
+}
+
+/// A frequency-response measurement.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FreqResponse {
+    /// Loop point.
+    pub point: LoopPoint,
+    /// Measured transfer (`L`, `S`, `PS`, `T_r`).
+    pub transfer: String,
+    /// One entry per amplitude.
+    pub amplitudes: Vec<AmplitudeResponse>,
+    /// Margins of the exact linear reference (cable as its linear spring).
+    pub exact_margins: Margins,
+    /// Simulation runs made (one per frequency and amplitude, refinements included).
+    pub runs: usize,
+    /// Simulated time over all runs, s.
+    pub simulated_s: f64,
+}
+
+/// Discrete Fourier coefficient of `x[k0..k0+n]` at `cycles` cycles over the window
+/// (`2/n` scaling: a sinusoid of amplitude `a` gives `|X| = a`).
+fn coefficient(x: &[f64], cycles: f64) -> Complex<f64> {
+    let n = x.len() as f64;
+    let w = std::f64::consts::TAU * cycles / n;
+    let (mut re, mut im) = (0.0, 0.0);
+    for (k, v) in x.iter().enumerate() {
+        let (s, c) = (w * k as f64).sin_cos();
+        re += v * c;
+        im -= v * s;
+    }
+    Complex::new(re, im) * (2.0 / n)
+}
+
+/// A measurement plan at one frequency: the snapped frequency and the sample counts.
+#[derive(Clone, Copy, Debug)]
+struct Window {
+    frequency_hz: f64,
+    settle: u64,
+    samples: u64,
+    cycles: u64,
+}
+
+fn window(spec: &FreqRespParams, f_hz: f64, ts: f64) -> Window {
+    let per_period = 1.0 / (f_hz * ts);
+    let cycles = u64::from(spec.measure_periods)
+        .max((f64::from(spec.min_samples) / per_period).ceil() as u64)
+        .max(1);
+    let samples = ((cycles as f64 * per_period).round() as u64).max(2);
+    let frequency_hz = cycles as f64 / (samples as f64 * ts);
+    let settle_s = (spec.settle_periods / frequency_hz).max(spec.settle_min_s);
+    Window {
+        frequency_hz,
+        settle: (settle_s / ts).ceil() as u64,
+        samples,
+        cycles,
+    }
+}
+
+/// The exact transfer of `point` on the linear reference at `f` Hz.
+pub fn exact_transfer(lin: &LinearLoop, point: LoopPoint, f: f64) -> Complex<f64> {
+    match point {
+        LoopPoint::PlantInput => lin.loop_gain(f),
+        LoopPoint::OutputDisturbance => lin.sensitivity(f),
+        LoopPoint::InputDisturbance => lin.plant(f) * lin.sensitivity(f),
+        LoopPoint::Reference | LoopPoint::BaseMotion => {
+            lin.plant(f) * lin.error_path(f) * lin.sensitivity(f)
+        }
+    }
+}
+
+/// What one measurement needs besides the frequency and amplitude.
+struct Bench<'a> {
+    setup: ClosedLoopSetup<'a>,
+    spec: &'a FreqRespParams,
+    lin: LinearLoop,
+}
+
+impl Bench<'_> {
+    /// Runs the loop at `f_hz` with amplitude `amp` and correlates the window.
+    fn measure(
+        &self,
+        f_hz: f64,
+        amp: f64,
+        refinement: bool,
+    ) -> Result<(FreqPoint, f64), FreqRespError> {
+        let base = self.setup.params;
+        let point = self.spec.point;
+        let ts = 1.0 / base.controller.sample_rate_hz;
+        let ic = self.setup.drive.ratio();
+        let w = window(self.spec, f_hz, ts);
+        let n = w.settle + w.samples;
+        let mut p = base.clone();
+        p.duration_s = n as f64 * ts;
+        p.metrics_start_s = 0.0;
+        p.modes = vec![CompensationMode::None];
+        p.controller.velocity_feedforward = 0.0;
+        p.controller.acceleration_feedforward = 0.0;
+        p.controller.load_feedforward = false;
+        p.timeseries_rate_hz = base.controller.sample_rate_hz;
+        p.reference = match point {
+            LoopPoint::Reference => Signal::Sine {
+                amplitude_rad: amp * 1e-3,
+                frequency_hz: w.frequency_hz,
+                phase_rad: 0.0,
+                offset_rad: 0.0,
+            },
+            _ => Signal::Step {
+                amplitude_rad: 0.0,
+                time_s: 0.0,
+            },
+        };
+        let injection = match point {
+            LoopPoint::PlantInput | LoopPoint::InputDisturbance => Some(Injection {
+                site: InjectionSite::Command,
+                amplitude: amp,
+                frequency_hz: w.frequency_hz,
+            }),
+            LoopPoint::OutputDisturbance => Some(Injection {
+                site: InjectionSite::Measurement,
+                amplitude: ic * amp * 1e-3,
+                frequency_hz: w.frequency_hz,
+            }),
+            LoopPoint::Reference | LoopPoint::BaseMotion => None,
+        };
+        let setup = ClosedLoopSetup {
+            params: &p,
+            ..self.setup
+        };
+        let options = RunOptions {
+            record: true,
+            decimation: 1,
+            modes: Some(vec![CompensationMode::None]),
+            injection,
+        };
+        let result = run_closed_loop(&setup, &options)?;
+        let exact = exact_transfer(&self.lin, point, w.frequency_hz);
+        let mut out = FreqPoint {
+            requested_hz: f_hz,
+            frequency_hz: w.frequency_hz,
+            response: None,
+            loop_gain: None,
+            exact,
+            distortion_percent: None,
+            output_amplitude_mrad: None,
+            refinement,
+            failure: None,
+        };
+        let simulated = p.duration_s;
+        let Some(mode) = result.modes.first() else {
+            out.failure = Some("no mode ran".into());
+            return Ok((out, simulated));
+        };
+        if let Completion::Incomplete { fault, .. } = &mode.completion {
+            out.failure = Some(fault.clone());
+            return Ok((out, mode.simulated_s));
+        }
+        let Some(series) = mode.series.as_ref().filter(|s| s.len() as u64 > n - 1) else {
+            out.failure = Some("the run kept fewer samples than the window".into());
+            return Ok((out, simulated));
+        };
+        let range = w.settle as usize..(w.settle + w.samples) as usize;
+        let limit = p.motor.command_limit();
+        if series.motor_command[range.clone()]
+            .iter()
+            .any(|u| u.abs() >= limit)
+        {
+            out.failure = Some(format!(
+                "the amplifier saturates (command at its limit {limit}) inside the measurement window: lower the amplitude"
+            ));
+            return Ok((out, simulated));
+        }
+        let measured: Vec<f64> = range
+            .clone()
+            .map(|k| match p.controller.feedback {
+                Feedback::Motor => series.motor_angle_rad[k],
+                Feedback::Output => ic * series.output_angle_rad[k],
+            })
+            .collect();
+        let injected: Vec<f64> = range
+            .clone()
+            .map(|k| injection.map_or(0.0, |i| i.at(series.t_s[k])))
+            .collect();
+        let cycles = w.cycles as f64;
+        let c = |x: &[f64]| coefficient(x, cycles);
+        let (response, observed): (Complex<f64>, Vec<f64>) = match point {
+            LoopPoint::PlantInput => {
+                let u = &series.motor_command[range.clone()];
+                let u_c: Vec<f64> = u.iter().zip(&injected).map(|(u, d)| u - d).collect();
+                (-c(&u_c) / c(u), u_c)
+            }
+            LoopPoint::OutputDisturbance => {
+                let y_d: Vec<f64> = measured.iter().zip(&injected).map(|(y, d)| y + d).collect();
+                (c(&y_d) / c(&injected), y_d)
+            }
+            LoopPoint::InputDisturbance => (c(&measured) / c(&injected), measured),
+            LoopPoint::Reference | LoopPoint::BaseMotion => {
+                let r: Vec<f64> = series.reference_rad[range.clone()]
+                    .iter()
+                    .map(|r| ic * r)
+                    .collect();
+                (c(&measured) / c(&r), measured)
+            }
+        };
+        let fundamental = c(&observed).norm();
+        // A signal that never moves (motion below one encoder count, an output the brake
+        // holds) has no response to read: a failed point, not a gain of zero.
+        // Rounding leaves a constant signal a fundamental near 1e-16 of its size.
+        let largest = observed.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        if !(response.re.is_finite() && response.im.is_finite())
+            || response.norm() == 0.0
+            || fundamental <= 1e-9 * largest
+        {
+            out.failure = Some(format!(
+                "no response at {:.4} Hz: the measured signal does not move at the injected frequency (motion below one encoder count, or held by the brake); raise the amplitude",
+                w.frequency_hz
+            ));
+            return Ok((out, simulated));
+        }
+        let nyquist_cycles = 0.5 * w.samples as f64;
+        let harmonics: f64 = (2..=self.spec.harmonics.max(1))
+            .map(|h| f64::from(h) * cycles)
+            .filter(|&hc| hc < nyquist_cycles)
+            .map(|hc| coefficient(&observed, hc).norm_sqr())
+            .sum();
+        let theta_o = &series.output_angle_rad[range];
+        out.response = Some(response);
+        out.loop_gain = match point {
+            LoopPoint::PlantInput => Some(response),
+            LoopPoint::OutputDisturbance => Some(response.inv() - Complex::from(1.0)),
+            _ => None,
+        };
+        out.distortion_percent = Some(100.0 * harmonics.sqrt() / fundamental);
+        out.output_amplitude_mrad = Some(c(theta_o).norm() * 1e3);
+        Ok((out, simulated))
+    }
+}
+
+/// Root of `g` between two measured points by the Illinois variant of regula falsi on
+/// log frequency; every evaluation is a measurement. Returns the last point measured.
+fn refine_root(
+    a: (f64, f64),
+    b: (f64, f64),
+    iterations: u32,
+    eval: &mut dyn FnMut(f64) -> Option<(f64, f64, FreqPoint)>,
+) -> Option<FreqPoint> {
+    let (mut xa, mut ga) = (a.0.ln(), a.1);
+    let (mut xb, mut gb) = (b.0.ln(), b.1);
+    let mut last = None;
+    let mut side = 0;
+    for _ in 0..iterations {
+        if gb == ga {
+            break;
+        }
+        let x = (xa * gb - xb * ga) / (gb - ga);
+        let (f, g, p) = eval(x.exp())?;
+        let x = f.ln();
+        last = Some(p);
+        if g == 0.0 {
+            break;
+        }
+        if (g > 0.0) == (gb > 0.0) {
+            xb = x;
+            gb = g;
+            if side == -1 {
+                ga /= 2.0;
+            }
+            side = -1;
+        } else {
+            xa = x;
+            ga = g;
+            if side == 1 {
+                gb /= 2.0;
+            }
+            side = 1;
+        }
+    }
+    last
+}
+
+/// Maximum of `h` near the best of three measured points by successive parabolic
+/// interpolation on log frequency. Returns the points measured.
+fn refine_peak(
+    three: [(f64, f64); 3],
+    iterations: u32,
+    eval: &mut dyn FnMut(f64) -> Option<(f64, f64, FreqPoint)>,
+) -> Vec<FreqPoint> {
+    let mut pts: Vec<(f64, f64)> = three.iter().map(|(f, h)| (f.ln(), *h)).collect();
+    let mut measured = Vec::new();
+    for _ in 0..iterations {
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let [(x0, h0), (x1, h1), (x2, h2)] = [pts[0], pts[1], pts[2]];
+        let den = (x1 - x0) * (h1 - h2) - (x1 - x2) * (h1 - h0);
+        if den == 0.0 {
+            break;
+        }
+        let x = x1 - 0.5 * ((x1 - x0).powi(2) * (h1 - h2) - (x1 - x2).powi(2) * (h1 - h0)) / den;
+        if !(x > x0 && x < x2) || (x - x1).abs() < 1e-6 {
+            break;
+        }
+        let Some((f, h, p)) = eval(x.exp()) else {
+            break;
+        };
+        measured.push(p);
+        pts.push((f.ln(), h));
+        // Keep the best point and its nearest neighbour on each side.
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let best = (0..pts.len())
+            .max_by(|&i, &j| pts[i].1.total_cmp(&pts[j].1))
+            .unwrap_or(0);
+        if best == 0 || best == pts.len() - 1 {
+            break;
+        }
+        pts = vec![pts[best - 1], pts[best], pts[best + 1]];
+    }
+    measured
+}
+
+/// Measures `L` at a frequency and scores it: `(frequency measured, score, point)`.
+type Probe<'a> = dyn FnMut(f64, &dyn Fn(Complex<f64>) -> f64, &mut Vec<FreqPoint>) -> Option<(f64, f64, FreqPoint)>
+    + 'a;
+
+fn s_of(l: Complex<f64>) -> Complex<f64> {
+    (Complex::from(1.0) + l).inv()
+}
+
+fn t_of(l: Complex<f64>) -> Complex<f64> {
+    l / (Complex::from(1.0) + l)
+}
+
+/// Margins from measured loop gains, ascending in frequency; `eval` measures `L` at a new
+/// frequency (refinement) and returns `(frequency measured, point)`.
+fn margins_of(
+    points: &mut Vec<FreqPoint>,
+    iterations: u32,
+    eval: &mut dyn FnMut(f64) -> Option<FreqPoint>,
+) -> EstimatedMargins {
+    let grid: Vec<(f64, Complex<f64>)> = points
+        .iter()
+        .filter_map(|p| p.loop_gain.map(|l| (p.frequency_hz, l)))
+        .collect();
+    let mut m = EstimatedMargins::default();
+    let mut extra: Vec<FreqPoint> = Vec::new();
+    let mut with_l = |f: f64, g: &dyn Fn(Complex<f64>) -> f64, extra: &mut Vec<FreqPoint>| {
+        let p = eval(f)?;
+        let l = p.loop_gain?;
+        let out = (p.frequency_hz, g(l), p.clone());
+        extra.push(p);
+        Some(out)
+    };
+    let mut pm: Option<(f64, f64)> = None;
+    let mut gm_up: Option<(f64, f64)> = None;
+    let mut gm_down: Option<f64> = None;
+    for w in grid.windows(2) {
+        let ((f0, l0), (f1, l1)) = (w[0], w[1]);
+        let lg = |l: Complex<f64>| l.norm().ln();
+        if lg(l0) * lg(l1) <= 0.0 && lg(l0) != lg(l1) {
+            let found = refine_root((f0, lg(l0)), (f1, lg(l1)), iterations, &mut |f| {
+                with_l(f, &lg, &mut extra)
+            });
+            let (f, l) = match found.and_then(|p| p.loop_gain.map(|l| (p.frequency_hz, l))) {
+                Some(v) => v,
+                // Linear interpolation of log |L| on log f, phase likewise.
+                None => {
+                    let s = lg(l0) / (lg(l0) - lg(l1));
+                    let f = (f0.ln() + s * (f1.ln() - f0.ln())).exp();
+                    let arg = l0.arg() + s * wrap(l1.arg() - l0.arg());
+                    (f, Complex::from_polar(1.0, arg))
+                }
+            };
+            let margin = 180.0 - l.arg().to_degrees().abs();
+            if pm.is_none_or(|(m, _)| margin < m) {
+                pm = Some((margin, f));
+            }
+        }
+        let sn = |l: Complex<f64>| l.im / l.norm();
+        if l0.im * l1.im <= 0.0 && (l0.re < 0.0 || l1.re < 0.0) && l0.im != l1.im {
+            let found = refine_root((f0, sn(l0)), (f1, sn(l1)), iterations, &mut |f| {
+                with_l(f, &sn, &mut extra)
+            });
+            let l = match found.and_then(|p| p.loop_gain) {
+                Some(l) => Some((l, None)),
+                None => {
+                    let s = l0.im / (l0.im - l1.im);
+                    let mag = (l0.norm().ln() + s * (l1.norm().ln() - l0.norm().ln())).exp();
+                    let f = (f0.ln() + s * (f1.ln() - f0.ln())).exp();
+                    Some((Complex::new(-mag, 0.0), Some(f)))
+                }
+            };
+            if let Some((l, f_interp)) = l {
+                let f = f_interp.unwrap_or_else(|| extra.last().map_or(f0, |p| p.frequency_hz));
+                if l.re < 0.0 {
+                    let db = -20.0 * l.norm().log10();
+                    if l.norm() < 1.0 {
+                        if gm_up.is_none_or(|(m, _)| db < m) {
+                            gm_up = Some((db, f));
+                        }
+                    } else if gm_down.is_none_or(|m| -db < m) {
+                        gm_down = Some(-db);
+                    }
+                }
+            }
+        }
+    }
+    m.phase_margin_deg = pm.map(|p| p.0);
+    m.crossover_hz = pm.map(|p| p.1);
+    m.gain_margin_db = gm_up.map(|g| g.0);
+    m.phase_crossover_hz = gm_up.map(|g| g.1);
+    m.lower_gain_margin_db = gm_down;
+    // Peaks of |S| and |T|, refined around the grid's best.
+    let peak = |h: &dyn Fn(Complex<f64>) -> f64,
+                extra: &mut Vec<FreqPoint>,
+                with_l: &mut Probe<'_>|
+     -> Option<(f64, f64)> {
+        let best = (0..grid.len()).max_by(|&i, &j| h(grid[i].1).total_cmp(&h(grid[j].1)))?;
+        let mut top = (grid[best].0, h(grid[best].1));
+        if best > 0 && best + 1 < grid.len() {
+            let three = [best - 1, best, best + 1].map(|i| (grid[i].0, h(grid[i].1)));
+            for p in refine_peak(three, iterations, &mut |f| with_l(f, h, extra)) {
+                if let Some(l) = p.loop_gain {
+                    if h(l) > top.1 {
+                        top = (p.frequency_hz, h(l));
+                    }
+                }
+            }
+        }
+        Some(top)
+    };
+    let s_abs = |l: Complex<f64>| s_of(l).norm();
+    let t_abs = |l: Complex<f64>| t_of(l).norm();
+    if let Some((f, ms)) = peak(&s_abs, &mut extra, &mut with_l) {
+        m.ms = Some(ms);
+        m.ms_hz = Some(f);
+    }
+    m.mt = peak(&t_abs, &mut extra, &mut with_l).map(|p| p.1);
+    let half = std::f64::consts::FRAC_1_SQRT_2;
+    let tb = |l: Complex<f64>| t_of(l).norm().ln() - half.ln();
+    m.bandwidth_hz = grid
+        .windows(2)
+        .find(|w| tb(w[0].1) >= 0.0 && tb(w[1].1) < 0.0)
+        .map(|w| {
+            let ((f0, l0), (f1, l1)) = (w[0], w[1]);
+            refine_root((f0, tb(l0)), (f1, tb(l1)), iterations, &mut |f| {
+                with_l(f, &tb, &mut extra)
+            })
+            .map(|p| p.frequency_hz)
+            .unwrap_or_else(|| {
+                let s = tb(l0) / (tb(l0) - tb(l1));
+                (f0.ln() + s * (f1.ln() - f0.ln())).exp()
+            })
+        });
+    points.extend(extra);
+    points.sort_by(|a, b| a.frequency_hz.total_cmp(&b.frequency_hz));
+    m
+}
+
+fn wrap(a: f64) -> f64 {
+    let tau = std::f64::consts::TAU;
+    (a + std::f64::consts::PI).rem_euclid(tau) - std::f64::consts::PI
+}
+
+/// Measures the frequency response of `setup`'s loop as `spec` says: frequencies and
+/// amplitudes in parallel on `threads` workers (0 = all cores), then the margins of each
+/// amplitude refined one measurement at a time. `progress` is called after each
+/// measurement of the grid.
+pub fn measure(
+    setup: ClosedLoopSetup<'_>,
+    spec: &FreqRespParams,
+    threads: usize,
+    progress: &(dyn Fn() + Sync),
+) -> Result<FreqResponse, FreqRespError> {
+    let p = setup.params;
+    spec.validate(p)?;
+    let freqs = spec.frequencies(p.controller.sample_rate_hz)?;
+    let amps = spec.amplitudes(p.motor.command_limit())?;
+    let lin = LinearLoop::new(p, setup.drive);
+    let bench = Bench { setup, spec, lin };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| FreqRespError::Threads(e.to_string()))?;
+    let jobs: Vec<(usize, f64)> = (0..amps.len())
+        .flat_map(|a| freqs.iter().map(move |&f| (a, f)))
+        .collect();
+    let measured: Vec<Result<(usize, FreqPoint, f64), FreqRespError>> = pool.install(|| {
+        jobs.par_iter()
+            .map(|&(a, f)| {
+                let r = bench.measure(f, amps[a], false).map(|(pt, s)| (a, pt, s));
+                progress();
+                r
+            })
+            .collect()
+    });
+    let mut runs = 0;
+    let mut simulated_s = 0.0;
+    let mut per_amp: Vec<Vec<FreqPoint>> = vec![Vec::new(); amps.len()];
+    for r in measured {
+        let (a, pt, s) = r?;
+        runs += 1;
+        simulated_s += s;
+        per_amp[a].push(pt);
+    }
+    let voltage = p.motor.amplifier == super::params::Amplifier::Voltage;
+    let unit = spec.point.amplitude_unit(voltage).to_string();
+    let refined: Vec<Result<(AmplitudeResponse, usize, f64), FreqRespError>> = pool.install(|| {
+        per_amp
+            .into_par_iter()
+            .zip(amps.par_iter())
+            .map(|(mut points, &amp)| {
+                let mut extra_runs = 0;
+                let mut extra_s = 0.0;
+                let mut error = None;
+                let margins = spec.point.gives_loop_gain().then(|| {
+                    margins_of(&mut points, spec.refine_iterations, &mut |f| match bench
+                        .measure(f, amp, true)
+                    {
+                        Ok((pt, s)) => {
+                            extra_runs += 1;
+                            extra_s += s;
+                            pt.failure.is_none().then_some(pt)
+                        }
+                        Err(e) => {
+                            error = Some(e);
+                            None
+                        }
+                    })
+                });
+                if let Some(e) = error {
+                    return Err(e);
+                }
+                let shortfalls = shortfalls(spec, &points, margins.as_ref());
+                Ok((
+                    AmplitudeResponse {
+                        amplitude: amp,
+                        unit: unit.clone(),
+                        points,
+                        margins,
+                        shortfalls,
+                    },
+                    extra_runs,
+                    extra_s,
+                ))
+            })
+            .collect()
+    });
+    let mut amplitudes = Vec::new();
+    for r in refined {
+        let (a, n, s) = r?;
+        runs += n;
+        simulated_s += s;
+        amplitudes.push(a);
+    }
+    Ok(FreqResponse {
+        point: spec.point,
+        transfer: spec.point.transfer().to_string(),
+        amplitudes,
+        exact_margins: bench.lin.margins(4000),
+        runs,
+        simulated_s,
+    })
+}
+
+fn shortfalls(
+    spec: &FreqRespParams,
+    points: &[FreqPoint],
+    margins: Option<&EstimatedMargins>,
+) -> Vec<String> {
+    let mut out = Vec::new();
+    let failed: Vec<&FreqPoint> = points.iter().filter(|p| p.failure.is_some()).collect();
+    if let Some(first) = failed.first() {
+        out.push(format!(
+            "{} of {} frequencies failed (first at {:.3} Hz: {})",
+            failed.len(),
+            points.len(),
+            first.requested_hz,
+            first.failure.as_deref().unwrap_or("")
+        ));
+    }
+    let Some(m) = margins else {
+        return out;
+    };
+    match m.phase_margin_deg {
+        Some(pm) if pm >= spec.min_phase_margin_deg => {}
+        Some(pm) => out.push(format!(
+            "phase margin {pm:.1} deg < {} deg",
+            spec.min_phase_margin_deg
+        )),
+        None => {
+            out.push("no gain crossover inside the measured frequencies: no phase margin".into())
+        }
+    }
+    for (name, gm) in [
+        ("gain margin", m.gain_margin_db),
+        ("downward gain margin", m.lower_gain_margin_db),
+    ] {
+        if let Some(gm) = gm {
+            if gm < spec.min_gain_margin_db {
+                out.push(format!(
+                    "{name} {gm:.2} dB < {} dB",
+                    spec.min_gain_margin_db
+                ));
+            }
+        }
+    }
+    if let Some(ms) = m.ms {
+        if ms > spec.max_ms {
+            out.push(format!("sensitivity peak Ms {ms:.3} > {}", spec.max_ms));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn coefficient_of_a_sampled_sinusoid_is_exact_over_whole_periods() {
+        let (n, cycles) = (37usize, 5.0);
+        let x: Vec<f64> = (0..n)
+            .map(|k| 0.7 * (std::f64::consts::TAU * cycles * k as f64 / n as f64 + 0.3).sin() + 2.0)
+            .collect();
+        let c = coefficient(&x, cycles);
+        assert!((c.norm() - 0.7).abs() < 1e-12, "{c}");
+        // sin(w t + 0.3) = cos(w t + 0.3 - pi/2)
+        assert!((c.arg() - (0.3 - std::f64::consts::FRAC_PI_2)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn window_snaps_to_whole_periods_in_whole_samples() {
+        let spec = FreqRespParams::default();
+        for f in [0.37, 3.1, 97.0, 3700.0] {
+            let w = window(&spec, f, 5e-5);
+            let periods = w.frequency_hz * w.samples as f64 * 5e-5;
+            assert!((periods - w.cycles as f64).abs() < 1e-9, "{f}");
+            assert!((w.frequency_hz / f - 1.0).abs() < 1.0 / f64::from(spec.min_samples) + 1e-12);
+            assert!(w.samples >= u64::from(spec.min_samples));
+        }
+    }
+
+    #[test]
+    fn illinois_finds_a_root_of_a_smooth_function() {
+        let g = |f: f64| (f / 26.3).ln() * 3.0 + (f / 26.3 - 1.0).powi(2);
+        let mut eval = |f: f64| {
+            let p = FreqPoint {
+                requested_hz: f,
+                frequency_hz: f,
+                response: None,
+                loop_gain: None,
+                exact: Complex::from(0.0),
+                distortion_percent: None,
+                output_amplitude_mrad: None,
+                refinement: true,
+                failure: None,
+            };
+            Some((f, g(f), p))
+        };
+        let p = refine_root((10.0, g(10.0)), (50.0, g(50.0)), 12, &mut eval).unwrap();
+        assert!(
+            (p.frequency_hz / 26.3 - 1.0).abs() < 1e-9,
+            "{}",
+            p.frequency_hz
+        );
+    }
+}

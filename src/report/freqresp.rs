@@ -1,0 +1,312 @@
+//! Files and figures of a frequency-response measurement: one CSV and one JSON per
+//! amplitude, all amplitudes in `freqresp.csv`, `summary.json`, Bode and Nyquist plots.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::Complex;
+
+use super::{csv_writer, write_json, write_summary, ReportError};
+use crate::closed_loop::freqresp::{exact_transfer, AmplitudeResponse, FreqPoint, FreqResponse};
+use crate::closed_loop::linear::LinearLoop;
+use crate::plot::{save_chart, save_panels, Chart, Series};
+use crate::scenario::Scenario;
+
+const COLUMNS: [&str; 19] = [
+    "amplitude",
+    "amplitude_unit",
+    "requested_hz",
+    "frequency_hz",
+    "refinement",
+    "status",
+    "mag_db",
+    "phase_deg",
+    "re",
+    "im",
+    "exact_mag_db",
+    "exact_phase_deg",
+    "loop_gain_mag_db",
+    "loop_gain_phase_deg",
+    "sensitivity_mag_db",
+    "complementary_mag_db",
+    "distortion_percent",
+    "output_amplitude_mrad",
+    "failure",
+];
+
+fn db(c: Complex<f64>) -> f64 {
+    20.0 * c.norm().log10()
+}
+
+fn num(v: Option<f64>) -> String {
+    v.map_or_else(String::new, |v| format!("{v}"))
+}
+
+fn row(a: &AmplitudeResponse, p: &FreqPoint) -> Vec<String> {
+    let r = p.response;
+    let l = p.loop_gain;
+    let one = Complex::from(1.0);
+    vec![
+        format!("{}", a.amplitude),
+        a.unit.clone(),
+        format!("{}", p.requested_hz),
+        format!("{}", p.frequency_hz),
+        p.refinement.to_string(),
+        if p.failure.is_some() { "failed" } else { "ok" }.to_string(),
+        num(r.map(db)),
+        num(r.map(|r| r.arg().to_degrees())),
+        num(r.map(|r| r.re)),
+        num(r.map(|r| r.im)),
+        format!("{}", db(p.exact)),
+        format!("{}", p.exact.arg().to_degrees()),
+        num(l.map(db)),
+        num(l.map(|l| l.arg().to_degrees())),
+        num(l.map(|l| db((one + l).inv()))),
+        num(l.map(|l| db(l / (one + l)))),
+        num(p.distortion_percent),
+        num(p.output_amplitude_mrad),
+        p.failure.clone().unwrap_or_default(),
+    ]
+}
+
+fn write_rows(path: &Path, rows: &[Vec<String>]) -> Result<(), ReportError> {
+    let mut w = csv_writer(path)?;
+    w.write_record(COLUMNS)
+        .map_err(|e| ReportError::csv(path, e))?;
+    for r in rows {
+        w.write_record(r).map_err(|e| ReportError::csv(path, e))?;
+    }
+    w.flush().map_err(|e| ReportError::io(path, e))
+}
+
+/// Writes `freqresp.csv` (every amplitude), `amplitude_<k>.csv` and `.json` per amplitude
+/// (k from 1, in the order given) and `summary.json`.
+pub fn write_outputs(dir: &Path, scenario: &Scenario, r: &FreqResponse) -> Result<(), ReportError> {
+    let mut all = Vec::new();
+    for (k, a) in r.amplitudes.iter().enumerate() {
+        let rows: Vec<Vec<String>> = a.points.iter().map(|p| row(a, p)).collect();
+        write_rows(&dir.join(format!("amplitude_{}.csv", k + 1)), &rows)?;
+        let json = serde_json::to_value(a).map_err(|e| ReportError::Encode {
+            path: dir.join(format!("amplitude_{}.json", k + 1)),
+            message: e.to_string(),
+        })?;
+        write_json(&dir.join(format!("amplitude_{}.json", k + 1)), &json)?;
+        all.extend(rows);
+    }
+    write_rows(&dir.join("freqresp.csv"), &all)?;
+    let amplitudes: Vec<serde_json::Value> = r
+        .amplitudes
+        .iter()
+        .map(|a| {
+            serde_json::json!({
+                "amplitude": a.amplitude,
+                "unit": a.unit,
+                "passes": a.passes(),
+                "shortfalls": a.shortfalls,
+                "frequencies": a.points.len(),
+                "failed_frequencies": a.points.iter().filter(|p| p.failure.is_some()).count(),
+                "margins": a.margins,
+            })
+        })
+        .collect();
+    write_summary(
+        &dir.join("summary.json"),
+        scenario,
+        true,
+        &serde_json::json!({
+            "freqresp": {
+                "point": r.point,
+                "transfer": r.transfer,
+                "passes": r.amplitudes.iter().all(AmplitudeResponse::passes),
+                "amplitudes": amplitudes,
+                "exact_linear_reference": r.exact_margins,
+                "runs": r.runs,
+                "simulated_s": r.simulated_s,
+            }
+        }),
+    )
+}
+
+/// Phase in degrees, unwrapped along the series so a curve does not jump by 360 deg.
+fn unwrapped(phases_deg: impl Iterator<Item = f64>) -> Vec<f64> {
+    let mut out: Vec<f64> = Vec::new();
+    for p in phases_deg {
+        // The first point on the branch (-360, 0] (lag is what loops have), the rest
+        // continuous from it.
+        let v = match out.last() {
+            Some(&prev) => p - 360.0 * ((p - prev) / 360.0).round(),
+            None if p > 0.0 => p - 360.0,
+            None => p,
+        };
+        out.push(v);
+    }
+    out
+}
+
+/// Bode plot (magnitude and phase of the measured transfer, one curve per amplitude, the
+/// exact linear reference as a line) and, when the loop gain is known, a Nyquist plot of
+/// it. Failed frequencies are left out of the curves (they are in the CSV, marked).
+pub fn plot(dir: &Path, r: &FreqResponse, lin: &LinearLoop) -> Result<Vec<PathBuf>, ReportError> {
+    let ok = |a: &AmplitudeResponse| -> Vec<(f64, Complex<f64>, Option<Complex<f64>>)> {
+        a.points
+            .iter()
+            .filter_map(|p| p.response.map(|c| (p.frequency_hz, c, p.loop_gain)))
+            .collect()
+    };
+    let (lo, hi) = r
+        .amplitudes
+        .iter()
+        .flat_map(|a| a.points.iter().map(|p| p.frequency_hz))
+        .fold((f64::INFINITY, 0.0_f64), |(lo, hi), f| {
+            (lo.min(f), hi.max(f))
+        });
+    let mut written = Vec::new();
+    if !(lo.is_finite() && hi > lo) {
+        return Ok(written);
+    }
+    let dense: Vec<f64> = (0..300)
+        .map(|i| lo * (hi / lo).powf(i as f64 / 299.0))
+        .collect();
+    let exact: Vec<Complex<f64>> = dense
+        .iter()
+        .map(|&f| exact_transfer(lin, r.point, f))
+        .collect();
+    let mut mag = Chart {
+        title: format!("|{}| against frequency", r.transfer),
+        x_label: "frequency [Hz]".into(),
+        y_label: format!("|{}| [dB]", r.transfer),
+        log_x: true,
+        ..Chart::default()
+    };
+    let mut phase = Chart {
+        title: format!("phase of {}", r.transfer),
+        x_label: "frequency [Hz]".into(),
+        y_label: "phase [deg]".into(),
+        log_x: true,
+        ..Chart::default()
+    };
+    for a in &r.amplitudes {
+        let pts = ok(a);
+        let label = format!("{} {}", a.amplitude, a.unit);
+        let f: Vec<f64> = pts.iter().map(|p| p.0).collect();
+        mag.series.push(Series::line(
+            label.clone(),
+            f.clone(),
+            pts.iter().map(|p| db(p.1)).collect(),
+        ));
+        phase.series.push(Series::line(
+            label,
+            f,
+            unwrapped(pts.iter().map(|p| p.1.arg().to_degrees())),
+        ));
+    }
+    mag.series.push(Series::line(
+        "exact linear reference",
+        dense.clone(),
+        exact.iter().map(|c| db(*c)).collect(),
+    ));
+    phase.series.push(Series::line(
+        "exact linear reference",
+        dense.clone(),
+        unwrapped(exact.iter().map(|c| c.arg().to_degrees())),
+    ));
+    let title = format!(
+        "Frequency response at the {} ({}), measured by injection at {} amplitude(s)",
+        r.point.name(),
+        r.transfer,
+        r.amplitudes.len()
+    );
+    written.extend(save_panels(&title, &[mag, phase], &dir.join("bode"))?);
+    if r.point.gives_loop_gain() {
+        let mut ny = Chart {
+            title: "Nyquist plot of the loop gain L (near the critical point -1)".into(),
+            x_label: "Re L".into(),
+            y_label: "Im L".into(),
+            x_range: Some((-3.0, 1.0)),
+            y_range: Some((-2.0, 2.0)),
+            ..Chart::default()
+        };
+        for a in &r.amplitudes {
+            let l: Vec<Complex<f64>> = ok(a).iter().filter_map(|p| p.2).collect();
+            ny.series.push(Series::line(
+                format!("{} {}", a.amplitude, a.unit),
+                l.iter().map(|c| c.re).collect(),
+                l.iter().map(|c| c.im).collect(),
+            ));
+        }
+        let exact_l: Vec<Complex<f64>> = dense.iter().map(|&f| lin.loop_gain(f)).collect();
+        ny.series.push(Series::line(
+            "exact linear reference",
+            exact_l.iter().map(|c| c.re).collect(),
+            exact_l.iter().map(|c| c.im).collect(),
+        ));
+        ny.series
+            .push(Series::points("critical point -1", vec![-1.0], vec![0.0]));
+        written.extend(save_chart(&ny, &dir.join("nyquist"))?);
+    }
+    Ok(written)
+}
+
+/// The console table: per amplitude, the estimated margins beside the exact reference's.
+pub fn format_table(r: &FreqResponse) -> String {
+    let opt = |v: Option<f64>, d: usize| v.map_or_else(|| "-".to_string(), |v| format!("{v:.d$}"));
+    let e = &r.exact_margins;
+    let mut t = format!(
+        "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>6}\n",
+        "amplitude",
+        "PM_deg",
+        "fc_hz",
+        "GM_db",
+        "f180_hz",
+        "GMlow_db",
+        "Ms",
+        "BW_hz",
+        "THDmax%",
+        "passes"
+    );
+    for a in &r.amplitudes {
+        let thd = a
+            .points
+            .iter()
+            .filter_map(|p| p.distortion_percent)
+            .fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.max(v))));
+        let failed = a.points.iter().filter(|p| p.failure.is_some()).count();
+        let m = a.margins.clone().unwrap_or_default();
+        t.push_str(&format!(
+            "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>6}{}\n",
+            format!("{} {}", a.amplitude, a.unit),
+            opt(m.phase_margin_deg, 1),
+            opt(m.crossover_hz, 1),
+            opt(m.gain_margin_db, 2),
+            opt(m.phase_crossover_hz, 1),
+            opt(m.lower_gain_margin_db, 2),
+            opt(m.ms, 3),
+            opt(m.bandwidth_hz, 1),
+            opt(thd, 1),
+            if a.passes() { "yes" } else { "no" },
+            if failed > 0 {
+                format!("  ({failed} frequencies failed)")
+            } else {
+                String::new()
+            }
+        ));
+    }
+    t.push_str(&format!(
+        "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>6}\n",
+        "exact linear reference",
+        opt(e.phase_margin_deg, 1),
+        opt(e.crossover_hz, 1),
+        opt(e.gain_margin_db, 2),
+        opt(e.phase_crossover_hz, 1),
+        opt(e.lower_gain_margin_db, 2),
+        format!("{:.3}", e.ms),
+        opt(e.bandwidth_hz, 1),
+        "-",
+        if e.stable { "stable" } else { "UNSTABLE" }
+    ));
+    for a in &r.amplitudes {
+        for s in &a.shortfalls {
+            t.push_str(&format!("{} {}: {s}\n", a.amplitude, a.unit));
+        }
+    }
+    t
+}

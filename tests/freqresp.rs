@@ -1,0 +1,310 @@
+//! Frequency response by sinusoidal injection on the simulated loop, checked against the
+//! exact linear reference (computed, not simulated) and against the physics of the
+//! hysteretic cable.
+
+use cable_servo::closed_loop::freqresp::{measure, FreqRespParams, FreqResponse, LoopPoint};
+use cable_servo::closed_loop::ClosedLoopSource;
+use cable_servo::scenario::Scenario;
+
+fn scenario(sets: &[&str]) -> Scenario {
+    let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+    Scenario::load("eots_tracking", &sets).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The loop with nothing the linear reference leaves out: linear cable, no brake, no motor
+/// Coulomb friction, ideal encoders.
+fn linear() -> Scenario {
+    scenario(&[
+        "closed_loop.cable=\"linear\"",
+        "load.brake_nm=0",
+        "load.brake_breakaway_nm=0",
+        "closed_loop.motor.coulomb_nm=0",
+        "closed_loop.sensors.quantize=false",
+    ])
+}
+
+fn run(s: &Scenario, spec: &FreqRespParams) -> FreqResponse {
+    let setup = s.closed_loop_setup().unwrap_or_else(|e| panic!("{e}"));
+    measure(setup, spec, 0, &|| {}).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn db(c: nalgebra::Complex<f64>) -> f64 {
+    20.0 * c.norm().log10()
+}
+
+#[test]
+fn linear_loop_matches_the_exact_reference_at_every_point() {
+    let s = linear();
+    for point in [
+        LoopPoint::PlantInput,
+        LoopPoint::OutputDisturbance,
+        LoopPoint::InputDisturbance,
+        LoopPoint::Reference,
+    ] {
+        let spec = FreqRespParams {
+            point,
+            f_min_hz: 0.2,
+            f_max_hz: Some(4000.0),
+            points: 12,
+            // Small enough that the derivative action stays inside the 8 A limit at 4 kHz.
+            amplitudes: vec![match point {
+                LoopPoint::PlantInput | LoopPoint::InputDisturbance => 0.5,
+                _ => 0.01,
+            }],
+            refine_iterations: 0,
+            ..FreqRespParams::default()
+        };
+        let r = run(&s, &spec);
+        for p in &r.amplitudes[0].points {
+            let got = p
+                .response
+                .unwrap_or_else(|| panic!("{point:?} {} Hz: {:?}", p.frequency_hz, p.failure));
+            let d_db = db(got) - db(p.exact);
+            let d_deg = (got / p.exact).arg().to_degrees();
+            println!("{point:?} {:9.3} Hz: {:8.3} dB {:8.2} deg, exact {:8.3} dB {:8.2} deg: {d_db:+.4} dB {d_deg:+.4} deg", p.frequency_hz, db(got), got.arg().to_degrees(), db(p.exact), p.exact.arg().to_degrees());
+            assert!(
+                d_db.abs() < 0.1 && d_deg.abs() < 1.0,
+                "{point:?} at {} Hz: {d_db} dB, {d_deg} deg",
+                p.frequency_hz
+            );
+        }
+    }
+}
+
+/// Margins, sensitivity peak and bandwidth of the measured `L`, refined between grid
+/// frequencies by further measurements, agree with the exact reference within 1 %.
+#[test]
+fn linear_loop_margins_match_the_exact_reference() {
+    let s = linear();
+    let spec = FreqRespParams {
+        f_min_hz: 0.5,
+        f_max_hz: Some(4000.0),
+        points: 16,
+        amplitudes: vec![0.5],
+        ..FreqRespParams::default()
+    };
+    let r = run(&s, &spec);
+    let m = r.amplitudes[0].margins.clone().unwrap_or_default();
+    let e = &r.exact_margins;
+    println!(
+        "estimated {m:?}\nexact {e:?}\n{} runs, {:.1} s simulated",
+        r.runs, r.simulated_s
+    );
+    let close = |name: &str, got: Option<f64>, want: Option<f64>| {
+        let (got, want) = (got.unwrap_or(f64::NAN), want.unwrap_or(f64::NAN));
+        assert!(
+            (got / want - 1.0).abs() < 0.01,
+            "{name}: {got} against {want}"
+        );
+    };
+    close("phase margin", m.phase_margin_deg, e.phase_margin_deg);
+    close("crossover", m.crossover_hz, e.crossover_hz);
+    close("gain margin", m.gain_margin_db, e.gain_margin_db);
+    close(
+        "phase crossover",
+        m.phase_crossover_hz,
+        e.phase_crossover_hz,
+    );
+    close("Ms", m.ms, Some(e.ms));
+    close("Mt", m.mt, Some(e.mt));
+    close("bandwidth", m.bandwidth_hz, e.bandwidth_hz);
+    assert!(r.amplitudes[0].passes(), "{:?}", r.amplitudes[0].shortfalls);
+}
+
+/// The capstan drive has no dead zone: at small amplitude the wraps stick and the cable
+/// is as stiff as its free spans (the linear reference), and as the amplitude grows slip
+/// zones spread over the wraps and add compliance. The drive's antiresonance (the dip of
+/// `|L|` under motor feedback, where the payload swings against the cable) must therefore
+/// sit at the linear reference's frequency at small amplitude and move down at large
+/// amplitude, with the distortion growing.
+#[test]
+fn hysteretic_cable_softens_with_amplitude() {
+    let s = scenario(&[
+        "load.brake_nm=0",
+        "load.brake_breakaway_nm=0",
+        "closed_loop.motor.coulomb_nm=0",
+        "closed_loop.sensors.quantize=false",
+    ]);
+    let spec = FreqRespParams {
+        f_min_hz: 30.0,
+        f_max_hz: Some(60.0),
+        points: 31,
+        amplitudes: vec![0.002, 2.0],
+        refine_iterations: 0,
+        ..FreqRespParams::default()
+    };
+    let r = run(&s, &spec);
+    let dip = |k: usize| {
+        let p = r.amplitudes[k]
+            .points
+            .iter()
+            .filter(|p| p.response.is_some())
+            .min_by(|a, b| {
+                let (a, b) = (
+                    a.response.unwrap_or_default(),
+                    b.response.unwrap_or_default(),
+                );
+                a.norm().total_cmp(&b.norm())
+            })
+            .unwrap_or_else(|| panic!("no point measured"));
+        (p.frequency_hz, p.distortion_percent.unwrap_or(f64::NAN))
+    };
+    let exact_dip = r.amplitudes[0]
+        .points
+        .iter()
+        .min_by(|a, b| a.exact.norm().total_cmp(&b.exact.norm()))
+        .map(|p| p.frequency_hz)
+        .unwrap_or(f64::NAN);
+    let (small, small_thd) = dip(0);
+    let (large, large_thd) = dip(1);
+    println!("antiresonance: linear {exact_dip:.2} Hz, 0.002 A {small:.2} Hz ({small_thd:.2} %), 2 A {large:.2} Hz ({large_thd:.2} %)");
+    assert!(
+        (small / exact_dip - 1.0).abs() < 0.02,
+        "{small} against {exact_dip}"
+    );
+    assert!(large < 0.9 * small, "{large} against {small}");
+    assert!(
+        large_thd > 10.0 * small_thd,
+        "{large_thd} against {small_thd}"
+    );
+}
+
+/// Bad settings are refused before anything runs, naming the key; a point that drives
+/// the cable into gross slip is reported failed with its reason, not as a number.
+#[test]
+fn bad_input_is_named_and_faults_are_not_numbers() {
+    let s = linear();
+    let setup = s.closed_loop_setup().unwrap_or_else(|e| panic!("{e}"));
+    let refuse = |spec: FreqRespParams, key: &str| {
+        let e = measure(setup, &spec, 1, &|| {})
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(e.contains(key), "{e}");
+    };
+    refuse(
+        FreqRespParams {
+            frequencies_hz: vec![10.0, 10_000.0],
+            ..FreqRespParams::default()
+        },
+        "frequencies_hz",
+    );
+    refuse(
+        FreqRespParams {
+            f_max_hz: Some(12_000.0),
+            ..FreqRespParams::default()
+        },
+        "Nyquist",
+    );
+    refuse(
+        FreqRespParams {
+            amplitudes: vec![-1.0],
+            ..FreqRespParams::default()
+        },
+        "amplitudes",
+    );
+    refuse(
+        FreqRespParams {
+            amplitudes: vec![9.0],
+            ..FreqRespParams::default()
+        },
+        "amplifier limit",
+    );
+    refuse(
+        FreqRespParams {
+            point: LoopPoint::BaseMotion,
+            ..FreqRespParams::default()
+        },
+        "base motion",
+    );
+    let e = LoopPoint::parse("plant")
+        .err()
+        .map(|e| e.to_string())
+        .unwrap_or_default();
+    assert!(e.contains("plant_input, output_disturbance"), "{e}");
+
+    let weak = scenario(&["drive.preload_n=5"]);
+    let spec = FreqRespParams {
+        point: LoopPoint::Reference,
+        frequencies_hz: vec![5.0],
+        amplitudes: vec![0.1, 50.0],
+        ..FreqRespParams::default()
+    };
+    let r = run(&weak, &spec);
+    assert!(r.amplitudes[0].points[0].response.is_some());
+    let p = &r.amplitudes[1].points[0];
+    assert!(p.response.is_none() && p.output_amplitude_mrad.is_none());
+    assert!(
+        p.failure.as_deref().unwrap_or("").contains("gross slip"),
+        "{:?}",
+        p.failure
+    );
+    assert!(!r.amplitudes[1].passes());
+}
+
+/// The command: a frequency at Nyquist or an unknown point is an input error (exit 3)
+/// that leaves no results directory; a measurement writes its CSV, JSON and plots.
+#[test]
+fn command_refuses_bad_input_and_writes_its_files() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let bin = env!("CARGO_BIN_EXE_cable-servo");
+    let go = |args: &[&str]| {
+        std::process::Command::new(bin)
+            .current_dir(dir.path())
+            .args(args)
+            .output()
+            .unwrap_or_else(|e| panic!("{e}"))
+    };
+    for bad in [
+        &["freqresp", "--frequencies", "10000", "--out", "r"][..],
+        &["freqresp", "--point", "plant", "--out", "r"][..],
+        &["freqresp", "--amplitudes", "0", "--out", "r"][..],
+    ] {
+        let o = go(bad);
+        assert_eq!(
+            o.status.code(),
+            Some(3),
+            "{bad:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(!dir.path().join("r").exists(), "{bad:?} left results");
+    }
+    let o = go(&[
+        "freqresp",
+        "--set",
+        "closed_loop.cable=\"linear\"",
+        "--set",
+        "load.brake_nm=0",
+        "--set",
+        "load.brake_breakaway_nm=0",
+        "--amplitudes",
+        "0.5",
+        "--f-min",
+        "2",
+        "--f-max",
+        "3000",
+        "--points",
+        "8",
+        "--out",
+        "r",
+    ]);
+    let text = String::from_utf8_lossy(&o.stdout).to_string();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{text}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(text.contains("exact linear reference"), "{text}");
+    for f in [
+        "freqresp.csv",
+        "amplitude_1.csv",
+        "amplitude_1.json",
+        "summary.json",
+        "bode.png",
+        "bode.svg",
+        "nyquist.png",
+    ] {
+        assert!(dir.path().join("r").join(f).exists(), "{f} missing");
+    }
+}
