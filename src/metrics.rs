@@ -68,6 +68,54 @@ pub struct StepMetrics {
     /// Time from the step until the output enters the band for the last time (last exit
     /// from the band); `None` = did not settle before the next step or the end.
     pub settling_time_s: Option<f64>,
+    /// Largest absolute error from the new level, from settling until the next step or
+    /// the end, mrad; `None` if the step did not settle.
+    #[serde(default)]
+    pub error_after_settling_peak_mrad: Option<f64>,
+    /// RMS pointing error over the same stretch, mrad; `None` if the step did not settle.
+    #[serde(default)]
+    pub error_after_settling_rms_mrad: Option<f64>,
+    /// Absolute error from the new level at the step's last sample (before the next step
+    /// or at the end), mrad: how far off a step that did not settle was left standing.
+    #[serde(default)]
+    pub final_error_mrad: f64,
+}
+
+/// How a record is judged against the target.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Criterion {
+    /// Peak pointing error over the whole window (a moving reference).
+    #[default]
+    Tracking,
+    /// Error after settling of every step (a reference that jumps and stares): the jumps
+    /// themselves are not errors, a step that does not settle fails.
+    Steps,
+}
+
+/// The steps of a record taken together (the worst of each figure).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StepSummary {
+    /// Steps judged (those starting inside the window).
+    pub judged: u64,
+    /// Steps that settled into the band before the next step or the end.
+    pub settled: u64,
+    /// Largest overshoot, percent of the step.
+    pub max_overshoot_percent: f64,
+    /// Longest 10-90 % rise time, s; `None` if some step never reached 90 %.
+    pub max_rise_time_s: Option<f64>,
+    /// Longest settling time, s; `None` if some step did not settle.
+    pub worst_settling_time_s: Option<f64>,
+    /// Largest absolute pointing error after settling over the steps that settled, mrad;
+    /// `None` if none did.
+    pub error_after_settling_peak_mrad: Option<f64>,
+    /// Largest per-step RMS pointing error after settling over the steps that settled,
+    /// mrad; `None` if none did.
+    pub error_after_settling_rms_mrad: Option<f64>,
+    /// Largest absolute error at the end of a step, mrad.
+    pub max_final_error_mrad: f64,
+    /// Every step settled and its error after settling stays within the target.
+    pub passes_target: bool,
 }
 
 /// Metrics of one record.
@@ -88,8 +136,14 @@ pub struct Metrics {
     pub within_target_fraction: f64,
     /// Requirement used, mrad.
     pub target_mrad: f64,
-    /// Whether the peak error stays within the target (and the window is not empty).
+    /// Whether the record meets the target (and the window is not empty): under
+    /// [`Criterion::Tracking`] the peak error stays within it, under [`Criterion::Steps`]
+    /// every step settles and its error after settling stays within it.
     pub passes_target: bool,
+    /// Which of the two judgements `passes_target` is: steps when the window holds a
+    /// reference step, tracking otherwise.
+    #[serde(default)]
+    pub criterion: Criterion,
     /// Largest absolute transmission error, mrad (`None` if not recorded).
     pub peak_transmission_error_mrad: Option<f64>,
     /// RMS motor command, A or V (`None` if not recorded).
@@ -103,6 +157,9 @@ pub struct Metrics {
     pub worst_settling_time_s: Option<f64>,
     /// Whether every judged step settled.
     pub all_steps_settled: bool,
+    /// The steps taken together; `None` when no step was judged.
+    #[serde(default)]
+    pub step_summary: Option<StepSummary>,
 }
 
 const DECADES_LO: f64 = -9.0;
@@ -117,6 +174,11 @@ struct StepTrack {
     t90: Option<f64>,
     overshoot: f64,
     settle_at: Option<f64>,
+    /// Since `settle_at`: peak |pointing error| (mrad), sum of squares, samples.
+    after_peak: f64,
+    after_sq: f64,
+    after_n: u64,
+    last_error_mrad: f64,
     seen: bool,
 }
 
@@ -241,6 +303,10 @@ impl MetricsAccumulator {
                 t90: None,
                 overshoot: 0.0,
                 settle_at: None,
+                after_peak: 0.0,
+                after_sq: 0.0,
+                after_n: 0,
+                last_error_mrad: 0.0,
                 seen: false,
             })
             .collect();
@@ -353,10 +419,21 @@ impl MetricsAccumulator {
                 st.t90 = Some(s.t_s);
             }
             st.overshoot = st.overshoot.max((progress - 1.0) * 100.0);
+            st.last_error_mrad = (s.output_rad - st.ev.to_rad).abs() * 1e3;
             if (s.output_rad - st.ev.to_rad).abs() <= band {
                 st.settle_at.get_or_insert(s.t_s);
+                // From the step's own level: a sample on the next step's instant may
+                // already carry the next reference but still belongs to this step.
+                let e = (s.output_rad - st.ev.to_rad) * 1e3;
+                st.after_peak = st.after_peak.max(e.abs());
+                st.after_sq += e * e;
+                st.after_n += 1;
             } else {
+                // An exit restarts both the settling time and the error after settling.
                 st.settle_at = None;
+                st.after_peak = 0.0;
+                st.after_sq = 0.0;
+                st.after_n = 0;
             }
         }
     }
@@ -395,8 +472,14 @@ impl MetricsAccumulator {
                 },
                 overshoot_percent: st.overshoot.max(0.0),
                 settling_time_s: st.settle_at.map(|t| t - st.ev.time_s),
+                error_after_settling_peak_mrad: st.settle_at.map(|_| st.after_peak),
+                error_after_settling_rms_mrad: st
+                    .settle_at
+                    .map(|_| (st.after_sq / st.after_n.max(1) as f64).sqrt()),
+                final_error_mrad: st.last_error_mrad,
             })
             .collect();
+        let step_summary = summarize_steps(&steps, self.cfg.target_mrad);
         let all_settled = steps.iter().all(|s| s.settling_time_s.is_some());
         let worst = if all_settled {
             steps
@@ -424,15 +507,59 @@ impl MetricsAccumulator {
                 0.0
             },
             target_mrad: self.cfg.target_mrad,
-            passes_target: n > 0 && self.peak <= self.cfg.target_mrad,
+            passes_target: n > 0
+                && match &step_summary {
+                    Some(sum) => sum.passes_target,
+                    None => self.peak <= self.cfg.target_mrad,
+                },
+            criterion: if step_summary.is_some() {
+                Criterion::Steps
+            } else {
+                Criterion::Tracking
+            },
             peak_transmission_error_mrad: self.te_peak,
             rms_command: rms(self.cmd_sq, self.cmd_n),
             rms_current_a: rms(self.cur_sq, self.cur_n),
             steps,
             worst_settling_time_s: worst,
             all_steps_settled: all_settled,
+            step_summary,
         }
     }
+}
+
+/// The worst of each step figure; `None` without steps.
+fn summarize_steps(steps: &[StepMetrics], target_mrad: f64) -> Option<StepSummary> {
+    if steps.is_empty() {
+        return None;
+    }
+    // `None` as soon as one step lacks the figure: a missing rise or settling is the
+    // worst case, not one to skip.
+    let worst = |f: &dyn Fn(&StepMetrics) -> Option<f64>| {
+        steps
+            .iter()
+            .map(f)
+            .try_fold(0.0f64, |acc, v| v.map(|v| acc.max(v)))
+    };
+    let settled = steps.iter().filter(|s| s.settling_time_s.is_some()).count() as u64;
+    let settled_worst =
+        |f: &dyn Fn(&StepMetrics) -> Option<f64>| steps.iter().filter_map(f).reduce(f64::max);
+    let peak_after = settled_worst(&|s| s.error_after_settling_peak_mrad);
+    Some(StepSummary {
+        judged: steps.len() as u64,
+        settled,
+        max_overshoot_percent: steps
+            .iter()
+            .map(|s| s.overshoot_percent)
+            .fold(0.0, f64::max),
+        max_rise_time_s: worst(&|s| s.rise_time_s),
+        worst_settling_time_s: worst(&|s| s.settling_time_s),
+        error_after_settling_peak_mrad: peak_after,
+        error_after_settling_rms_mrad: settled_worst(&|s| s.error_after_settling_rms_mrad),
+        max_final_error_mrad: steps.iter().map(|s| s.final_error_mrad).fold(0.0, f64::max),
+        passes_target: settled == steps.len() as u64
+            && peak_after.is_some_and(|p| p <= target_mrad),
+    })
 }
 
 /// Metrics of a whole record.
@@ -605,6 +732,82 @@ mod tests {
         assert!((s.settling_time_s.unwrap() - 0.5).abs() < 1e-12);
         assert!(m.all_steps_settled);
         assert!((m.worst_settling_time_s.unwrap() - 0.5).abs() < 1e-12);
+        // After settling (t = 0.6 on): errors -0.05, 0.05, 0 mrad; the visit to the band
+        // at t = 0.4 before the exit does not count.
+        assert!((s.error_after_settling_peak_mrad.unwrap() - 0.05).abs() < 1e-12);
+        let rms = (2.0 * 0.05f64.powi(2) / 3.0).sqrt();
+        assert!((s.error_after_settling_rms_mrad.unwrap() - rms).abs() < 1e-12);
+        // A step record is judged on the error after settling, not on the jump itself.
+        assert_eq!(m.criterion, Criterion::Steps);
+        assert!(m.peak_mrad > 0.9);
+        assert!(m.passes_target);
+        let sum = m.step_summary.unwrap();
+        assert_eq!((sum.judged, sum.settled), (1, 1));
+        assert!((sum.max_overshoot_percent - 20.0).abs() < 1e-9);
+    }
+
+    /// First-order response `1 - exp(-t/tau)` to a 1 mrad step, sampled finely: rise time
+    /// 10-90 % is `tau ln 9`, settling into +-0.1 mrad (10 %) takes `tau ln 10`, and after
+    /// that the error is the decaying exponential itself.
+    #[test]
+    fn first_order_step_by_hand() {
+        let (tau, dt, t0) = (0.01, 1e-5, 0.1);
+        let samples: Vec<Sample> = (0..20_001)
+            .map(|i| {
+                let t = i as f64 * dt;
+                let on = t >= t0;
+                Sample {
+                    t_s: t,
+                    reference_rad: if on { 1e-3 } else { 0.0 },
+                    output_rad: if on {
+                        1e-3 * (1.0 - (-(t - t0) / tau).exp())
+                    } else {
+                        0.0
+                    },
+                    ..Sample::default()
+                }
+            })
+            .collect();
+        let cfg = MetricsConfig {
+            steps: vec![StepEvent {
+                time_s: t0,
+                from_rad: 0.0,
+                to_rad: 1e-3,
+            }],
+            ..cfg(0.0)
+        };
+        let m = compute_metrics(&samples, &cfg);
+        let s = m.steps[0];
+        // Crossings are taken at the first sample past the level: one sample of slack.
+        assert!(
+            (s.rise_time_s.unwrap() - tau * 9f64.ln()).abs() <= dt,
+            "{s:?}"
+        );
+        assert_eq!(s.overshoot_percent, 0.0);
+        let ts = s.settling_time_s.unwrap();
+        assert!((ts - tau * 10f64.ln()).abs() <= dt, "{s:?}");
+        // Error after settling: exp(-t/tau) mrad from the settling sample to the end.
+        let after: Vec<f64> = samples
+            .iter()
+            .filter(|x| x.t_s >= t0 + ts - 0.5 * dt)
+            .map(|x| (x.output_rad - x.reference_rad) * 1e3)
+            .collect();
+        let rms = (after.iter().map(|e| e * e).sum::<f64>() / after.len() as f64).sqrt();
+        let peak = (-ts / tau).exp();
+        assert!(peak <= 0.1 && peak > 0.1 * (1.0 - 2.0 * dt / tau));
+        assert!((s.error_after_settling_peak_mrad.unwrap() - peak).abs() < 1e-12);
+        assert!((s.error_after_settling_rms_mrad.unwrap() / rms - 1.0).abs() < 1e-9);
+        assert!(m.passes_target);
+        // A tighter requirement than the error after settling fails the same record.
+        let strict = compute_metrics(
+            &samples,
+            &MetricsConfig {
+                target_mrad: 0.05,
+                settle_band_mrad: 0.1,
+                ..cfg.clone()
+            },
+        );
+        assert!(!strict.passes_target);
     }
 
     #[test]
@@ -612,8 +815,23 @@ mod tests {
         let y = [0.0, 0.0, 0.5, 1.0, 1.0, 0.8];
         let m = compute_metrics(&step_record(&y), &step_cfg());
         assert_eq!(m.steps[0].settling_time_s, None);
+        assert_eq!(m.steps[0].error_after_settling_peak_mrad, None);
+        assert_eq!(m.steps[0].error_after_settling_rms_mrad, None);
         assert!(!m.all_steps_settled);
         assert_eq!(m.worst_settling_time_s, None);
+        // Did not settle: a failure, whatever the errors.
+        assert_eq!(m.criterion, Criterion::Steps);
+        assert!(!m.passes_target);
+        assert!((m.steps[0].final_error_mrad - 0.2).abs() < 1e-12);
+        let sum = m.step_summary.unwrap();
+        assert_eq!((sum.judged, sum.settled), (1, 0));
+        assert!((sum.max_final_error_mrad - 0.2).abs() < 1e-12);
+        assert_eq!(sum.worst_settling_time_s, None);
+        assert_eq!(sum.error_after_settling_peak_mrad, None);
+        // Without steps the record is judged on tracking.
+        let m = compute_metrics(&rec(&[0.05, -0.02]), &cfg(0.0));
+        assert_eq!((m.criterion, m.step_summary), (Criterion::Tracking, None));
+        assert!(m.passes_target);
         // Never reached 90 %: no rise time.
         let m = compute_metrics(&step_record(&[0.0, 0.0, 0.3, 0.5]), &step_cfg());
         assert_eq!(m.steps[0].rise_time_s, None);

@@ -340,9 +340,14 @@ fn outputs_are_written_and_metrics_do_not_depend_on_recording() {
     assert_eq!(files.len(), 2);
     let text = std::fs::read_to_string(dir.path().join("timeseries.csv")).unwrap();
     let mut lines = text.lines();
-    assert!(lines.next().unwrap().starts_with(
+    let header = lines.next().unwrap();
+    assert!(header.starts_with(
         "mode,t_s,reference_rad,motor_angle_rad,output_angle_rad,pointing_error_mrad"
     ));
+    assert!(
+        header.ends_with(",load_torque_nm,feedforward_a,motor_reference_rad"),
+        "{header}"
+    );
     assert_eq!(
         lines.count(),
         2 * rec.modes[0].series.as_ref().unwrap().len()
@@ -363,7 +368,12 @@ fn outputs_are_written_and_metrics_do_not_depend_on_recording() {
         assert!(!json["modes"][0][key].is_null(), "{key}");
     }
     assert_eq!(json["scenario"]["study"], "closed_loop");
-    assert!(format_table(&rec).contains("memory"));
+    // A step reference is judged on its steps, and the console says how.
+    assert_eq!(json["modes"][0]["metrics"]["criterion"], "steps");
+    assert_eq!(json["modes"][0]["metrics"]["step_summary"]["judged"], 2);
+    let table = format_table(&rec);
+    assert!(table.contains("memory"));
+    assert!(table.contains("settling_ms"), "{table}");
     let charts = closed_loop_charts(&rec, 0.1);
     assert_eq!(charts.len(), 4);
     let pictures = plot_closed_loop(dir.path(), &rec, 0.1).unwrap();
@@ -527,5 +537,94 @@ fn effects_options_are_validated_by_key() {
             assert_eq!(key, "closed_loop.compensator_effects.input_pulley_runout")
         }
         r => panic!("expected a validation error, got {r:?}"),
+    }
+}
+
+/// The step-and-stare drive, one 2 mrad step from rest at 0.05 s, 0.35 s in all.
+fn step_from_rest() -> Scenario {
+    let mut s = builtin("step_stare");
+    let p = params(&mut s);
+    p.duration_s = 0.35;
+    p.metrics_start_s = 0.0;
+    p.reference = Signal::Step {
+        amplitude_rad: 0.002,
+        time_s: 0.05,
+    };
+    s
+}
+
+/// From rest the brake holds whatever the cable transmits once the reference stops, so
+/// the compensated modes must not predict a standing brake torque: they may not overshoot
+/// more than `none`, nor stand further off the target after settling.
+#[test]
+fn compensation_does_not_worsen_a_step_from_rest() {
+    let r = run_closed_loop(&step_from_rest(), &RunOptions::metrics_only()).unwrap();
+    let summary = |m: CompensationMode| {
+        let mr = r.modes.iter().find(|x| x.mode == m).unwrap();
+        assert_eq!(mr.completion, Completion::Complete, "{m:?}");
+        assert_eq!(mr.metrics.steps.len(), 1, "{m:?}");
+        mr.metrics.step_summary.unwrap()
+    };
+    let none = summary(CompensationMode::None);
+    let after = |s: &cable_servo::metrics::StepSummary| {
+        s.error_after_settling_peak_mrad
+            .expect("the step settles in every mode")
+    };
+    for mode in [CompensationMode::Memoryless, CompensationMode::Memory] {
+        let comp = summary(mode);
+        assert!(
+            comp.max_overshoot_percent <= none.max_overshoot_percent + 1.0,
+            "{mode:?}: {comp:?} vs none {none:?}"
+        );
+        assert!(
+            after(&comp) <= after(&none) + 0.005,
+            "{mode:?}: {comp:?} vs none {none:?}"
+        );
+    }
+}
+
+/// The feedforward is computed from the reference and the declared loads only: an
+/// unknown constant torque and a sine torque on the drum change the output but leave the
+/// feedforward and the compensated motor reference bit for bit the same.
+#[test]
+fn feedforward_does_not_see_unknown_disturbances() {
+    let mut quiet = builtin("eots_tracking");
+    {
+        let p = params(&mut quiet);
+        p.duration_s = 0.3;
+        p.metrics_start_s = 0.0;
+        p.modes = vec![CompensationMode::Memoryless, CompensationMode::Memory];
+    }
+    let mut disturbed = quiet.clone();
+    disturbed.load.constant_nm = 0.2;
+    disturbed.load.sine_nm = 0.1;
+    disturbed.load.sine_frequency_hz = 7.0;
+    let a = run_closed_loop(&quiet, &RunOptions::default()).unwrap();
+    let b = run_closed_loop(&disturbed, &RunOptions::default()).unwrap();
+    for (ma, mb) in a.modes.iter().zip(&b.modes) {
+        assert_eq!(mb.completion, Completion::Complete);
+        let (sa, sb) = (ma.series.as_ref().unwrap(), mb.series.as_ref().unwrap());
+        assert_eq!(sa.len(), sb.len());
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(
+            bits(&sa.feedforward),
+            bits(&sb.feedforward),
+            "{:?}",
+            ma.mode
+        );
+        assert_eq!(
+            bits(&sa.motor_reference_rad),
+            bits(&sb.motor_reference_rad),
+            "{:?}",
+            ma.mode
+        );
+        assert!(sa.feedforward.iter().any(|&u| u != 0.0));
+        let moved = sa
+            .output_angle_rad
+            .iter()
+            .zip(&sb.output_angle_rad)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max);
+        assert!(moved > 1e-6, "{:?}: output moved {moved} rad", ma.mode);
     }
 }

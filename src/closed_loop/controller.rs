@@ -174,10 +174,16 @@ impl Compensator {
 
 /// Expected brake torque seen by the cable, reversing gradually with the reference.
 ///
-/// After each reversal the cable has to pull the brake free, so the prediction first
-/// climbs to the breakaway torque and then settles to the sliding torque: the compensator
-/// copy then remembers the breakaway peak as the real cable does (its slip zones reach as
-/// far as the peak tension drove them).
+/// After each reversal, and after each start from rest, the cable has to pull the brake
+/// free, so the prediction first climbs to the breakaway torque and then settles to the
+/// sliding torque: the compensator copy then remembers the breakaway peak as the real cable
+/// does (its slip zones reach as far as the peak tension drove them).
+///
+/// When the reference stands still the prediction falls to zero at the same rate. A stuck
+/// brake holds whatever the cable transmits, so nothing in the reference fixes a standing
+/// torque; predicting the sliding torque there would shift the motor reference by the
+/// cable's stretch under that torque and park the output off target by as much. Zero is
+/// the one standing torque that is consistent with the output resting on the reference.
 #[derive(Clone, Debug)]
 pub struct BrakePredictor {
     brake_nm: f64,
@@ -209,10 +215,14 @@ impl BrakePredictor {
     }
 
     /// Update with the reference's direction of motion (`delta` = rate or change of the
-    /// reference; zero keeps the last direction). Returns the transmitted torque the brake
-    /// demands, N m (`+brake` when moving in `+`).
+    /// reference, rad/s or rad; zero = standing still). Returns the transmitted torque the
+    /// brake demands, N m (`+brake` when moving in `+`, falling to 0 at standstill).
     pub fn update(&mut self, delta: f64) -> f64 {
-        if delta != 0.0 && delta.signum() != self.dir {
+        if delta == 0.0 {
+            // The next motion, whichever way, starts from a stuck brake again.
+            self.dir = 0.0;
+            self.broke_free = false;
+        } else if delta.signum() != self.dir {
             self.dir = delta.signum();
             self.broke_free = false;
         }
@@ -243,11 +253,28 @@ mod tests {
         for (a, e) in seq.iter().zip(expect) {
             assert!((a - e).abs() < 1e-12, "{seq:?}");
         }
-        // Standing still keeps the direction; reversing climbs to -breakaway.
-        assert!((b.update(0.0) - 0.5).abs() < 1e-12);
+        // Reversing climbs to -breakaway, then slides.
         let back: Vec<f64> = (0..13).map(|_| b.update(-2.0)).collect();
         assert!((back[10] + 0.6).abs() < 1e-12, "{back:?}");
         assert!((back[12] + 0.5).abs() < 1e-12, "{back:?}");
+    }
+
+    #[test]
+    fn brake_prediction_falls_to_zero_at_standstill_and_breaks_away_again() {
+        let mut b = BrakePredictor::new(0.5, 0.6, 1.2, 0.1);
+        for _ in 0..9 {
+            b.update(1.0);
+        }
+        // The reference stops: down by 0.1 N m per sample, then held at zero.
+        let rest: Vec<f64> = (0..7).map(|_| b.update(0.0)).collect();
+        let expect = [0.4, 0.3, 0.2, 0.1, 0.0, 0.0, 0.0];
+        for (a, e) in rest.iter().zip(expect) {
+            assert!((a - e).abs() < 1e-12, "{rest:?}");
+        }
+        // Moving on in the same direction needs the breakaway torque again.
+        let again: Vec<f64> = (0..8).map(|_| b.update(1.0)).collect();
+        assert!((again[5] - 0.6).abs() < 1e-12, "{again:?}");
+        assert!((again[7] - 0.5).abs() < 1e-12, "{again:?}");
     }
 
     #[test]

@@ -13,7 +13,7 @@ use super::plant::{
 };
 use crate::metrics::limit_cycle::{LimitCycle, LimitCycleDetector};
 use crate::metrics::{Metrics, MetricsAccumulator, MetricsConfig, Sample, StepEvent};
-use crate::physics::{DriveFault, DriveParams, EffectsParams, Half, LoadParams};
+use crate::physics::{DriveFault, DriveParams, EffectsParams, Half, LoadParams, LoadTerm};
 use crate::signal::Signal;
 
 /// What to keep from a run.
@@ -222,6 +222,13 @@ pub struct TimeSeries {
     pub motor_current_a: Vec<f64>,
     /// Torque of the loads on the drum (brake reaction included), N m.
     pub load_torque_nm: Vec<f64>,
+    /// Feedforward added to the PID output (velocity, acceleration and load terms, the
+    /// compensator's reference shift included), A or V like the command. Computed from the
+    /// reference and the known load terms only, so unknown disturbances leave it unchanged.
+    pub feedforward: Vec<f64>,
+    /// Motor angle the compensator asks for, `ic (r - e_pred)`, rad (the PID reference
+    /// under motor feedback; `ic r` in mode `none`).
+    pub motor_reference_rad: Vec<f64>,
 }
 
 impl TimeSeries {
@@ -239,6 +246,8 @@ impl TimeSeries {
             motor_command: v(),
             motor_current_a: v(),
             load_torque_nm: v(),
+            feedforward: v(),
+            motor_reference_rad: v(),
         }
     }
 
@@ -489,9 +498,16 @@ fn run_mode(
     let comp_kinematic = comp_fx.filter(|fx| fx.has_kinematic());
     let comp_bearing = comp_fx.map_or(0.0, |fx| fx.bearing_friction());
     let comp_ic = p.compensator_params(drive).ratio();
+    // The brake is a declared model; should it ever be treated as unknown, the
+    // feedforward must not see it.
+    let (brake_known, brake_breakaway_known) = if LoadTerm::Brake.known_to_compensator() {
+        (load.brake_nm, load.breakaway_nm())
+    } else {
+        (0.0, 0.0)
+    };
     let mut brake_pred = BrakePredictor::new(
-        load.brake_nm + comp_bearing,
-        load.breakaway_nm() + comp_bearing,
+        brake_known + comp_bearing,
+        brake_breakaway_known + comp_bearing,
         p.controller.brake_transition_s,
         ts,
     );
@@ -630,6 +646,8 @@ fn run_mode(
             s.motor_command.push(u);
             s.motor_current_a.push(x[CURRENT]);
             s.load_torque_nm.push(load_torque(&coeff, brake, &forces));
+            s.feedforward.push(u_ff);
+            s.motor_reference_rad.push(r_m);
         }
         reached = t;
         if k == n {

@@ -13,9 +13,10 @@ use crate::plot::{save_chart, save_panels, Chart, HBand, PlotError, Series};
 use crate::report::ReportError;
 use crate::scenario::Scenario;
 
-/// Header of `timeseries.csv` (units in the names); the command column is
-/// `motor_command_a` with a current amplifier and `motor_command_v` with a voltage one.
-pub const TIMESERIES_HEADER: [&str; 12] = [
+/// Header of `timeseries.csv` (units in the names); the command and feedforward columns
+/// are `motor_command_a`, `feedforward_a` with a current amplifier and `motor_command_v`,
+/// `feedforward_v` with a voltage one.
+pub const TIMESERIES_HEADER: [&str; 14] = [
     "mode",
     "t_s",
     "reference_rad",
@@ -28,6 +29,8 @@ pub const TIMESERIES_HEADER: [&str; 12] = [
     "motor_command_a",
     "motor_current_a",
     "load_torque_nm",
+    "feedforward_a",
+    "motor_reference_rad",
 ];
 
 #[derive(Serialize)]
@@ -104,6 +107,7 @@ pub fn write_closed_loop_outputs(
         let mut header = TIMESERIES_HEADER;
         if command_unit == "V" {
             header[9] = "motor_command_v";
+            header[12] = "feedforward_v";
         }
         w.write_record(header).map_err(csv_err)?;
         for m in &result.modes {
@@ -121,8 +125,10 @@ pub fn write_closed_loop_outputs(
                     s.motor_command[i],
                     s.motor_current_a[i],
                     s.load_torque_nm[i],
+                    s.feedforward[i],
+                    s.motor_reference_rad[i],
                 ];
-                let mut row = Vec::with_capacity(12);
+                let mut row = Vec::with_capacity(TIMESERIES_HEADER.len());
                 row.push(m.mode.name().to_string());
                 row.extend(cols.iter().map(|v| format!("{v:.10e}")));
                 w.write_record(&row).map_err(csv_err)?;
@@ -176,7 +182,8 @@ pub fn write_closed_loop_outputs(
     Ok(written)
 }
 
-/// Fixed-width table: mode, RMS, peak, p95 (mrad), whether it passes, and completion.
+/// Fixed-width table: mode, RMS, peak, p95 (mrad), whether it passes, and completion; for
+/// a reference with steps, a second table of the step figures that decide the pass.
 pub fn format_table(result: &ClosedLoopResult) -> String {
     let mut out = format!(
         "{:<12} {:>10} {:>10} {:>10} {:>8}  {}\n",
@@ -210,6 +217,60 @@ pub fn format_table(result: &ClosedLoopResult) -> String {
                 m.mode.name()
             ));
         }
+    }
+    if result
+        .modes
+        .iter()
+        .any(|m| m.metrics.step_summary.is_some())
+    {
+        out.push_str(&format_step_table(result));
+    }
+    out
+}
+
+/// Step figures per mode (the worst over the steps): settled steps, overshoot (%), 10-90 %
+/// rise time (ms), settling time (ms), peak and RMS error after settling over the settled
+/// steps and the error left at the end of a step (mrad), pass.
+fn format_step_table(result: &ClosedLoopResult) -> String {
+    let opt = |v: Option<f64>, scale: f64, none: &str| match v {
+        Some(v) => format!("{:.3}", v * scale),
+        None => none.to_string(),
+    };
+    let mut out = format!(
+        "steps (worst over the steps; passes = every step settles and its error after settling is within {} mrad)\n",
+        result
+            .modes
+            .first()
+            .map_or(0.0, |m| m.metrics.target_mrad)
+    );
+    out.push_str(&format!(
+        "{:<12} {:>8} {:>12} {:>10} {:>16} {:>15} {:>14} {:>11} {:>8}\n",
+        "mode",
+        "settled",
+        "overshoot_%",
+        "rise_ms",
+        "settling_ms",
+        "after_peak_mrad",
+        "after_rms_mrad",
+        "final_mrad",
+        "passes"
+    ));
+    for m in &result.modes {
+        let Some(s) = &m.metrics.step_summary else {
+            continue;
+        };
+        out.push_str(&format!(
+            "{:<12} {:>8} {:>12.1} {:>10} {:>16} {:>15} {:>14} {:>11.3} {:>8}\n",
+            m.mode.name(),
+            format!("{}/{}", s.settled, s.judged),
+            s.max_overshoot_percent,
+            opt(s.max_rise_time_s, 1e3, "not reached"),
+            opt(s.worst_settling_time_s, 1e3, "did not settle"),
+            opt(s.error_after_settling_peak_mrad, 1.0, "-"),
+            opt(s.error_after_settling_rms_mrad, 1.0, "-"),
+            s.max_final_error_mrad,
+            if m.metrics.passes_target { "yes" } else { "no" },
+        ));
     }
     out
 }
