@@ -149,7 +149,8 @@ enum Command {
     Sweep {
         /// Scenario file or built-in name with a [sweep] section.
         scenario: String,
-        /// Results directory (default: results/<scenario name>).
+        /// Results directory (default: results/<scenario name>-sweep, or the first free
+        /// -sweep-2, -sweep-3, ...).
         #[arg(long)]
         out: Option<PathBuf>,
         /// Override a scenario value (repeatable).
@@ -422,7 +423,13 @@ fn main() -> ExitCode {
                     }
                 }
             }
-            let dir = out.unwrap_or_else(|| PathBuf::from("results").join(scenario.name()));
+            // Its own default beside a run's, so `run X` then `sweep X` never collide.
+            let dir = out.unwrap_or_else(|| {
+                run::default_results_dir(
+                    &PathBuf::from("results").join(format!("{}-sweep", scenario.name())),
+                    force,
+                )
+            });
             let total = scenario.sweep.as_ref().map_or(0, |s| {
                 (0..s.case_count()).filter(|&i| shard.owns(i)).count()
             });

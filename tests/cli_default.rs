@@ -44,11 +44,44 @@ fn help_still_lists_the_commands() {
     assert_eq!(help.status.code(), Some(0));
     let text = String::from_utf8_lossy(&help.stdout);
     for cmd in [
-        "run", "sweep", "merge", "design", "diagnose", "synth", "show",
+        "run", "sweep", "merge", "design", "diagnose", "synth", "show", "freqresp", "margins",
     ] {
         assert!(
             text.contains(&format!("  {cmd} ")),
             "{cmd} missing:\n{text}"
         );
     }
+}
+
+/// `run X` then `sweep X` with no `--out`: each has its own default folder, both succeed.
+#[test]
+fn run_then_sweep_of_one_scenario_do_not_collide() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = cable_servo(&["run", "paper_fig11"], tmp.path());
+    assert_eq!(
+        run.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let sweep = cable_servo(&["sweep", "paper_fig11"], tmp.path());
+    let out = String::from_utf8_lossy(&sweep.stdout);
+    assert_eq!(
+        sweep.status.code(),
+        Some(0),
+        "{out}{}",
+        String::from_utf8_lossy(&sweep.stderr)
+    );
+    assert!(
+        out.contains("results: results/paper_fig11-sweep\n"),
+        "{out}"
+    );
+    assert!(tmp
+        .path()
+        .join("results/paper_fig11/summary.json")
+        .is_file());
+    assert!(tmp
+        .path()
+        .join("results/paper_fig11-sweep/sweep.csv")
+        .is_file());
 }
