@@ -3,6 +3,7 @@
 
 use std::time::Instant;
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::controller::{BrakePredictor, CommandDelay, Compensator, Pid, Sensors};
@@ -417,8 +418,9 @@ pub fn run_closed_loop(
             requested: format!("{:?}", options.modes),
         });
     }
+    // Modes are independent runs: side by side on the cores (results in mode order).
     let results: Vec<ModeResult> = modes
-        .iter()
+        .par_iter()
         .map(|&m| run_mode(&setup, m, options))
         .collect();
     Ok(ClosedLoopResult {
