@@ -352,3 +352,56 @@ fn sigterm_during_a_run_leaves_nothing_and_stale_staging_is_cleared() {
     assert!(!stale.exists(), "stale staging directory kept");
     assert!(entries(tmp.path()).is_empty(), "{:?}", entries(tmp.path()));
 }
+
+/// Columns the bench-log format does not define are ignored and named in the report.
+#[test]
+fn extra_log_columns_are_listed_in_the_diagnosis_report() {
+    let tmp = tempfile::tempdir().unwrap();
+    let log = tmp.path().join("log.csv");
+    let o = cable_servo(
+        &[
+            "synth",
+            "--scenario",
+            "gimbal_ident",
+            "--seed",
+            "4",
+            "--out",
+            p(&log),
+        ],
+        tmp.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // Two columns of the lab's own beside the format's.
+    let text = fs::read_to_string(&log).unwrap();
+    let widened: String = text
+        .lines()
+        .map(|l| {
+            if l.starts_with('#') {
+                format!("{l}\n")
+            } else if l.starts_with("t_s") {
+                format!("{l},lab_temp_c,operator\n")
+            } else {
+                format!("{l},21.5,A\n")
+            }
+        })
+        .collect();
+    fs::write(&log, widened).unwrap();
+    let o = cable_servo(
+        &[
+            "diagnose",
+            "--scenario",
+            "gimbal_ident",
+            "--data",
+            p(&log),
+            "--out",
+            "d",
+        ],
+        tmp.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let report = fs::read_to_string(tmp.path().join("d/report.txt")).unwrap();
+    assert!(
+        report.contains("(not in the bench-log format): lab_temp_c, operator"),
+        "{report}"
+    );
+}

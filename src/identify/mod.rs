@@ -595,6 +595,11 @@ pub fn diagnose(
         play_operator,
         holdout: split.text,
         logs: prepared.iter().map(|l| l.source.clone()).collect(),
+        ignored_columns: logs
+            .iter()
+            .filter(|l| !l.extra_columns.is_empty())
+            .map(|l| (l.source.clone(), l.extra_columns.clone()))
+            .collect(),
         start_cuts,
         drive: drive_out,
         effects: effects_out,

@@ -175,6 +175,10 @@ pub struct Diagnosis {
     pub holdout: String,
     /// Logs used.
     pub logs: Vec<String>,
+    /// Columns of each log that the format does not define, ignored: `(log, columns)`,
+    /// logs without any left out.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ignored_columns: Vec<(String, Vec<String>)>,
     /// What was cut from the start of each log (start-up transient), in `logs` order.
     pub start_cuts: Vec<startup::StartCut>,
     /// Calibrated drive.

@@ -24,6 +24,13 @@ pub fn summary_text(d: &Diagnosis) -> String {
         d.logs.join(", ")
     );
     let _ = writeln!(s, "Held out: {}", d.holdout);
+    for (log, columns) in &d.ignored_columns {
+        let _ = writeln!(
+            s,
+            "Columns ignored in {log} (not in the bench-log format): {}",
+            columns.join(", ")
+        );
+    }
     for c in d.start_cuts.iter().filter(|c| c.cut_s > 0.0) {
         let _ = writeln!(s, "Start-up: {}: {}", c.log, c.reason);
     }

@@ -319,24 +319,6 @@ impl crate::identify::IdentifySource for Scenario {
     }
 }
 
-/// Edit distance between two names (insertions, deletions, substitutions).
-fn edit_distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut prev = row[0];
-        row[0] = i + 1;
-        for (j, cb) in b.iter().enumerate() {
-            let here = row[j + 1];
-            row[j + 1] = (prev + usize::from(ca != *cb))
-                .min(row[j] + 1)
-                .min(here + 1);
-            prev = here;
-        }
-    }
-    row[b.len()]
-}
-
 /// The error for a name that is neither a file nor built in, with the nearest built-in
 /// name when it is within a third of the name's length.
 fn not_found(name: &str) -> ScenarioError {
@@ -346,7 +328,7 @@ fn not_found(name: &str) -> ScenarioError {
         .map_or(name.to_string(), |s| s.to_string_lossy().into_owned());
     let suggestion = names
         .iter()
-        .map(|n| (edit_distance(&stem, n), *n))
+        .map(|n| (strsim::levenshtein(&stem, n), *n))
         .min()
         .filter(|(d, _)| *d > 0 && *d <= stem.chars().count().div_ceil(3))
         .map(|(_, n)| n.to_string());
