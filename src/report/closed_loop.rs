@@ -475,12 +475,18 @@ pub fn plot_closed_loop(
     result: &ClosedLoopResult,
     target_mrad: f64,
 ) -> Result<Vec<PathBuf>, PlotError> {
+    use rayon::prelude::*;
+    // Figures are independent files: drawn side by side on the cores.
+    let drawn: Vec<Result<Vec<PathBuf>, PlotError>> = closed_loop_charts(result, target_mrad)
+        .into_par_iter()
+        .map(|(stem, figure)| match figure {
+            Figure::Chart(chart) => save_chart(&chart, &dir.join(stem)),
+            Figure::Panels { title, charts } => save_panels(&title, &charts, &dir.join(stem)),
+        })
+        .collect();
     let mut files = Vec::new();
-    for (stem, figure) in closed_loop_charts(result, target_mrad) {
-        files.extend(match figure {
-            Figure::Chart(chart) => save_chart(&chart, &dir.join(stem))?,
-            Figure::Panels { title, charts } => save_panels(&title, &charts, &dir.join(stem))?,
-        });
+    for d in drawn {
+        files.extend(d?);
     }
     Ok(files)
 }
