@@ -447,7 +447,7 @@ fn main() -> ExitCode {
                 &scenario,
                 &SweepOptions {
                     output: OutputOptions { dir, force },
-                    threads,
+                    threads: sane_threads(threads),
                     shard,
                     case_timeseries,
                 },
@@ -807,7 +807,7 @@ fn main() -> ExitCode {
             let result = run::run_freqresp(
                 &scenario,
                 &spec,
-                threads,
+                sane_threads(threads),
                 &OutputOptions { dir, force },
                 &tick,
             );
@@ -945,6 +945,19 @@ fn closed_loop_answer(
 }
 
 /// Load a scenario and fill its tables; prints the error and returns the exit code.
+/// Worker threads as asked, at most four per core: more only queue for the same cores,
+/// and an absurd count would exhaust the process before any work starts.
+fn sane_threads(asked: usize) -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let most = 4 * cores;
+    if asked > most {
+        tell!("note: --threads {asked} lowered to {most} (four per core on this machine's {cores} cores)");
+        most
+    } else {
+        asked
+    }
+}
+
 fn load(name: &str, set: &[String]) -> Result<Scenario, ExitCode> {
     let mut scenario = Scenario::load(name, set).map_err(|e| {
         tell!("error: {e}");

@@ -405,3 +405,20 @@ fn extra_log_columns_are_listed_in_the_diagnosis_report() {
         "{report}"
     );
 }
+
+/// An absurd thread count is lowered with a note instead of exhausting the process.
+#[test]
+fn absurd_thread_counts_are_lowered_with_a_note() {
+    let tmp = tempfile::tempdir().unwrap();
+    let o = cable_servo(
+        &["sweep", "paper_fig11", "--threads", "100000", "--out", "s"],
+        tmp.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--threads 100000 lowered to"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(tmp.path().join("s/sweep.csv").is_file());
+}
