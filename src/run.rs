@@ -447,12 +447,9 @@ impl CaseRunner for ClosedLoopRunner {
                         closed_loop::Completion::Complete => String::new(),
                         closed_loop::Completion::Incomplete { fault, .. } => fault.clone(),
                     };
-                    let status = if done || stop.is_empty() {
-                        r.completion.status()
-                    } else if matches!(r.completion, closed_loop::Completion::Complete) {
-                        "stopped"
-                    } else {
-                        r.completion.status()
+                    let status = match &r.completion {
+                        closed_loop::Completion::Complete if r.metrics.samples == 0 => "stopped",
+                        c => c.status(),
                     };
                     cells.extend([
                         Cell::Num(some(m.rms_mrad)),

@@ -90,15 +90,20 @@ impl LimitCycleDetector {
     }
 
     fn close(&mut self) {
-        let stretch = std::mem::take(&mut self.rest);
-        let (Some(first), Some(last)) = (stretch.first(), stretch.last()) else {
+        // Cleared, not replaced: a moving reference closes a stretch at every sample, and
+        // the buffer keeps its capacity for the next rest.
+        let judged = match (self.rest.first(), self.rest.last()) {
+            (Some(first), Some(last)) if last.0 - first.0 >= self.min_rest_s => {
+                Some((last.0 - first.0, judge(&self.rest, self.min_cycles)))
+            }
+            _ => None,
+        };
+        self.rest.clear();
+        let Some((length_s, found)) = judged else {
             return;
         };
-        if last.0 - first.0 < self.min_rest_s {
-            return;
-        }
-        self.judged_s += last.0 - first.0;
-        if let Some(found) = judge(&stretch, self.min_cycles) {
+        self.judged_s += length_s;
+        if let Some(found) = found {
             let bigger = match (&self.found, &found) {
                 (
                     Some(LimitCycle::Detected {

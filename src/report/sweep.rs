@@ -209,13 +209,21 @@ pub fn plot(
 
 /// Mode and metric of a closed-loop figure column (`memory_rms_mrad` -> memory,
 /// rms_mrad), with the mode's fixed palette slot; other columns have no mode.
-fn mode_and_metric(column: &str) -> (Option<(&str, usize)>, &str) {
-    for (slot, mode) in ["none", "memoryless", "memory"].iter().enumerate() {
+fn mode_and_metric(column: &str) -> (Option<(&'static str, usize)>, &str) {
+    use crate::closed_loop::CompensationMode;
+    for mode in [
+        CompensationMode::None,
+        CompensationMode::Memoryless,
+        CompensationMode::Memory,
+    ] {
         if let Some(metric) = column
-            .strip_prefix(mode)
+            .strip_prefix(mode.name())
             .and_then(|rest| rest.strip_prefix('_'))
         {
-            return (Some((mode, slot)), metric);
+            return (
+                Some((mode.name(), super::closed_loop::mode_slot(mode))),
+                metric,
+            );
         }
     }
     (None, column)
