@@ -64,3 +64,55 @@ fn the_former_fast_gains_fail_with_one_sample_of_delay() {
     assert!(m0.stable, "{m0:?}");
     assert!(m0.phase_margin_deg.unwrap() < 35.0, "{m0:?}");
 }
+
+/// Gains far too high: the run stops, and the stop is named as the loop's instability
+/// (growth rate, frequency, the gains to check) rather than as the slack or slip it ends
+/// in; a stable loop's slip keeps its own name.
+#[test]
+fn an_unstable_loop_is_named_before_the_slack_it_causes() {
+    use cable_servo::closed_loop::{run_closed_loop, Completion, RunOptions, StopKind};
+    let run = |sets: &[&str]| {
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        let s = Scenario::load("eots_tracking", &sets).unwrap_or_else(|e| panic!("{e}"));
+        let r = run_closed_loop(&s, &RunOptions::metrics_only()).unwrap_or_else(|e| panic!("{e}"));
+        r.modes[0].completion.clone()
+    };
+    // Every gain five times (the gain margin is 10 dB), no current limit and a light
+    // preload, so the growing oscillation slips the cable instead of saturating the
+    // amplifier.
+    let hot = run(&[
+        "drive.preload_n=20",
+        "closed_loop.controller.kp=1500",
+        "closed_loop.controller.ki=100000",
+        "closed_loop.controller.kd=12.5",
+        "closed_loop.motor.current_limit_a=10000",
+        "closed_loop.duration_s=1",
+        "closed_loop.metrics_start_s=0.1",
+        "closed_loop.modes=[\"none\"]",
+    ]);
+    match hot {
+        Completion::Incomplete { fault, kind, .. } => {
+            assert_eq!(kind, StopKind::Unstable, "{fault}");
+            assert!(fault.contains("the loop is unstable"), "{fault}");
+            assert!(fault.contains("kp = 1500"), "{fault}");
+            assert!(fault.contains("1/s at"), "{fault}");
+        }
+        Completion::Complete => panic!("five times the gains ran to the end"),
+    }
+    let slips = run(&[
+        "drive.preload_n=1.5",
+        "closed_loop.duration_s=0.5",
+        "closed_loop.metrics_start_s=0.1",
+        "closed_loop.modes=[\"none\"]",
+    ]);
+    assert!(
+        matches!(
+            slips,
+            Completion::Incomplete {
+                kind: StopKind::GrossSlip,
+                ..
+            }
+        ),
+        "{slips:?}"
+    );
+}

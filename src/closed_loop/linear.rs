@@ -50,6 +50,17 @@ pub struct LinearLoop {
     a: f64,
 }
 
+/// An unstable sampled closed loop's fastest-growing mode.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Instability {
+    /// Largest pole magnitude `|z|` (above 1).
+    pub pole_magnitude: f64,
+    /// Growth rate of that mode, 1/s (`ln|z|` per period).
+    pub growth_per_s: f64,
+    /// Its frequency, Hz (0 for a real pole).
+    pub frequency_hz: f64,
+}
+
 /// Margins, peaks and bandwidth of a loop.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Margins {
@@ -237,6 +248,23 @@ impl LinearLoop {
             m.set_column(j, &self.step(&e));
         }
         m
+    }
+
+    /// The sampled closed loop's largest pole when it lies outside the unit circle: how an
+    /// unstable loop grows, to name it before the slack or slip it ends in.
+    pub fn instability(&self) -> Option<Instability> {
+        let fs = 1.0 / self.ts;
+        self.closed_loop_matrix()
+            .complex_eigenvalues()
+            .iter()
+            .copied()
+            .max_by(|a, b| a.norm().total_cmp(&b.norm()))
+            .filter(|z| z.norm() > 1.0)
+            .map(|z| Instability {
+                pole_magnitude: z.norm(),
+                growth_per_s: z.norm().ln() * fs,
+                frequency_hz: z.arg().abs() * fs / std::f64::consts::TAU,
+            })
     }
 
     /// Largest closed-loop pole magnitude.

@@ -418,10 +418,12 @@ pub fn run_closed_loop(
             requested: format!("{:?}", options.modes),
         });
     }
+    // An unstable loop ends in slack or slip; the linear reference names the cause.
+    let instability = super::linear::LinearLoop::new(p, setup.drive).instability();
     // Modes are independent runs: side by side on the cores (results in mode order).
     let results: Vec<ModeResult> = modes
         .par_iter()
-        .map(|&m| run_mode(&setup, m, options))
+        .map(|&m| run_mode(&setup, m, options, instability))
         .collect();
     Ok(ClosedLoopResult {
         complete: results.iter().all(|r| r.completion == Completion::Complete),
@@ -471,10 +473,43 @@ fn describe(
     )
 }
 
+/// A stop, named as the loop's instability when the exact linear reference is unstable.
+fn stop(
+    fault: String,
+    time_s: f64,
+    kind: StopKind,
+    instability: Option<super::linear::Instability>,
+    controller: &super::params::ControllerParams,
+) -> Completion {
+    match instability {
+        Some(i) => Completion::Incomplete {
+            fault: format!(
+                "the loop is unstable (on its exact linear reference the largest closed-loop pole has |z| = {:.5}: a mode growing at {:.1} 1/s at {:.1} Hz), so it ended in: {fault}; check closed_loop.controller kp = {}, ki = {}, kd = {}, derivative_filter_hz = {} and computation_delay_samples = {} (`cable-servo margins` shows the margins)",
+                i.pole_magnitude,
+                i.growth_per_s,
+                i.frequency_hz,
+                controller.kp,
+                controller.ki,
+                controller.kd,
+                controller.derivative_filter_hz,
+                controller.computation_delay_samples
+            ),
+            time_s,
+            kind: StopKind::Unstable,
+        },
+        None => Completion::Incomplete {
+            fault,
+            time_s,
+            kind,
+        },
+    }
+}
+
 fn run_mode(
     scenario: &ClosedLoopSetup<'_>,
     mode: CompensationMode,
     options: &RunOptions,
+    instability: Option<super::linear::Instability>,
 ) -> ModeResult {
     let wall = Instant::now();
     let p = scenario.params;
@@ -545,11 +580,13 @@ fn run_mode(
         let forces = match settle_boundary(&coeff, &mut cable, load, &mut brake, &mut x, t) {
             Ok(f) => f,
             Err(f) => {
-                completion = Completion::Incomplete {
-                    fault: describe(&f, t, mode, last_torque, coeff.ro),
-                    time_s: t,
-                    kind: StopKind::of(&f),
-                };
+                completion = stop(
+                    describe(&f, t, mode, last_torque, coeff.ro),
+                    t,
+                    StopKind::of(&f),
+                    instability,
+                    c,
+                );
                 break;
             }
         };
@@ -696,11 +733,13 @@ fn run_mode(
         }
         stats.periods += 1;
         if let Some(f) = fault {
-            completion = Completion::Incomplete {
-                fault: describe(&f, t + ts, mode, last_torque, coeff.ro),
-                time_s: t + ts,
-                kind: StopKind::of(&f),
-            };
+            completion = stop(
+                describe(&f, t + ts, mode, last_torque, coeff.ro),
+                t + ts,
+                StopKind::of(&f),
+                instability,
+                c,
+            );
             reached = t + ts;
             break;
         }

@@ -200,13 +200,22 @@ pub fn format_table(result: &ClosedLoopResult) -> String {
             Completion::Complete => "complete".to_string(),
             Completion::Incomplete { fault, .. } => format!("INCOMPLETE: {fault}"),
         };
+        // A stopped mode has no figures: what it ran is not the design's answer.
+        let figure = |v: f64| match (&m.completion, m.metrics.samples) {
+            (Completion::Complete, n) if n > 0 => format!("{v:.5}"),
+            _ => "-".to_string(),
+        };
         out.push_str(&format!(
-            "{:<12} {:>10.5} {:>10.5} {:>10.5} {:>8}  {}\n",
+            "{:<12} {:>10} {:>10} {:>10} {:>8}  {}\n",
             m.mode.name(),
-            m.metrics.rms_mrad,
-            m.metrics.peak_mrad,
-            m.metrics.p95_mrad,
-            if m.metrics.passes_target { "yes" } else { "no" },
+            figure(m.metrics.rms_mrad),
+            figure(m.metrics.peak_mrad),
+            figure(m.metrics.p95_mrad),
+            if m.metrics.passes_target && matches!(m.completion, Completion::Complete) {
+                "yes"
+            } else {
+                "no"
+            },
             status
         ));
     }
