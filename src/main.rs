@@ -186,6 +186,31 @@ enum Command {
         #[arg(long)]
         force: bool,
     },
+    /// Compare controller designs side by side: several closed-loop scenarios, or one
+    /// scenario with named sets of overrides. Writes compare.csv, summary.json, each
+    /// design's files under designs/ and overlay plots; exit code 4 when a design misses
+    /// its pointing target.
+    Compare {
+        /// Scenario files or built-in names: each one a design (with --design: the one
+        /// base scenario the designs change).
+        scenarios: Vec<String>,
+        /// A design as NAME:KEY=VALUE;KEY=VALUE... on the base scenario (repeatable),
+        /// e.g. --design 'notch:closed_loop.controller.command_filters=[{kind="notch",center_hz=40.0,depth_db=20.0,width_hz=20.0}]'.
+        #[arg(long = "design", value_name = "NAME:SETS")]
+        designs: Vec<String>,
+        /// Compensation mode compared (default: the last one each scenario lists).
+        #[arg(long)]
+        mode: Option<String>,
+        /// Override a value in every design (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Results directory (default: results/compare, or the first free compare-2, ...).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Replace an existing results directory written by this program.
+        #[arg(long)]
+        force: bool,
+    },
     /// Design answers computed directly (no sweep table).
     Design {
         #[command(subcommand)]
@@ -378,6 +403,14 @@ fn main() -> ExitCode {
             });
             report(run::run_scenario(&scenario, &OutputOptions { dir, force }))
         }
+        Command::Compare {
+            scenarios,
+            designs,
+            mode,
+            set,
+            out,
+            force,
+        } => compare(scenarios, designs, mode, set, out, force),
         Command::Sweep {
             scenario,
             out,
@@ -700,7 +733,7 @@ fn main() -> ExitCode {
                 p.controller.sample_rate_hz
             );
             say!(
-                "stable            {} (largest pole |z| = {:.5})",
+                "stable            {} (largest pole |z| = {:.8})",
                 m.stable,
                 m.spectral_radius
             );
@@ -955,6 +988,118 @@ fn sane_threads(asked: usize) -> usize {
         most
     } else {
         asked
+    }
+}
+
+/// `compare`: build the designs, run them, report; exit 4 when one misses its target.
+fn compare(
+    scenarios: Vec<String>,
+    designs: Vec<String>,
+    mode: Option<String>,
+    set: Vec<String>,
+    out: Option<PathBuf>,
+    force: bool,
+) -> ExitCode {
+    let mode = match mode.as_deref() {
+        None => None,
+        Some(m) => match m {
+            "none" => Some(cable_servo::closed_loop::CompensationMode::None),
+            "memoryless" => Some(cable_servo::closed_loop::CompensationMode::Memoryless),
+            "memory" => Some(cable_servo::closed_loop::CompensationMode::Memory),
+            other => {
+                tell!("error: --mode {other:?}: allowed are none, memoryless, memory");
+                return ExitCode::from(exit::USAGE);
+            }
+        },
+    };
+    let valid_name = |n: &str| {
+        !n.is_empty()
+            && n.chars()
+                .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+            && !n.starts_with('.')
+    };
+    let mut list = Vec::new();
+    if designs.is_empty() {
+        if scenarios.is_empty() {
+            tell!("error: compare needs designs: two or more scenarios, or one scenario with --design NAME:KEY=VALUE;...");
+            return ExitCode::from(exit::USAGE);
+        }
+        for name in &scenarios {
+            let scenario = match load(name, &set) {
+                Ok(s) => s,
+                Err(code) => return code,
+            };
+            list.push(run::CompareDesign {
+                name: scenario.name().to_string(),
+                description: name.clone(),
+                scenario,
+            });
+        }
+    } else {
+        if scenarios.len() > 1 {
+            tell!(
+                "error: with --design give one base scenario, not {}",
+                scenarios.len()
+            );
+            return ExitCode::from(exit::USAGE);
+        }
+        let base = scenarios.first().map_or(DEFAULT_SCENARIO, String::as_str);
+        for d in &designs {
+            let Some((name, sets)) = d.split_once(':') else {
+                tell!("error: --design {d:?}: write NAME:KEY=VALUE;KEY=VALUE (NAME alone runs the base as is: NAME:)");
+                return ExitCode::from(exit::USAGE);
+            };
+            let name = name.trim();
+            if !valid_name(name) {
+                tell!("error: --design {d:?}: the name {name:?} must be letters, digits, '-', '_' or '.' (it names a folder)");
+                return ExitCode::from(exit::USAGE);
+            }
+            let mut all = set.clone();
+            all.extend(
+                sets.split(';')
+                    .map(str::trim)
+                    .filter(|s| !s.is_empty())
+                    .map(str::to_string),
+            );
+            let scenario = match load(base, &all) {
+                Ok(s) => s,
+                Err(code) => return code,
+            };
+            list.push(run::CompareDesign {
+                name: name.to_string(),
+                description: if sets.trim().is_empty() {
+                    format!("{base} as is")
+                } else {
+                    format!("{base} with {}", sets.trim())
+                },
+                scenario,
+            });
+        }
+    }
+    let dir = out.unwrap_or_else(|| {
+        run::default_results_dir(&PathBuf::from("results").join("compare"), force)
+    });
+    match run::run_compare(&list, mode, &OutputOptions { dir, force }) {
+        Ok(c) => {
+            let passing = c.passing;
+            let total = c.designs;
+            let code = report(Ok(c.run));
+            if passing == total {
+                say!("every design meets its pointing target ({total} of {total})");
+                code
+            } else {
+                tell!(
+                    "{} of {total} designs miss their pointing target (a design that stopped counts as missing it)",
+                    total - passing
+                );
+                if code == ExitCode::SUCCESS {
+                    ExitCode::from(exit::PHYSICAL)
+                } else {
+                    code
+                }
+            }
+        }
+        Err(e) => report(Err(e)),
     }
 }
 

@@ -7,6 +7,7 @@
 //! fractions).
 
 pub mod limit_cycle;
+pub mod los;
 
 use std::sync::OnceLock;
 
@@ -79,6 +80,10 @@ pub struct StepMetrics {
     /// or at the end), mrad: how far off a step that did not settle was left standing.
     #[serde(default)]
     pub final_error_mrad: f64,
+    /// The stare after this step passes: the step settled and its error after settling
+    /// stayed within the target until the next step (or the end).
+    #[serde(default)]
+    pub passes_target: bool,
 }
 
 /// How a record is judged against the target.
@@ -477,6 +482,7 @@ impl MetricsAccumulator {
                     .settle_at
                     .map(|_| (st.after_sq / st.after_n.max(1) as f64).sqrt()),
                 final_error_mrad: st.last_error_mrad,
+                passes_target: st.settle_at.is_some() && st.after_peak <= self.cfg.target_mrad,
             })
             .collect();
         let step_summary = summarize_steps(&steps, self.cfg.target_mrad);

@@ -215,7 +215,18 @@ fn run_closed_loop(
             m.mode.name()
         )),
     });
-    Ok((report::closed_loop::format_table(&result), failure))
+    let mut table = report::closed_loop::format_table(&result);
+    if scenario
+        .closed_loop
+        .as_ref()
+        .is_some_and(|c| c.error_budget)
+    {
+        let setup = closed_loop::ClosedLoopSource::closed_loop_setup(scenario)?;
+        let budget = closed_loop::budget::error_budget(&setup)?;
+        report::closed_loop::write_budget(dir, &budget)?;
+        table.push_str(&report::closed_loop::format_budget(&budget));
+    }
+    Ok((table, failure))
 }
 
 fn run_backlash(
@@ -846,5 +857,116 @@ pub fn run_freqresp(
         passes: r.amplitudes.iter().all(|a| a.passes()),
         warnings,
         runs: (r.runs, r.simulated_s),
+    })
+}
+
+/// A design of a comparison: a resolved closed-loop scenario under a name.
+#[derive(Debug, Clone)]
+pub struct CompareDesign {
+    /// Name in tables, files and legends (a file name: letters, digits, `-`, `_`, `.`).
+    pub name: String,
+    /// Where it came from (scenario file, or the overrides applied to the base).
+    pub description: String,
+    /// The scenario, tables loaded.
+    pub scenario: Scenario,
+}
+
+/// What a comparison produced.
+#[derive(Debug, Clone)]
+pub struct CompareReport {
+    /// The run's files, its table and whether it completed.
+    pub run: RunReport,
+    /// Designs that ran to the end and met their pointing target.
+    pub passing: usize,
+    /// Designs compared.
+    pub designs: usize,
+}
+
+/// Run every design (one compensation mode each: `mode`, or the last mode its scenario
+/// lists) side by side on the cores, then write the table, each design's files and the
+/// overlay figures.
+pub fn run_compare(
+    designs: &[CompareDesign],
+    mode: Option<closed_loop::CompensationMode>,
+    out: &OutputOptions,
+) -> Result<CompareReport, RunError> {
+    use rayon::prelude::*;
+    if designs.is_empty() {
+        return Err(RunError::Unsupported(
+            "compare needs at least one design: scenario files, or one scenario with --design NAME:KEY=VALUE;...".into(),
+        ));
+    }
+    for (i, d) in designs.iter().enumerate() {
+        if designs[..i].iter().any(|e| e.name == d.name) {
+            return Err(RunError::Unsupported(format!(
+                "two designs are named {:?}: give each its own name",
+                d.name
+            )));
+        }
+        let Some(p) = d.scenario.closed_loop.as_ref() else {
+            return Err(RunError::Unsupported(format!(
+                "design {:?}: compare needs closed-loop scenarios (study = \"closed_loop\")",
+                d.name
+            )));
+        };
+        if let Some(m) = mode {
+            if !p.modes.contains(&m) {
+                return Err(RunError::Unsupported(format!(
+                    "design {:?} does not list mode {:?} in closed_loop.modes",
+                    d.name,
+                    m.name()
+                )));
+            }
+        }
+    }
+    let mut warnings = Vec::new();
+    let staged = StagedDir::create(&out.dir, out.force)?;
+    let dir = staged.path().to_path_buf();
+    let outcomes = designs
+        .par_iter()
+        .map(|d| -> Result<report::compare::DesignOutcome, RunError> {
+            let p = d.scenario.closed_loop.as_ref().ok_or_else(|| {
+                RunError::Unsupported(format!("design {:?} is not a closed-loop study", d.name))
+            })?;
+            let m = mode.unwrap_or(
+                *p.modes
+                    .last()
+                    .unwrap_or(&closed_loop::CompensationMode::None),
+            );
+            let options = closed_loop::RunOptions {
+                decimation: p.timeseries_decimation(),
+                modes: Some(vec![m]),
+                ..closed_loop::RunOptions::default()
+            };
+            let mut r = closed_loop::run_closed_loop(&d.scenario, &options)?;
+            let result = r.modes.remove(0);
+            Ok(report::compare::DesignOutcome {
+                name: d.name.clone(),
+                description: d.description.clone(),
+                scenario: d.scenario.clone(),
+                mode: m,
+                result,
+                margins: closed_loop::linear::LinearLoop::new(p, &d.scenario.drive).margins(2000),
+                target_mrad: p.target_mrad,
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    report::compare::write_compare(&dir, &outcomes)?;
+    if let Err(e) = report::compare::plot_compare(&dir, &outcomes) {
+        warnings.push(format!("plots incomplete: {e}"));
+    }
+    let passing = outcomes.iter().filter(|d| d.passes()).count();
+    let failure = outcomes.iter().find_map(|d| match &d.result.completion {
+        closed_loop::Completion::Complete => None,
+        closed_loop::Completion::Incomplete { fault, time_s, .. } => Some(format!(
+            "design {} stopped at t = {time_s:.4} s: {fault}",
+            d.name
+        )),
+    });
+    let table = report::compare::format_compare(&outcomes);
+    Ok(CompareReport {
+        run: finish(staged, table, failure, warnings)?,
+        passing,
+        designs: outcomes.len(),
     })
 }

@@ -4,6 +4,9 @@
 //! A [`Signal`] is evaluated analytically (value, first and second derivative), so feedforward
 //! terms are exact; tabulated signals interpolate linearly between samples.
 
+use std::sync::OnceLock;
+
+use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
 /// Largest amplitude, offset or slew rate a signal may have (rad, rad/s).
@@ -85,6 +88,104 @@ pub enum Signal {
         #[serde(skip)]
         samples: Vec<(f64, f64)>,
     },
+    /// Random motion with a given one-sided power spectral density: a sum of sines, one per
+    /// logarithmic band between the table's first and last frequency, each at a random
+    /// frequency inside its band with a random phase and the amplitude that carries the
+    /// band's power (`a = sqrt(2 * integral of S over the band)`), so the motion's variance
+    /// equals the integral of the table exactly. A vehicle's angular vibration about one
+    /// axis is typically 1e-8 to 1e-6 rad^2/Hz from 1 to 100 Hz.
+    Psd {
+        /// Rows `[frequency Hz, PSD rad^2/Hz]`, frequencies strictly increasing, PSD > 0;
+        /// interpolated linearly in log-log coordinates (straight lines on a PSD plot).
+        psd: Vec<[f64; 2]>,
+        /// Seed of the random frequencies and phases (the same seed gives the same motion).
+        #[serde(default = "default_psd_seed")]
+        seed: u64,
+        /// Number of sines (bands), 10 to 2000 (200 resolves a PSD table to a few percent
+        /// per band while costing little per sample).
+        #[serde(default = "default_psd_components")]
+        components: u32,
+        /// The realised sines, computed on first use from the table and the seed.
+        #[serde(skip)]
+        realised: OnceLock<Vec<SineComponent>>,
+    },
+}
+
+/// One sine of a realised random motion: `amplitude * sin(omega t + phase)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SineComponent {
+    /// Amplitude, rad.
+    pub amplitude_rad: f64,
+    /// Angular frequency, rad/s.
+    pub omega_rad_s: f64,
+    /// Phase at t = 0, rad.
+    pub phase_rad: f64,
+}
+
+fn default_psd_seed() -> u64 {
+    1
+}
+fn default_psd_components() -> u32 {
+    200
+}
+
+/// Most sines a PSD realisation may use.
+pub const MAX_PSD_COMPONENTS: u32 = 2000;
+
+/// PSD of a table at `f` (Hz), log-log interpolation; 0 outside the table.
+pub fn psd_at(table: &[[f64; 2]], f: f64) -> f64 {
+    let n = table.len();
+    if n == 0 || f < table[0][0] || f > table[n - 1][0] {
+        return 0.0;
+    }
+    let k = table.partition_point(|r| r[0] <= f).clamp(1, n - 1);
+    let ([f0, s0], [f1, s1]) = (table[k - 1], table[k]);
+    let x = (f / f0).ln() / (f1 / f0).ln();
+    (s0.ln() + x * (s1.ln() - s0.ln())).exp()
+}
+
+/// Integral of the table's PSD from `fa` to `fb` (Hz), rad^2: exact for the log-log
+/// interpolation (a power law on each segment).
+pub fn psd_integral(table: &[[f64; 2]], fa: f64, fb: f64) -> f64 {
+    let mut total = 0.0;
+    for w in table.windows(2) {
+        let ([f0, s0], [f1, s1]) = (w[0], w[1]);
+        let (a, b) = (fa.max(f0), fb.min(f1));
+        if b <= a {
+            continue;
+        }
+        // S = s0 (f/f0)^p on this segment.
+        let p = (s1 / s0).ln() / (f1 / f0).ln();
+        let q = p + 1.0;
+        total += if q.abs() < 1e-12 {
+            s0 * f0 * (b / a).ln()
+        } else {
+            s0 / f0.powf(p) * (b.powf(q) - a.powf(q)) / q
+        };
+    }
+    total
+}
+
+/// Sines realising a PSD table: `n` logarithmic bands between its first and last frequency.
+pub fn realise_psd(table: &[[f64; 2]], seed: u64, n: u32) -> Vec<SineComponent> {
+    let n = n.max(1);
+    let Some((first, last)) = table.first().zip(table.last()) else {
+        return Vec::new();
+    };
+    let (lo, hi) = (first[0], last[0]);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    (0..n)
+        .map(|j| {
+            let fa = lo * (hi / lo).powf(f64::from(j) / f64::from(n));
+            let fb = lo * (hi / lo).powf(f64::from(j + 1) / f64::from(n));
+            let f = fa * (fb / fa).powf(rng.gen::<f64>());
+            SineComponent {
+                amplitude_rad: (2.0 * psd_integral(table, fa, fb)).sqrt(),
+                omega_rad_s: std::f64::consts::TAU * f,
+                phase_rad: std::f64::consts::TAU * rng.gen::<f64>(),
+            }
+        })
+        .collect()
 }
 
 fn default_steps() -> u32 {
@@ -179,6 +280,31 @@ impl Signal {
                 }
             }),
             Signal::Table { samples, .. } => table(samples, t_s),
+            Signal::Psd { .. } => {
+                self.psd_components()
+                    .iter()
+                    .fold(SignalPoint::default(), |acc, c| {
+                        let (s, co) = (c.omega_rad_s * t_s + c.phase_rad).sin_cos();
+                        SignalPoint {
+                            value: acc.value + c.amplitude_rad * s,
+                            rate: acc.rate + c.amplitude_rad * c.omega_rad_s * co,
+                            accel: acc.accel - c.amplitude_rad * c.omega_rad_s * c.omega_rad_s * s,
+                        }
+                    })
+            }
+        }
+    }
+
+    /// The sines of a PSD motion (empty for every other kind), realised on first use.
+    pub fn psd_components(&self) -> &[SineComponent] {
+        match self {
+            Signal::Psd {
+                psd,
+                seed,
+                components,
+                realised,
+            } => realised.get_or_init(|| realise_psd(psd, *seed, *components)),
+            _ => &[],
         }
     }
 
@@ -304,6 +430,44 @@ impl Signal {
                     Ok(())
                 }
             }
+            Signal::Psd {
+                psd, components, ..
+            } => {
+                if psd.len() < 2 {
+                    return Err(format!(
+                        "psd has {} row(s): give at least two rows [frequency_hz, psd_rad2_per_hz]",
+                        psd.len()
+                    ));
+                }
+                for (i, [f, v]) in psd.iter().enumerate() {
+                    if !(f.is_finite() && *f > 0.0) {
+                        return Err(format!(
+                            "psd[{i}]: frequency {} Hz must be a finite frequency > 0",
+                            crate::number(*f)
+                        ));
+                    }
+                    if !(v.is_finite() && *v > 0.0 && *v <= 1.0) {
+                        return Err(format!(
+                            "psd[{i}]: {} rad^2/Hz at {} Hz must be positive and at most 1 (a PSD table needs positive values; vehicle vibration is about 1e-8 to 1e-6)",
+                            crate::number(*v),
+                            crate::number(*f)
+                        ));
+                    }
+                    if i > 0 && *f <= psd[i - 1][0] {
+                        return Err(format!(
+                            "psd[{i}]: frequency {} Hz must be above the previous row's {} Hz (frequencies strictly increasing)",
+                            crate::number(*f),
+                            crate::number(psd[i - 1][0])
+                        ));
+                    }
+                }
+                if !(10..=MAX_PSD_COMPONENTS).contains(components) {
+                    return Err(format!(
+                        "components = {components} must be in 10..={MAX_PSD_COMPONENTS}"
+                    ));
+                }
+                Ok(())
+            }
         }
     }
 
@@ -319,6 +483,7 @@ impl Signal {
                 .iter()
                 .map(Signal::fastest_frequency_hz)
                 .fold(0.0, f64::max),
+            Signal::Psd { psd, .. } => psd.last().map_or(0.0, |r| r[0]),
             Signal::Step { .. } | Signal::Ramp { .. } | Signal::Table { .. } => 0.0,
         }
     }
@@ -445,5 +610,93 @@ mod tests {
             "{min} {max}"
         );
         assert!(s.at(0.0).value.abs() < 1e-12);
+    }
+
+    fn vehicle_psd() -> Vec<[f64; 2]> {
+        vec![[1.0, 1e-7], [10.0, 1e-6], [40.0, 2e-7], [200.0, 1e-9]]
+    }
+
+    #[test]
+    fn psd_integral_matches_numeric_quadrature() {
+        let t = vehicle_psd();
+        // Fine trapezoid on a log grid of the interpolated PSD.
+        let n = 200_000;
+        let (lo, hi) = (2.0_f64, 150.0_f64);
+        let mut num = 0.0;
+        for i in 0..n {
+            let fa = lo * (hi / lo).powf(i as f64 / n as f64);
+            let fb = lo * (hi / lo).powf((i + 1) as f64 / n as f64);
+            num += 0.5 * (psd_at(&t, fa) + psd_at(&t, fb)) * (fb - fa);
+        }
+        let exact = psd_integral(&t, lo, hi);
+        assert!((num - exact).abs() < 1e-6 * exact, "{num} {exact}");
+        // A flat segment integrates to S * width.
+        let flat = [[1.0, 2e-6], [5.0, 2e-6]];
+        assert!((psd_integral(&flat, 1.0, 5.0) - 8e-6).abs() < 1e-18);
+    }
+
+    #[test]
+    fn psd_realisation_carries_the_table_variance() {
+        let t = vehicle_psd();
+        let sig = Signal::Psd {
+            psd: t.clone(),
+            seed: 7,
+            components: 300,
+            realised: OnceLock::new(),
+        };
+        sig.validate().unwrap();
+        let var: f64 = sig
+            .psd_components()
+            .iter()
+            .map(|c| 0.5 * c.amplitude_rad * c.amplitude_rad)
+            .sum();
+        let total = psd_integral(&t, 1.0, 200.0);
+        assert!((var - total).abs() < 1e-12 * total, "{var} {total}");
+        // Time average of the square over a long record: the same variance within a few
+        // percent (the sines are incommensurate, not orthogonal over a finite record).
+        let fs = 2000.0;
+        let n = 400_000;
+        let ms = (0..n)
+            .map(|i| sig.at(i as f64 / fs).value.powi(2))
+            .sum::<f64>()
+            / n as f64;
+        assert!((ms / total - 1.0).abs() < 0.05, "{ms} {total}");
+        // Derivatives agree with differences.
+        check_derivatives(&sig, 0.0, 0.5);
+        // Same seed, same motion; another seed, another one.
+        let again = sig.clone();
+        assert_eq!(again.at(1.234).value, sig.at(1.234).value);
+        let other = Signal::Psd {
+            psd: t,
+            seed: 8,
+            components: 300,
+            realised: OnceLock::new(),
+        };
+        assert!(other.at(1.234).value != sig.at(1.234).value);
+    }
+
+    #[test]
+    fn psd_tables_that_are_not_positive_or_not_increasing_are_refused() {
+        let bad = |psd: Vec<[f64; 2]>| {
+            Signal::Psd {
+                psd,
+                seed: 1,
+                components: 200,
+                realised: OnceLock::new(),
+            }
+            .validate()
+            .unwrap_err()
+        };
+        assert!(bad(vec![[1.0, 1e-6], [1.0, 1e-6]]).contains("strictly increasing"));
+        assert!(bad(vec![[2.0, 1e-6], [1.0, 1e-6]]).contains("psd[1]"));
+        assert!(bad(vec![[1.0, 0.0], [2.0, 1e-6]]).contains("positive"));
+        assert!(bad(vec![[1.0, -1e-6], [2.0, 1e-6]]).contains("psd[0]"));
+        assert!(bad(vec![[1.0, f64::NAN], [2.0, 1e-6]]).contains("psd[0]"));
+        assert!(bad(vec![[1.0, 1e-6]]).contains("at least two rows"));
+        let toml_psd: Signal = toml::from_str(
+            "kind = \"psd\"\npsd = [[1.0, 1e-7], [10.0, 1e-6], [100.0, 1e-8]]\nseed = 3",
+        )
+        .unwrap();
+        toml_psd.validate().unwrap();
     }
 }

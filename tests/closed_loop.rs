@@ -337,7 +337,9 @@ fn outputs_are_written_and_metrics_do_not_depend_on_recording() {
 
     let dir = tempfile::tempdir().unwrap();
     let files = write_closed_loop_outputs(dir.path(), &s, &rec).unwrap();
-    assert_eq!(files.len(), 2);
+    // Time series, error spectrum, summary.
+    assert_eq!(files.len(), 3, "{files:?}");
+    assert!(dir.path().join("error_psd.csv").is_file());
     let text = std::fs::read_to_string(dir.path().join("timeseries.csv")).unwrap();
     let mut lines = text.lines();
     let header = lines.next().unwrap();
@@ -345,7 +347,9 @@ fn outputs_are_written_and_metrics_do_not_depend_on_recording() {
         "mode,t_s,reference_rad,motor_angle_rad,output_angle_rad,pointing_error_mrad"
     ));
     assert!(
-        header.ends_with(",load_torque_nm,feedforward_a,motor_reference_rad"),
+        header.ends_with(
+            ",load_torque_nm,feedforward_a,motor_reference_rad,base_angle_rad,gyro_rad_s"
+        ),
         "{header}"
     );
     assert_eq!(

@@ -213,9 +213,10 @@ fn bad_input_is_named_and_faults_are_not_numbers() {
     refuse(
         FreqRespParams {
             point: LoopPoint::BaseMotion,
+            f_max_hz: Some(5000.0),
             ..FreqRespParams::default()
         },
-        "base motion",
+        "base motion is measured up to a tenth",
     );
     let e = LoopPoint::parse("plant")
         .err()

@@ -47,7 +47,8 @@ pub enum LoopPoint {
     InputDisturbance,
     /// The reference itself: reference to measured output, `T_r`.
     Reference,
-    /// Motion of the base: not modelled yet (the plant has no base).
+    /// A sine of the base angle: line of sight over base angle (the stabilisation's
+    /// disturbance rejection; near 1 at low frequency for a loop on the encoders).
     BaseMotion,
 }
 
@@ -101,7 +102,8 @@ impl LoopPoint {
             LoopPoint::PlantInput => "L",
             LoopPoint::OutputDisturbance => "S",
             LoopPoint::InputDisturbance => "PS",
-            LoopPoint::Reference | LoopPoint::BaseMotion => "T_r",
+            LoopPoint::Reference => "T_r",
+            LoopPoint::BaseMotion => "LOS/base",
         }
     }
 
@@ -225,18 +227,33 @@ impl FreqRespParams {
                 Ok(f)
             }
         };
+        // The base's motion is interpolated inside each period: a tenth of the rate at most.
+        let base_limit = 0.1 * sample_rate_hz;
+        let base_check = |key: &str, f: f64| {
+            if self.point == LoopPoint::BaseMotion && f > base_limit {
+                Err(invalid(key, format!("frequency {f} Hz: base motion is measured up to a tenth of the control rate ({base_limit} Hz), as the base is interpolated inside each period")))
+            } else {
+                Ok(f)
+            }
+        };
         if !self.frequencies_hz.is_empty() {
             let mut f = self
                 .frequencies_hz
                 .iter()
-                .map(|&f| check("frequencies_hz", f))
+                .map(|&f| check("frequencies_hz", f).and_then(|f| base_check("frequencies_hz", f)))
                 .collect::<Result<Vec<f64>, _>>()?;
             f.sort_by(f64::total_cmp);
             f.dedup();
             return Ok(f);
         }
         let lo = check("f_min_hz", self.f_min_hz)?;
-        let hi = check("f_max_hz", self.f_max_hz.unwrap_or(0.4 * nyquist))?;
+        let default_hi = if self.point == LoopPoint::BaseMotion {
+            base_limit
+        } else {
+            0.4 * nyquist
+        };
+        let hi = check("f_max_hz", self.f_max_hz.unwrap_or(default_hi))?;
+        let hi = base_check("f_max_hz", hi)?;
         if hi <= lo {
             return Err(invalid(
                 "f_max_hz",
@@ -291,8 +308,17 @@ impl FreqRespParams {
 
     /// Checks every setting (keys named in the messages).
     pub fn validate(&self, p: &ClosedLoopParams) -> Result<(), FreqRespError> {
-        if self.point == LoopPoint::BaseMotion {
-            return Err(invalid("point", "base_motion: the plant has no base motion yet; allowed now: plant_input, output_disturbance, input_disturbance, reference".into()));
+        let gyro_angle = p.controller.feedback == Feedback::GyroAngle;
+        match self.point {
+            LoopPoint::OutputDisturbance | LoopPoint::Reference
+                if gyro_angle || !p.controller.is_plain_pid() =>
+            {
+                return Err(invalid("point", format!("{}: its closed form holds for a single PID on an encoder; with a rate loop, filters, an observer or gyro-angle feedback use plant_input (the loop gain at the command) or base_motion", self.point.name())));
+            }
+            LoopPoint::InputDisturbance if gyro_angle => {
+                return Err(invalid("point", "input_disturbance: the gyro angle is not recorded; use plant_input or base_motion".into()));
+            }
+            _ => {}
         }
         self.frequencies(p.controller.sample_rate_hz)?;
         self.amplitudes(p.motor.command_limit())?;
@@ -493,9 +519,8 @@ pub fn exact_transfer(lin: &LinearLoop, point: LoopPoint, f: f64) -> Complex<f64
         LoopPoint::PlantInput => lin.loop_gain(f),
         LoopPoint::OutputDisturbance => lin.sensitivity(f),
         LoopPoint::InputDisturbance => lin.plant(f) * lin.sensitivity(f),
-        LoopPoint::Reference | LoopPoint::BaseMotion => {
-            lin.plant(f) * lin.error_path(f) * lin.sensitivity(f)
-        }
+        LoopPoint::Reference => lin.plant(f) * lin.error_path(f) * lin.sensitivity(f),
+        LoopPoint::BaseMotion => lin.base_to_los(f),
     }
 }
 
@@ -528,6 +553,12 @@ impl Bench<'_> {
         p.controller.acceleration_feedforward = 0.0;
         p.controller.load_feedforward = false;
         p.timeseries_rate_hz = base.controller.sample_rate_hz;
+        p.base_motion = (point == LoopPoint::BaseMotion).then_some(Signal::Sine {
+            amplitude_rad: amp * 1e-3,
+            frequency_hz: w.frequency_hz,
+            phase_rad: 0.0,
+            offset_rad: 0.0,
+        });
         p.reference = match point {
             LoopPoint::Reference => Signal::Sine {
                 amplitude_rad: amp * 1e-3,
@@ -602,9 +633,11 @@ impl Bench<'_> {
         }
         let measured: Vec<f64> = range
             .clone()
-            .map(|k| match p.controller.feedback {
-                Feedback::Motor => series.motor_angle_rad[k],
-                Feedback::Output => ic * series.output_angle_rad[k],
+            .map(|k| match (point, p.controller.feedback) {
+                (LoopPoint::BaseMotion, _) => series.output_angle_rad[k] + series.base_angle_rad[k],
+                (_, Feedback::Motor) => series.motor_angle_rad[k],
+                // Gyro-angle feedback is refused for the points that read this.
+                (_, Feedback::Output | Feedback::GyroAngle) => ic * series.output_angle_rad[k],
             })
             .collect();
         let injected: Vec<f64> = range
@@ -624,12 +657,16 @@ impl Bench<'_> {
                 (c(&y_d) / c(&injected), y_d)
             }
             LoopPoint::InputDisturbance => (c(&measured) / c(&injected), measured),
-            LoopPoint::Reference | LoopPoint::BaseMotion => {
+            LoopPoint::Reference => {
                 let r: Vec<f64> = series.reference_rad[range.clone()]
                     .iter()
                     .map(|r| ic * r)
                     .collect();
                 (c(&measured) / c(&r), measured)
+            }
+            LoopPoint::BaseMotion => {
+                let b = &series.base_angle_rad[range.clone()];
+                (c(&measured) / c(b), measured)
             }
         };
         let fundamental = c(&observed).norm();

@@ -26,20 +26,30 @@
 use nalgebra::{Complex, DMatrix, DVector};
 use serde::Serialize;
 
-use super::params::{Amplifier, ClosedLoopParams, Feedback};
+use super::filters::{Biquad, FilterChain, FilterSpec};
+use super::params::{Amplifier, ClosedLoopParams, Feedback, RateSource};
 use crate::physics::DriveParams;
 
 /// The linear sampled loop of a closed-loop setup.
 #[derive(Clone, Debug)]
 pub struct LinearLoop {
+    /// Continuous state matrix (for the base motion's forcing).
+    a_cont: DMatrix<f64>,
     /// State transition over one period.
     ad: DMatrix<f64>,
     /// Input matrix of the command held over the first `fraction` of the period.
     b1: DVector<f64>,
     /// Input matrix of the command held over the rest.
     b2: DVector<f64>,
-    /// Measured output row (motor angle, or `ic` times the output angle), motor rad.
+    /// Measured output row of the position loop (motor angle, or `ic` times the output
+    /// angle), motor rad; with gyro-angle feedback, `ic` times the gyro's rate.
     c: DVector<f64>,
+    /// Rows of the motor angle, the drum angle and the gyro's rate.
+    rows: [DVector<f64>; 3],
+    /// `c` as a combination of `rows`.
+    c_scale: [f64; 3],
+    /// Base rate's entry (the gyro sees it), per rad/s.
+    base_rate: DVector<f64>,
     /// Whole periods of computation delay.
     whole: usize,
     /// Sample period, s.
@@ -48,6 +58,50 @@ pub struct LinearLoop {
     ki_t: f64,
     kd_t: f64,
     a: f64,
+    /// The rest of the control law (rate loop, filters, observer); `None` for a plain PID.
+    law: Option<LawModel>,
+    /// Gain inserted between the law and the plant (1; margin checks scale it).
+    scale: f64,
+}
+
+/// Indices of [`LinearLoop::rows`].
+const ROW_MOTOR: usize = 0;
+const ROW_DRUM: usize = 1;
+const ROW_GYRO: usize = 2;
+
+/// The linear control law beyond the PID, as difference equations and responses.
+#[derive(Clone, Debug)]
+struct LawModel {
+    feedback: Feedback,
+    ic: f64,
+    measurement_filters: Vec<Biquad>,
+    rate: Option<RateModel>,
+    command_filters: Vec<Biquad>,
+    /// Observer filters `(Q (J/Kt) s^2, Q)` and the command delay it uses.
+    observer: Option<(Biquad, Biquad, usize)>,
+    /// Specs, for the frequency responses.
+    specs: LawSpecs,
+}
+
+#[derive(Clone, Debug)]
+struct RateModel {
+    kp: f64,
+    ki_t: f64,
+    source: RateSource,
+    /// Velocity estimate's pole.
+    a_v: f64,
+    command_filters: Vec<Biquad>,
+    measurement_filters: Vec<Biquad>,
+}
+
+#[derive(Clone, Debug)]
+struct LawSpecs {
+    fs: f64,
+    measurement: FilterChain,
+    rate_command: FilterChain,
+    rate_measurement: FilterChain,
+    command: FilterChain,
+    observer: Option<(FilterChain, FilterChain)>,
 }
 
 /// An unstable sampled closed loop's fastest-growing mode.
@@ -112,10 +166,23 @@ impl LinearLoop {
         );
         let (jo, bo) = (p.output.inertia_kg_m2, p.output.viscous_nm_s_per_rad);
         let voltage = m.amplifier == Amplifier::Voltage;
-        // States [theta_m, omega_m, theta_o, omega_o] (+ current with a voltage amplifier).
-        let n = if voltage { 5 } else { 4 };
+        // States [theta_m, omega_m, theta_o, omega_o] (+ current with a voltage amplifier)
+        // (+ the gyro's rate and its derivative).
+        let n_mech = if voltage { 5 } else { 4 };
+        let gyro = p.gyro.as_ref();
+        let n = n_mech + if gyro.is_some() { 2 } else { 0 };
         let mut a = DMatrix::<f64>::zeros(n, n);
         let mut b = DVector::<f64>::zeros(n);
+        let mut base_rate = DVector::<f64>::zeros(n);
+        if let Some(g) = gyro {
+            let wn = std::f64::consts::TAU * g.bandwidth_hz;
+            let (gi, gd) = (n_mech, n_mech + 1);
+            a[(gi, gd)] = 1.0;
+            a[(gd, gi)] = -wn * wn;
+            a[(gd, gd)] = -2.0 * g.damping * wn;
+            a[(gd, 3)] = wn * wn;
+            base_rate[gd] = wn * wn;
+        }
         // F = Tu - Tl = 2k (ri th_m - ro th_o) + 2c (ri w_m - ro w_o)
         let f = [2.0 * k * ri, 2.0 * cd * ri, -2.0 * k * ro, -2.0 * cd * ro];
         a[(0, 1)] = 1.0;
@@ -142,23 +209,155 @@ impl LinearLoop {
         let (ad, _) = augmented_exp(&a, &b, ts);
         let (phi_rest, gam_rest) = augmented_exp(&a, &b, (1.0 - f) * ts);
         let (_, gam_first) = augmented_exp(&a, &b, f * ts);
-        let mut c = DVector::<f64>::zeros(n);
-        match ctl.feedback {
-            Feedback::Motor => c[0] = 1.0,
-            Feedback::Output => c[2] = drive.ratio(),
-        }
+        let ic = drive.ratio();
+        let unit = |i: usize| {
+            let mut v = DVector::<f64>::zeros(n);
+            if i < n {
+                v[i] = 1.0;
+            }
+            v
+        };
+        let rows = [
+            unit(0),
+            unit(2),
+            if gyro.is_some() {
+                unit(n_mech)
+            } else {
+                DVector::zeros(n)
+            },
+        ];
+        let c_scale = match ctl.feedback {
+            Feedback::Motor => [1.0, 0.0, 0.0],
+            Feedback::Output => [0.0, ic, 0.0],
+            Feedback::GyroAngle => [0.0, 0.0, ic],
+        };
+        let c = &rows[0] * c_scale[0] + &rows[1] * c_scale[1] + &rows[2] * c_scale[2];
+        let fs = ctl.sample_rate_hz;
+        let chain = |v: &[FilterSpec]| v.iter().map(|f| Biquad::design(f, fs)).collect();
+        // Gyro-angle feedback integrates the gyro inside the law: never the plain path.
+        let law = (!ctl.is_plain_pid() || ctl.feedback == Feedback::GyroAngle).then(|| LawModel {
+            feedback: ctl.feedback,
+            ic,
+            measurement_filters: chain(&ctl.measurement_filters),
+            rate: ctl.rate_loop.as_ref().map(|r| RateModel {
+                kp: r.kp,
+                ki_t: r.ki * ts,
+                source: r.measurement,
+                a_v: (-std::f64::consts::TAU * r.velocity_filter_hz * ts).exp(),
+                command_filters: chain(&ctl.rate_command_filters),
+                measurement_filters: chain(&ctl.rate_measurement_filters),
+            }),
+            command_filters: chain(&ctl.command_filters),
+            observer: super::law::observer_filters(p, ic).map(|(inv, q)| {
+                (
+                    Biquad::design(&inv, fs),
+                    Biquad::design(&q, fs),
+                    super::law::observer_delay(p),
+                )
+            }),
+            specs: LawSpecs {
+                fs,
+                measurement: FilterChain::new(&ctl.measurement_filters, fs),
+                rate_command: FilterChain::new(&ctl.rate_command_filters, fs),
+                rate_measurement: FilterChain::new(&ctl.rate_measurement_filters, fs),
+                command: FilterChain::new(&ctl.command_filters, fs),
+                observer: super::law::observer_filters(p, ic)
+                    .map(|(inv, q)| (FilterChain::new(&[inv], fs), FilterChain::new(&[q], fs))),
+            },
+        });
         LinearLoop {
+            a_cont: a,
             ad,
             b1: phi_rest * gam_first,
             b2: gam_rest,
             c,
+            rows,
+            c_scale,
+            base_rate,
             whole: whole as usize,
             ts,
             kp: ctl.kp,
             ki_t: ctl.ki * ts,
             kd_t: ctl.kd / ts,
             a: (-std::f64::consts::TAU * ctl.derivative_filter_hz * ts).exp(),
+            law,
+            scale: 1.0,
         }
+    }
+
+    /// Whether the law is a plain PID (no rate loop, filters or observer).
+    pub fn is_plain_pid(&self) -> bool {
+        self.law.is_none()
+    }
+
+    /// `(zI - Ad)^-1 v` at `f_hz`.
+    fn resolvent(&self, f_hz: f64, v: &DVector<Complex<f64>>) -> DVector<Complex<f64>> {
+        let z = Complex::from_polar(1.0, std::f64::consts::TAU * f_hz * self.ts);
+        let n = self.ad.nrows();
+        let m = DMatrix::<Complex<f64>>::identity(n, n) * z - self.ad.map(Complex::from);
+        m.lu().solve(v).unwrap_or_else(|| DVector::zeros(n))
+    }
+
+    /// Responses of the motor angle, the drum angle and the gyro's rate to the held
+    /// command at `f_hz`, delay included.
+    fn plant_rows(&self, f_hz: f64) -> [Complex<f64>; 3] {
+        let zi = Complex::from_polar(1.0, -std::f64::consts::TAU * f_hz * self.ts);
+        let rhs = self.b1.map(|v| Complex::from(v) * zi) + self.b2.map(Complex::from);
+        let x = self.resolvent(f_hz, &rhs);
+        let d = zi.powi(self.whole as i32);
+        self.rows.clone().map(|r| dot(&r, &x) * d)
+    }
+
+    /// The command as a combination of the three measured quantities, `u = sum k_j y_j`
+    /// (reference zero), at `f_hz`.
+    fn law_row(&self, f_hz: f64) -> [Complex<f64>; 3] {
+        let zi = Complex::from_polar(1.0, -std::f64::consts::TAU * f_hz * self.ts);
+        let one = Complex::from(1.0);
+        let pid = Complex::from(self.kp)
+            + Complex::from(self.ki_t) / (one - zi)
+            + (one - zi) * ((1.0 - self.a) * self.kd_t) / (one - zi * self.a);
+        let zero = Complex::from(0.0);
+        let Some(law) = &self.law else {
+            // The plain PID on its one measurement.
+            return self.c_scale.map(|w| -pid * w);
+        };
+        let fs = law.specs.fs;
+        // Position measurement in terms of the three quantities.
+        let mut meas = [zero; 3];
+        match law.feedback {
+            Feedback::Motor => meas[ROW_MOTOR] = one,
+            Feedback::Output => meas[ROW_DRUM] = Complex::from(law.ic),
+            Feedback::GyroAngle => {
+                meas[ROW_GYRO] = Complex::from(law.ic * self.ts) * zi / (one - zi);
+            }
+        }
+        let pos = pid * law.specs.measurement.response(f_hz, fs);
+        let mut fb = meas.map(|m| -pos * m);
+        if let Some(r) = &law.rate {
+            let pi = Complex::from(r.kp) + Complex::from(r.ki_t) / (one - zi);
+            let frc = law.specs.rate_command.response(f_hz, fs);
+            let frm = law.specs.rate_measurement.response(f_hz, fs);
+            let mut w = [zero; 3];
+            match r.source {
+                RateSource::Gyro => w[ROW_GYRO] = one,
+                RateSource::MotorVelocity => {
+                    w[ROW_MOTOR] =
+                        (one - zi) * ((1.0 - r.a_v) / (self.ts * law.ic)) / (one - zi * r.a_v);
+                }
+            }
+            for j in 0..3 {
+                fb[j] = pi * (frc * fb[j] - frm * w[j]);
+            }
+        }
+        let fc = law.specs.command.response(f_hz, fs);
+        let mut u = fb.map(|v| fc * v);
+        if let Some((inv, q)) = &law.specs.observer {
+            let md = law.observer.as_ref().map_or(1, |o| o.2) as i32;
+            let denom = one - q.response(f_hz, fs) * zi.powi(md);
+            u[ROW_MOTOR] -= inv.response(f_hz, fs);
+            u = u.map(|v| v / denom);
+        }
+        u.map(|v| v * self.scale)
     }
 
     /// Nyquist frequency, Hz.
@@ -166,16 +365,58 @@ impl LinearLoop {
         0.5 / self.ts
     }
 
-    /// Plant `P` from held command to measurement at `f_hz`, delay included.
+    /// Plant `P` from held command to the position loop's measurement at `f_hz`, delay
+    /// included (for gyro-angle feedback: to `ic` times the gyro's rate).
     pub fn plant(&self, f_hz: f64) -> Complex<f64> {
-        let z = Complex::from_polar(1.0, std::f64::consts::TAU * f_hz * self.ts);
-        let zi = z.inv();
-        let n = self.ad.nrows();
-        let m = DMatrix::<Complex<f64>>::identity(n, n) * z - self.ad.map(Complex::from);
+        let zi = Complex::from_polar(1.0, -std::f64::consts::TAU * f_hz * self.ts);
         let rhs = self.b1.map(|v| Complex::from(v) * zi) + self.b2.map(Complex::from);
-        let x = m.lu().solve(&rhs).unwrap_or_else(|| DVector::zeros(n));
-        let y: Complex<f64> = self.c.iter().zip(x.iter()).map(|(c, x)| x * *c).sum();
-        y * zi.powi(self.whole as i32)
+        let x = self.resolvent(f_hz, &rhs);
+        dot(&self.c, &x) * zi.powi(self.whole as i32)
+    }
+
+    /// Line of sight over base angle at `f_hz` (complex ratio at the samples): the base
+    /// turns as `sin(2 pi f t)`, the loop answers through the drum, the gyro and the
+    /// motor, and the line of sight is the base angle plus the drum's. 1 at low frequency
+    /// for a loop on the encoders (the drum follows the base), small for a stabilised one.
+    pub fn base_to_los(&self, f_hz: f64) -> Complex<f64> {
+        // Worked in inertial angles (drum and motor angle plus the base's), where the line
+        // of sight is a state: in the relative angles the simulation uses it would be the
+        // difference of two numbers near 1 that agree to 1e-6 and more for a stiff
+        // stabilisation, which double precision cannot resolve through the resolvent.
+        // With x_in = x + beta a + beta' b (a: the angles, b: the speeds) the base's
+        // acceleration drops out and what is left is the coupling through the cable,
+        // friction and drag: x_in' = A x_in + B u - A a beta + (a - A b + e_rate) beta'.
+        let w = std::f64::consts::TAU * f_hz;
+        let jw = Complex::new(0.0, w);
+        let n = self.ad.nrows();
+        let mut a_vec = DVector::<f64>::zeros(n);
+        let mut b_vec = DVector::<f64>::zeros(n);
+        a_vec[0] = 1.0;
+        a_vec[2] = 1.0;
+        b_vec[1] = 1.0;
+        b_vec[3] = 1.0;
+        let by_angle = -(&self.a_cont * &a_vec);
+        let by_rate = &a_vec - &self.a_cont * &b_vec + &self.base_rate;
+        let v: DVector<Complex<f64>> = by_angle.map(Complex::from) + by_rate.map(|x| jw * x);
+        // Forcing of beta = e^{jwt} over one period: the integral of e^{A(T-s)} v e^{jws}
+        // ds = (jwI - A)^-1 (e^{jwT} I - Ad) v.
+        let eye = DMatrix::<Complex<f64>>::identity(n, n);
+        let m = &eye * jw - self.a_cont.map(Complex::from);
+        let ejwt = Complex::from_polar(1.0, w * self.ts);
+        let rhs = (&eye * ejwt - self.ad.map(Complex::from)) * v;
+        let forcing = m.lu().solve(&rhs).unwrap_or_else(|| DVector::zeros(n));
+        let xq = self.resolvent(f_hz, &forcing);
+        // The encoders read angles relative to the base (x = x_in - beta a); the gyro
+        // reads the inertial rate.
+        let feedthrough = [-1.0, -1.0, 0.0];
+        let q_in: [Complex<f64>; 3] = std::array::from_fn(|j| dot(&self.rows[j], &xq));
+        let q: [Complex<f64>; 3] = std::array::from_fn(|j| q_in[j] + Complex::from(feedthrough[j]));
+        let p = self.plant_rows(f_hz);
+        let k = self.law_row(f_hz);
+        let num: Complex<f64> = (0..3).map(|j| k[j] * q[j]).sum();
+        let den: Complex<f64> =
+            Complex::from(1.0) - (0..3).map(|j| k[j] * p[j]).sum::<Complex<f64>>();
+        p[ROW_DRUM] * (num / den) + q_in[ROW_DRUM]
     }
 
     /// Controller `K` at `f_hz`.
@@ -195,9 +436,16 @@ impl LinearLoop {
         Complex::from(self.kp) + Complex::from(self.ki_t) / (Complex::from(1.0) - zi)
     }
 
-    /// Loop gain broken at the plant input, `L = K P`.
+    /// Loop gain broken at the plant input, `L = K P` (with a rate loop, filters or an
+    /// observer: minus the sum over every measured path of its law term times its plant
+    /// term).
     pub fn loop_gain(&self, f_hz: f64) -> Complex<f64> {
-        self.controller(f_hz) * self.plant(f_hz)
+        if self.law.is_none() {
+            return self.controller(f_hz) * self.plant(f_hz);
+        }
+        let p = self.plant_rows(f_hz);
+        let k = self.law_row(f_hz);
+        -(0..3).map(|j| k[j] * p[j]).sum::<Complex<f64>>()
     }
 
     /// Sensitivity `S = 1/(1+L)`.
@@ -211,36 +459,131 @@ impl LinearLoop {
         l / (Complex::from(1.0) + l)
     }
 
+    /// Extra states of the law beyond the PID: filter states, the gyro angle, the rate
+    /// loop's integral and velocity estimate, the observer's filters and command history.
+    fn law_states(&self) -> usize {
+        let Some(l) = &self.law else { return 0 };
+        let chain = |v: &[Biquad]| 2 * v.len();
+        usize::from(l.feedback == Feedback::GyroAngle)
+            + chain(&l.measurement_filters)
+            + l.rate.as_ref().map_or(0, |r| {
+                3 + chain(&r.command_filters) + chain(&r.measurement_filters)
+            })
+            + chain(&l.command_filters)
+            + l.observer.as_ref().map_or(0, |o| 4 + o.2)
+    }
+
     /// One period of the sampled closed loop with zero reference: the state is
-    /// `[x, I, d, y_prev, u_{k-1}, ..., u_{k-m-1}]`, linear in itself.
+    /// `[x, I, d, y_prev, u_{k-1}, ..., u_{k-m-1}, law states]`, linear in itself. The
+    /// law is written out here again as difference equations, apart from its code in
+    /// `law.rs`, so the two can be checked against each other.
     fn step(&self, s: &DVector<f64>) -> DVector<f64> {
         let n = self.ad.nrows();
         let x = s.rows(0, n);
         let (integ, deriv, y_prev) = (s[n], s[n + 1], s[n + 2]);
-        let y = self.c.dot(&x);
-        let integ = integ - self.ki_t * y;
-        let deriv = self.a * deriv - (1.0 - self.a) * self.kd_t * (y - y_prev);
-        let u = -self.kp * y + integ + deriv;
+        let hist_at = n + 3;
+        let mut out = DVector::<f64>::zeros(s.len());
+        // Each law state has a fixed slot, handed out in order.
+        let slot = std::cell::Cell::new(hist_at + self.whole + 1);
+        let alloc = |k: usize| {
+            let i = slot.get();
+            slot.set(i + k);
+            i
+        };
+        // Transposed direct form II; states at `at`, `at + 1`.
+        let biquad = |b: &Biquad, v: f64, at: usize, out: &mut DVector<f64>| {
+            let [b0, b1, b2, a1, a2] = b.coefficients();
+            let y = b0 * v + s[at];
+            out[at] = b1 * v - a1 * y + s[at + 1];
+            out[at + 1] = b2 * v - a2 * y;
+            y
+        };
+        let chain = |c: &[Biquad], v: f64, out: &mut DVector<f64>| {
+            c.iter().fold(v, |v, b| biquad(b, v, alloc(2), out))
+        };
+        let rows = [
+            self.rows[ROW_MOTOR].dot(&x),
+            self.rows[ROW_DRUM].dot(&x),
+            self.rows[ROW_GYRO].dot(&x),
+        ];
+        let pid = |y: f64, out: &mut DVector<f64>| {
+            let integ = integ - self.ki_t * y;
+            let deriv = self.a * deriv - (1.0 - self.a) * self.kd_t * (y - y_prev);
+            out[n] = integ;
+            out[n + 1] = deriv;
+            out[n + 2] = y;
+            -self.kp * y + integ + deriv
+        };
+        let u = match &self.law {
+            None => pid(self.c.dot(&x), &mut out),
+            Some(l) => {
+                let raw = match l.feedback {
+                    Feedback::Motor => rows[ROW_MOTOR],
+                    Feedback::Output => l.ic * rows[ROW_DRUM],
+                    Feedback::GyroAngle => {
+                        // Read before this sample's rate is added to it.
+                        let g_at = alloc(1);
+                        out[g_at] = s[g_at] + self.ts * rows[ROW_GYRO];
+                        l.ic * s[g_at]
+                    }
+                };
+                let y = chain(&l.measurement_filters, raw, &mut out);
+                let v = pid(y, &mut out);
+                let fb = match &l.rate {
+                    None => v,
+                    Some(r) => {
+                        let (ri_at, last_at, vel_at) = (alloc(1), alloc(1), alloc(1));
+                        let w_cmd = chain(&r.command_filters, v, &mut out);
+                        let w = match r.source {
+                            RateSource::Gyro => rows[ROW_GYRO],
+                            RateSource::MotorVelocity => {
+                                r.a_v * s[vel_at]
+                                    + (1.0 - r.a_v) * (rows[ROW_MOTOR] - s[last_at])
+                                        / (self.ts * l.ic)
+                            }
+                        };
+                        out[last_at] = rows[ROW_MOTOR];
+                        out[vel_at] = w;
+                        let e = w_cmd - chain(&r.measurement_filters, w, &mut out);
+                        let ri = s[ri_at] + r.ki_t * e;
+                        out[ri_at] = ri;
+                        r.kp * e + ri
+                    }
+                };
+                let fc = chain(&l.command_filters, fb, &mut out);
+                match &l.observer {
+                    None => fc,
+                    Some((inv, q, md)) => {
+                        let d_inv = chain(std::slice::from_ref(inv), rows[ROW_MOTOR], &mut out);
+                        // History [u_{k-md}, ..., u_{k-1}], oldest first.
+                        let h_at = alloc(*md);
+                        let d_q = chain(std::slice::from_ref(q), s[h_at], &mut out);
+                        let u = fc - (d_inv - d_q);
+                        for j in 0..md - 1 {
+                            out[h_at + j] = s[h_at + j + 1];
+                        }
+                        out[h_at + md - 1] = u;
+                        u
+                    }
+                }
+            }
+        };
         // History after the push of u_k: [u_k, u_{k-1}, ..., u_{k-m-1}].
-        let mut hist = vec![u];
-        hist.extend(s.rows(n + 3, self.whole + 1).iter().copied());
+        let mut hist = vec![u * self.scale];
+        hist.extend(s.rows(hist_at, self.whole + 1).iter().copied());
         let first = hist[self.whole + 1];
         let second = hist[self.whole];
         let x_next = &self.ad * x + &self.b1 * first + &self.b2 * second;
-        let mut out = DVector::<f64>::zeros(s.len());
         out.rows_mut(0, n).copy_from(&x_next);
-        out[n] = integ;
-        out[n + 1] = deriv;
-        out[n + 2] = y;
         for (j, h) in hist.iter().take(self.whole + 1).enumerate() {
-            out[n + 3 + j] = *h;
+            out[hist_at + j] = *h;
         }
         out
     }
 
     /// The sampled closed loop as a matrix (its columns are the responses to unit states).
     pub fn closed_loop_matrix(&self) -> DMatrix<f64> {
-        let dim = self.ad.nrows() + 3 + self.whole + 1;
+        let dim = self.ad.nrows() + 3 + self.whole + 1 + self.law_states();
         let mut m = DMatrix::<f64>::zeros(dim, dim);
         for j in 0..dim {
             let mut e = DVector::<f64>::zeros(dim);
@@ -250,14 +593,40 @@ impl LinearLoop {
         m
     }
 
+    /// Poles of the sampled closed loop. A loop that holds the gyro-integrated angle reads
+    /// no encoder angle, so shifting the drum and the motor together (the cable unchanged)
+    /// is a drift it neither sees nor corrects: an exact pole at `z = 1` that is no
+    /// instability. That one pole, the one nearest to 1, is left out.
+    pub fn closed_loop_poles(&self) -> Vec<Complex<f64>> {
+        let mut poles: Vec<Complex<f64>> = self
+            .closed_loop_matrix()
+            .complex_eigenvalues()
+            .iter()
+            .copied()
+            .collect();
+        let free_drift = self
+            .law
+            .as_ref()
+            .is_some_and(|l| l.feedback == Feedback::GyroAngle);
+        if free_drift {
+            if let Some(i) = poles
+                .iter()
+                .enumerate()
+                .min_by(|a, b| (a.1 - 1.0).norm().total_cmp(&(b.1 - 1.0).norm()))
+                .map(|(i, _)| i)
+            {
+                poles.swap_remove(i);
+            }
+        }
+        poles
+    }
+
     /// The sampled closed loop's largest pole when it lies outside the unit circle: how an
     /// unstable loop grows, to name it before the slack or slip it ends in.
     pub fn instability(&self) -> Option<Instability> {
         let fs = 1.0 / self.ts;
-        self.closed_loop_matrix()
-            .complex_eigenvalues()
-            .iter()
-            .copied()
+        self.closed_loop_poles()
+            .into_iter()
             .max_by(|a, b| a.norm().total_cmp(&b.norm()))
             .filter(|z| z.norm() > 1.0)
             .map(|z| Instability {
@@ -269,8 +638,7 @@ impl LinearLoop {
 
     /// Largest closed-loop pole magnitude.
     pub fn spectral_radius(&self) -> f64 {
-        self.closed_loop_matrix()
-            .complex_eigenvalues()
+        self.closed_loop_poles()
             .iter()
             .map(|l| l.norm())
             .fold(0.0, f64::max)
@@ -360,6 +728,12 @@ impl LinearLoop {
 
     /// The same loop with every controller gain scaled by `g` (for margin checks).
     pub fn with_gain(&self, g: f64) -> Self {
+        if self.law.is_some() {
+            return LinearLoop {
+                scale: self.scale * g,
+                ..self.clone()
+            };
+        }
         LinearLoop {
             kp: self.kp * g,
             ki_t: self.ki_t * g,
@@ -367,6 +741,10 @@ impl LinearLoop {
             ..self.clone()
         }
     }
+}
+
+fn dot(r: &DVector<f64>, x: &DVector<Complex<f64>>) -> Complex<f64> {
+    r.iter().zip(x.iter()).map(|(c, x)| x * *c).sum()
 }
 
 /// Margins a servo engineer signs: phase margin >= 35 deg and gain margin >= 6 dB.
@@ -424,16 +802,26 @@ mod tests {
         assert!((bd[0] - ts * ts / (2.0 * j)).abs() < 1e-18);
         assert!((bd[1] - ts / j).abs() < 1e-15);
         let lp = LinearLoop {
+            a_cont: a.clone(),
             ad: ad.clone(),
             b1: DVector::zeros(2),
             b2: bd.clone(),
             c: DVector::from_vec(vec![1.0, 0.0]),
+            rows: [
+                DVector::from_vec(vec![1.0, 0.0]),
+                DVector::zeros(2),
+                DVector::zeros(2),
+            ],
+            c_scale: [1.0, 0.0, 0.0],
+            base_rate: DVector::zeros(2),
             whole: 0,
             ts,
             kp: 0.0,
             ki_t: 0.0,
             kd_t: 0.0,
             a: 0.0,
+            law: None,
+            scale: 1.0,
         };
         for f in [1.0, 17.0, 230.0] {
             let z = Complex::from_polar(1.0, std::f64::consts::TAU * f * ts);

@@ -8,8 +8,12 @@
 //! [`sim`] (the sample-and-hold loop that composes them). Files and figures of a run are
 //! written at the edge, by `report::closed_loop`.
 
+pub mod base;
+pub mod budget;
 pub mod controller;
+pub mod filters;
 pub mod freqresp;
+pub mod law;
 pub mod linear;
 pub mod params;
 pub mod period;
@@ -17,8 +21,9 @@ pub mod plant;
 pub mod sim;
 
 pub use params::{
-    Amplifier, CableModel, ClosedLoopParams, CompensationMode, ControllerParams, DriveOverride,
-    Feedback, MotorParams, OutputParams, SensorParams,
+    Amplifier, CableModel, ClosedLoopParams, CompensationMode, ControllerParams,
+    DisturbanceObserverParams, DriveOverride, Feedback, GyroParams, MotorParams, OutputParams,
+    RateLoopParams, RateSource, SensorParams, StartState,
 };
 pub use sim::{
     run_closed_loop, run_closed_loop_metrics, ClosedLoopError, ClosedLoopResult, ClosedLoopSetup,

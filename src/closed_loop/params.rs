@@ -5,6 +5,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::filters::FilterSpec;
+use crate::metrics::los::LosParams;
 use crate::physics::EffectsParams;
 use crate::physics::{CableDrive, DriveParams, HysteresisModel, Routing};
 use crate::signal::Signal;
@@ -77,6 +79,155 @@ pub enum Feedback {
     /// the same gains apply); the compensator's shift enters through the reference-rate
     /// feedforward only.
     Output,
+    /// The payload's inertial angle as the controller knows it: the sum of its own gyro
+    /// samples times the sample period (scaled by `ic` like the output encoder). What a
+    /// stabilised line of sight holds without a tracker; gyro bias makes it drift.
+    GyroAngle,
+}
+
+/// How the axis stands at the start of a run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum StartState {
+    /// At rest on the base (the drum turns with a moving base until the loop acts).
+    #[default]
+    AtRestOnBase,
+    /// The payload inertially still, the drum turning against the base's rate: a
+    /// stabilisation loop that has been running (a gyro integrates the start-up of a
+    /// loop engaged on a moving base with its own lag, which leaves the line of sight
+    /// offset by about the base rate times the gyro's delay).
+    InertiallyStill,
+}
+
+/// What the inner rate loop measures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum RateSource {
+    /// The payload gyro (`[closed_loop.gyro]`): inertial rate, so base motion is rejected.
+    #[default]
+    Gyro,
+    /// The motor encoder's backward difference over `ic`, low-passed: the drum's rate
+    /// relative to the base (damps the drive, does not see base motion).
+    MotorVelocity,
+}
+
+/// Inner rate loop (`[closed_loop.controller.rate_loop]`): the position PID's output
+/// becomes an output-rate command (rad/s), and this PI turns the rate error into the
+/// motor command:
+///
+/// ```text
+/// w_cmd = PID(position) + r'                 (output rad/s)
+/// u     = kp (w_cmd - w_meas) + ki T sum(w_cmd - w_meas)    (A or V)
+/// ```
+/// The position gains then have units (rad/s) per motor rad (with `ic = 5`, kp = 30 gives
+/// a 24 Hz... position bandwidth about `kp / (2 pi ic)`... see README).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RateLoopParams {
+    /// What the rate loop measures.
+    #[serde(default)]
+    pub measurement: RateSource,
+    /// Proportional gain, command per output rad/s (about 5 A s/rad for a 0.05 kg m^2
+    /// payload at 60 Hz rate bandwidth).
+    pub kp: f64,
+    /// Integral gain, command per output rad (about 500 A/rad).
+    #[serde(default)]
+    pub ki: f64,
+    /// Corner of the low-pass on the motor-velocity estimate, Hz (500); unused with the gyro.
+    #[serde(default = "default_velocity_filter")]
+    pub velocity_filter_hz: f64,
+}
+
+fn default_velocity_filter() -> f64 {
+    500.0
+}
+
+/// Disturbance observer on the motor side (`[closed_loop.controller.disturbance_observer]`):
+/// the nominal rigid axis `J s^2 theta_m = Kt i - d` inverted on the motor encoder, minus
+/// the current the controller applied, both through the same second-order Q-filter, is
+/// the disturbance estimate in amperes; it is subtracted from the command. Needs a current
+/// amplifier.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DisturbanceObserverParams {
+    /// Q-filter bandwidth, Hz (a fifth to a half of the drive resonance; 20 to 200).
+    pub bandwidth_hz: f64,
+    /// Q-filter damping ratio (0.7).
+    #[serde(default = "default_q_damping")]
+    pub damping: f64,
+    /// Nominal inertia at the motor, kg m^2; default: rotor plus the output inertia
+    /// reflected through `ic^2` (the rigid drive).
+    #[serde(default)]
+    pub inertia_kg_m2: Option<f64>,
+}
+
+fn default_q_damping() -> f64 {
+    std::f64::consts::FRAC_1_SQRT_2
+}
+
+/// Rate gyro on the payload (`[closed_loop.gyro]`): measures the payload's inertial rate
+/// `omega_out + base rate` through a second-order response, adds white noise, a bias and
+/// quantisation, and is sampled at its own rate (the control rate divided by a whole
+/// number; the controller holds the latest sample).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GyroParams {
+    /// Bandwidth of the second-order response, Hz (a MEMS or FOG gyro: 200 to 1000).
+    #[serde(default = "default_gyro_bandwidth")]
+    pub bandwidth_hz: f64,
+    /// Damping ratio of that response (0.7).
+    #[serde(default = "default_q_damping")]
+    pub damping: f64,
+    /// Rate noise density, rad/s/sqrt(Hz), one-sided (a tactical FOG: 5e-6; a MEMS gyro:
+    /// 5e-5). Each sample carries white noise of standard deviation
+    /// `density * sqrt(sample_rate / 2)`.
+    #[serde(default)]
+    pub noise_density_rad_s_per_sqrt_hz: f64,
+    /// Constant bias, rad/s (1e-6 for a FOG, 1e-4 for a MEMS gyro).
+    #[serde(default)]
+    pub bias_rad_s: f64,
+    /// Output resolution, rad/s per count (0 = continuous; 1e-6 typical).
+    #[serde(default)]
+    pub quantization_rad_s: f64,
+    /// Sample rate, Hz; the control rate divided by a whole number. Default: the control
+    /// rate.
+    #[serde(default)]
+    pub sample_rate_hz: Option<f64>,
+    /// Seed of the gyro's noise (kept apart from the encoders').
+    #[serde(default = "default_gyro_seed")]
+    pub seed: u64,
+}
+
+fn default_gyro_bandwidth() -> f64 {
+    500.0
+}
+fn default_gyro_seed() -> u64 {
+    2
+}
+
+impl Default for GyroParams {
+    fn default() -> Self {
+        GyroParams {
+            bandwidth_hz: default_gyro_bandwidth(),
+            damping: default_q_damping(),
+            noise_density_rad_s_per_sqrt_hz: 0.0,
+            bias_rad_s: 0.0,
+            quantization_rad_s: 0.0,
+            sample_rate_hz: None,
+            seed: default_gyro_seed(),
+        }
+    }
+}
+
+impl GyroParams {
+    /// Control samples per gyro sample, given the control rate; `None` when the gyro rate
+    /// is not the control rate divided by a whole number.
+    pub fn decimation(&self, control_rate_hz: f64) -> Option<u32> {
+        let fg = self.sample_rate_hz.unwrap_or(control_rate_hz);
+        let n = control_rate_hz / fg;
+        let r = n.round();
+        ((n - r).abs() < 1e-9 * n.max(1.0) && (1.0..=1e6).contains(&r)).then_some(r as u32)
+    }
 }
 
 /// Torque motor with rotor and input pulley.
@@ -263,6 +414,39 @@ pub struct ControllerParams {
     /// held command inside the period). 0 to 4; default 1.
     #[serde(default = "default_computation_delay")]
     pub computation_delay_samples: f64,
+    /// Inner rate loop; none: the PID commands the motor directly.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rate_loop: Option<RateLoopParams>,
+    /// Filters on the position measurement, before the PID (e.g. a low-pass on a noisy
+    /// integrated gyro angle).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub measurement_filters: Vec<FilterSpec>,
+    /// Filters on the rate command (the position loop's output; rate loop only).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub rate_command_filters: Vec<FilterSpec>,
+    /// Filters on the rate measurement (rate loop only; e.g. a low-pass above the gyro).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub rate_measurement_filters: Vec<FilterSpec>,
+    /// Filters on the feedback command, before the feedforward is added and before the
+    /// amplifier (a notch at the cable-drive resonance goes here).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub command_filters: Vec<FilterSpec>,
+    /// Disturbance observer on the motor side; none by default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub disturbance_observer: Option<DisturbanceObserverParams>,
+}
+
+impl ControllerParams {
+    /// Whether the law is today's single PID (no rate loop, filters or observer): that
+    /// path is kept exactly as it was.
+    pub fn is_plain_pid(&self) -> bool {
+        self.rate_loop.is_none()
+            && self.measurement_filters.is_empty()
+            && self.rate_command_filters.is_empty()
+            && self.rate_measurement_filters.is_empty()
+            && self.command_filters.is_empty()
+            && self.disturbance_observer.is_none()
+    }
 }
 
 /// Largest computation delay accepted, control periods.
@@ -292,6 +476,12 @@ impl Default for ControllerParams {
             load_feedforward: false,
             brake_transition_s: default_brake_transition(),
             computation_delay_samples: default_computation_delay(),
+            rate_loop: None,
+            measurement_filters: Vec::new(),
+            rate_command_filters: Vec::new(),
+            rate_measurement_filters: Vec::new(),
+            command_filters: Vec::new(),
+            disturbance_observer: None,
         }
     }
 }
@@ -411,6 +601,25 @@ pub struct ClosedLoopParams {
     /// (same keys and units); defaults to the plant's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub compensator_effects: Option<EffectsParams>,
+    /// Angular motion of the base (vehicle, aircraft) about the axis, rad: any signal kind
+    /// (`sine`, `sum` of sines, a CSV `table`, or a random motion from a `psd` table).
+    /// Bearing friction, drag and the motor act relative to the base; the line of sight is
+    /// the base angle plus the drum's angle, and the pointing error is its inertial error.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base_motion: Option<Signal>,
+    /// How the axis stands at t = 0 (matters only under base motion).
+    #[serde(default)]
+    pub start: StartState,
+    /// Rate gyro on the payload; needed by a gyro rate loop or gyro-angle feedback.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gyro: Option<GyroParams>,
+    /// Line-of-sight statistics: exposure time for jitter, PSD segment length.
+    #[serde(default)]
+    pub los: LosParams,
+    /// Whether `run` also writes an error budget: the run repeated with each effect
+    /// switched off in turn (one extra run per effect present, plus one with all off).
+    #[serde(default)]
+    pub error_budget: bool,
     /// How `cable-servo freqresp` measures this loop (`[closed_loop.freqresp]`): loop
     /// point, frequencies, amplitudes and the requirements the margins are judged by.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -483,6 +692,9 @@ impl ClosedLoopParams {
         }
         let c = self.cable_damping_n_s_per_m(drive);
         fastest = fastest.max(2.0 * c * (ri * ri / jm + ro * ro / jo));
+        if let Some(g) = &self.gyro {
+            fastest = fastest.max(std::f64::consts::TAU * g.bandwidth_hz * g.damping.max(1.0));
+        }
         PlantModes {
             half_stiffness_n_per_m: k,
             free_mode_rad_s: free,
@@ -701,6 +913,7 @@ impl ClosedLoopParams {
                 ),
             ));
         }
+        self.validate_structure()?;
         if self.compensator_drive.is_some() {
             self.compensator_params(drive).validate().map_err(|e| {
                 (
@@ -735,6 +948,178 @@ impl ClosedLoopParams {
                 ),
             ));
         }
+        Ok(())
+    }
+}
+
+impl ClosedLoopParams {
+    /// Checks of the base motion, the gyro and the control law's structure.
+    fn validate_structure(&self) -> Result<(), (String, String)> {
+        let key = |k: &str| format!("closed_loop.{k}");
+        let c = &self.controller;
+        let fs = c.sample_rate_hz;
+        let nyquist = 0.5 * fs;
+        let in_band = |k: String, v: f64, what: &str| -> Result<(), (String, String)> {
+            if v.is_finite() && v > 0.0 && v < nyquist {
+                Ok(())
+            } else {
+                Err((
+                    k,
+                    format!(
+                        "{} Hz must be a {what} above 0 and below the Nyquist frequency {} Hz",
+                        crate::number(v),
+                        crate::number(nyquist)
+                    ),
+                ))
+            }
+        };
+        if let Some(b) = &self.base_motion {
+            check_reference(b).map_err(|m| (key("base_motion"), m))?;
+            let f = b.fastest_frequency_hz();
+            if f >= 0.1 * fs {
+                return Err((
+                    key("base_motion"),
+                    format!(
+                        "content up to {} Hz is too fast for the control rate {} Hz (at most a tenth of it: the base is interpolated within each period)",
+                        crate::number(f),
+                        crate::number(fs)
+                    ),
+                ));
+            }
+        }
+        if let Some(g) = &self.gyro {
+            in_band(key("gyro.bandwidth_hz"), g.bandwidth_hz, "bandwidth")?;
+            if !(g.damping.is_finite() && g.damping > 0.0 && g.damping <= 10.0) {
+                return Err((
+                    key("gyro.damping"),
+                    format!(
+                        "{} must be in (0, 10] (0.7 typical)",
+                        crate::number(g.damping)
+                    ),
+                ));
+            }
+            for (k, v, typical) in [
+                (
+                    "gyro.noise_density_rad_s_per_sqrt_hz",
+                    g.noise_density_rad_s_per_sqrt_hz,
+                    "5e-6 for a FOG",
+                ),
+                ("gyro.quantization_rad_s", g.quantization_rad_s, "1e-6"),
+            ] {
+                if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+                    return Err((
+                        key(k),
+                        format!("{} must be in [0, 1] ({typical})", crate::number(v)),
+                    ));
+                }
+            }
+            if !(g.bias_rad_s.is_finite() && g.bias_rad_s.abs() <= 1.0) {
+                return Err((
+                    key("gyro.bias_rad_s"),
+                    format!(
+                        "{} must be a finite rate of at most 1 rad/s in size (1e-6 for a FOG)",
+                        crate::number(g.bias_rad_s)
+                    ),
+                ));
+            }
+            if let Some(fg) = g.sample_rate_hz {
+                if !(fg.is_finite() && fg > 0.0 && fg <= fs) {
+                    return Err((
+                        key("gyro.sample_rate_hz"),
+                        format!(
+                            "{} Hz must be above 0 and at most the control rate {} Hz (the controller reads the gyro once per sample)",
+                            crate::number(fg),
+                            crate::number(fs)
+                        ),
+                    ));
+                }
+            }
+            if g.decimation(fs).is_none() {
+                return Err((
+                    key("gyro.sample_rate_hz"),
+                    format!(
+                        "{} Hz must be the control rate {} Hz divided by a whole number",
+                        crate::number(g.sample_rate_hz.unwrap_or(fs)),
+                        crate::number(fs)
+                    ),
+                ));
+            }
+        }
+        let needs_gyro = c.feedback == Feedback::GyroAngle
+            || c.rate_loop
+                .as_ref()
+                .is_some_and(|r| r.measurement == RateSource::Gyro);
+        if needs_gyro && self.gyro.is_none() {
+            return Err((
+                key("gyro"),
+                "a gyro rate loop or feedback = \"gyro_angle\" needs a [closed_loop.gyro] section (bandwidth_hz = 500 is a start)".into(),
+            ));
+        }
+        if let Some(r) = &c.rate_loop {
+            for (k, v) in [
+                ("controller.rate_loop.kp", r.kp),
+                ("controller.rate_loop.ki", r.ki),
+            ] {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err((
+                        key(k),
+                        format!("{} must be a finite number >= 0", crate::number(v)),
+                    ));
+                }
+            }
+            in_band(
+                key("controller.rate_loop.velocity_filter_hz"),
+                r.velocity_filter_hz,
+                "corner",
+            )?;
+        }
+        for (name, list) in [
+            ("measurement_filters", &c.measurement_filters),
+            ("rate_command_filters", &c.rate_command_filters),
+            ("rate_measurement_filters", &c.rate_measurement_filters),
+            ("command_filters", &c.command_filters),
+        ] {
+            if !list.is_empty() && c.rate_loop.is_none() && name.starts_with("rate_") {
+                return Err((
+                    key(&format!("controller.{name}")),
+                    "rate-loop filters need a [closed_loop.controller.rate_loop]".into(),
+                ));
+            }
+            for (i, f) in list.iter().enumerate() {
+                f.validate(fs)
+                    .map_err(|m| (key(&format!("controller.{name}[{i}]")), m))?;
+            }
+        }
+        if let Some(d) = &c.disturbance_observer {
+            let k = |s: &str| key(&format!("controller.disturbance_observer.{s}"));
+            in_band(k("bandwidth_hz"), d.bandwidth_hz, "bandwidth")?;
+            if !(d.damping.is_finite() && d.damping > 0.0 && d.damping <= 10.0) {
+                return Err((
+                    k("damping"),
+                    format!(
+                        "{} must be in (0, 10] (0.7 typical)",
+                        crate::number(d.damping)
+                    ),
+                ));
+            }
+            if let Some(j) = d.inertia_kg_m2 {
+                if !(j.is_finite() && j > 0.0) {
+                    return Err((
+                        k("inertia_kg_m2"),
+                        format!("{} must be a finite inertia > 0 kg m^2", crate::number(j)),
+                    ));
+                }
+            }
+            if self.motor.amplifier != Amplifier::Current {
+                return Err((
+                    k("bandwidth_hz"),
+                    "the disturbance observer estimates a current: it needs motor.amplifier = \"current\"".into(),
+                ));
+            }
+        }
+        self.los
+            .validate()
+            .map_err(|(k, m)| (key(&format!("los.{k}")), m))?;
         Ok(())
     }
 }

@@ -6,15 +6,17 @@ use ode_solvers::dop_shared::Stats;
 use ode_solvers::Rk4;
 
 use super::plant::{
-    damped, update_brake, BrakeState, Forces, PeriodRhs, PlantCable, PlantCoefficients, State,
-    OMEGA_O, THETA_O,
+    damped, update_brake, BaseSegment, BrakeState, Forces, PeriodRhs, PlantCable,
+    PlantCoefficients, State, OMEGA_O, THETA_O,
 };
 use crate::physics::{DriveFault, LoadParams};
 
 /// Period boundary at time `t` (s): commits the cable memory at the displacement of `x`,
 /// then lets the brake stick or slip (which may zero the output speed in `x`). Returns
 /// the forces at the boundary (tensions with damping). On a fault nothing is committed and
-/// neither `brake` nor `x` changes.
+/// neither `brake` nor `x` changes. `base` is the base's `(angle, acceleration)` at `t`
+/// (rad, rad/s^2; zeros without base motion): a held drum must also carry the base's
+/// pseudo-torque `-Jo beta''`.
 #[inline]
 pub fn settle_boundary(
     c: &PlantCoefficients,
@@ -23,6 +25,7 @@ pub fn settle_boundary(
     brake: &mut BrakeState,
     x: &mut State,
     t: f64,
+    base: (f64, f64),
 ) -> Result<Forces, DriveFault> {
     let kin = c.kinematics(x, t);
     let el = cable.commit(kin.d)?;
@@ -32,12 +35,18 @@ pub fn settle_boundary(
         tension_lower_n: tl,
         cable_torque_nm: kin.lever_out * (tu - tl),
         smooth_load_nm: if c.smooth_load {
-            load.smooth_torque_nm(t, x[THETA_O])
+            load.smooth_torque_nm(t, x[THETA_O] + base.0)
         } else {
             0.0
         },
     };
-    *brake = update_brake(c, *brake, forces.cable_torque_nm + forces.smooth_load_nm, x);
+    let inertial = if c.base { -c.jo * base.1 } else { 0.0 };
+    *brake = update_brake(
+        c,
+        *brake,
+        forces.cable_torque_nm + forces.smooth_load_nm + inertial,
+        x,
+    );
     Ok(forces)
 }
 
@@ -66,6 +75,7 @@ pub fn integrate_period(
     t0: f64,
     period_s: f64,
     substeps: u32,
+    base: BaseSegment,
     x: &mut State,
 ) -> PeriodEnd {
     let rhs = PeriodRhs {
@@ -77,6 +87,7 @@ pub fn integrate_period(
         t0,
         h: period_s / f64::from(substeps),
         steps: f64::from(substeps),
+        base,
         fault: std::cell::Cell::new(None),
     };
     // End point 2N: room for all N + 1 results; `solout` stops the run at N.

@@ -1,7 +1,10 @@
 //! Continuous-time plant: torque motor, cable drive as a history-dependent spring, output
 //! drum with its loads, and the brake's stick/slip state.
 //!
-//! State `x = [theta_m, omega_m, i, theta_o, omega_o]` (rad, rad/s, A, rad, rad/s).
+//! State `x = [theta_m, omega_m, i, theta_o, omega_o, g, g']` (rad, rad/s, A, rad, rad/s,
+//! rad/s, rad/s^2): angles and speeds relative to the base, and the gyro's filtered
+//! inertial rate `g`. Under base motion `beta(t)` both inertias feel `-J beta''`, the gyro
+//! sees `omega_o + beta'`, and friction, drag and the motor act on relative speeds.
 //! The cable's wrap memory is frozen during a control period and committed at its end, so
 //! the right-hand side is a pure function of `(t, x)` inside a period.
 
@@ -16,7 +19,7 @@ use crate::physics::EffectsParams;
 use crate::physics::{CableDrive, DriveFault, DriveParams, Half, HysteresisModel, LoadParams};
 
 /// Plant state vector.
-pub type State = SVector<f64, 5>;
+pub type State = SVector<f64, 7>;
 
 /// Index of the motor angle in [`State`].
 pub const THETA_M: usize = 0;
@@ -28,6 +31,52 @@ pub const CURRENT: usize = 2;
 pub const THETA_O: usize = 3;
 /// Index of the output speed.
 pub const OMEGA_O: usize = 4;
+/// Index of the gyro's filtered inertial rate, rad/s.
+pub const GYRO: usize = 5;
+/// Index of its derivative, rad/s^2.
+pub const GYRO_DOT: usize = 6;
+
+/// Base motion over one period (or piece of one): rate and acceleration at its start and
+/// end. The rate in between is the cubic Hermite curve through both ends with those
+/// accelerations as slopes, and the acceleration is its derivative, so the two stay
+/// consistent and the error is of order `(f T)^4` (a linear interpolation of each left an
+/// error of order `(f T)^2` that a stiff stabilisation loop could see).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BaseSegment {
+    /// Base rate at the start, rad/s.
+    pub rate0: f64,
+    /// Base rate at the end, rad/s.
+    pub rate1: f64,
+    /// Base acceleration at the start, rad/s^2.
+    pub accel0: f64,
+    /// Base acceleration at the end, rad/s^2.
+    pub accel1: f64,
+    /// Base angle at the start, rad (unbalance acts on the inertial angle).
+    pub angle0: f64,
+}
+
+impl BaseSegment {
+    /// `(angle, rate, acceleration)` at fraction `s` (0 to 1) of the piece of length `dt`.
+    #[inline]
+    pub fn at(&self, s: f64, dt: f64) -> (f64, f64, f64) {
+        let (p0, p1) = (self.rate0, self.rate1);
+        let (m0, m1) = (self.accel0 * dt, self.accel1 * dt);
+        let (s2, s3, s4) = (s * s, s * s * s, s * s * s * s);
+        let rate = (2.0 * s3 - 3.0 * s2 + 1.0) * p0
+            + (s3 - 2.0 * s2 + s) * m0
+            + (-2.0 * s3 + 3.0 * s2) * p1
+            + (s3 - s2) * m1;
+        let d_ds = (6.0 * s2 - 6.0 * s) * p0
+            + (3.0 * s2 - 4.0 * s + 1.0) * m0
+            + (-6.0 * s2 + 6.0 * s) * p1
+            + (3.0 * s2 - 2.0 * s) * m1;
+        let integral = (0.5 * s4 - s3 + s) * p0
+            + (0.25 * s4 - 2.0 / 3.0 * s3 + 0.5 * s2) * m0
+            + (-0.5 * s4 + s3) * p1
+            + (0.25 * s4 - s3 / 3.0) * m1;
+        (self.angle0 + dt * integral, rate, d_ds / dt)
+    }
+}
 
 /// Whether the powder brake holds the drum.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -187,6 +236,11 @@ pub struct PlantCoefficients {
     /// `1/jm`, `1/l`, `1/jo` and `1/wcm`: the right-hand side multiplies, as divisions
     /// would dominate its latency.
     pub inv: Reciprocals,
+    /// Whether the base moves (saves the base terms when it does not).
+    pub base: bool,
+    /// Gyro natural frequency squared and `2 zeta wn`, (rad/s)^2 and rad/s; `None`
+    /// without a gyro (its states stay zero).
+    pub gyro: Option<(f64, f64)>,
 }
 
 /// Reciprocals of the coefficients the right-hand side divides by.
@@ -265,6 +319,11 @@ impl PlantCoefficients {
                 jo: 1.0 / p.output.inertia_kg_m2,
                 wcm: 1.0 / p.motor.coulomb_smoothing_rad_s,
             },
+            base: p.base_motion.is_some(),
+            gyro: p.gyro.as_ref().map(|g| {
+                let wn = std::f64::consts::TAU * g.bandwidth_hz;
+                (wn * wn, 2.0 * g.damping * wn)
+            }),
         }
     }
 
@@ -313,6 +372,8 @@ pub struct PeriodRhs<'a> {
     pub h: f64,
     /// Substeps in the period, `N`: the integrator stops once `tau` reaches it.
     pub steps: f64,
+    /// Base motion over the piece.
+    pub base: BaseSegment,
     /// First fault met inside the period.
     pub fault: Cell<Option<DriveFault>>,
 }
@@ -338,7 +399,8 @@ pub fn damped(c: &PlantCoefficients, el: (f64, f64), k: &Kinematics) -> (f64, f6
 }
 
 /// State derivative for tensions `(tu, tl)` (damping included) acting through the lever
-/// arms of `k`.
+/// arms of `k`, with the base at `(rate, acceleration)` = `base` (rad/s, rad/s^2).
+#[allow(clippy::too_many_arguments)]
 #[inline]
 pub fn derivative(
     c: &PlantCoefficients,
@@ -348,6 +410,7 @@ pub fn derivative(
     smooth_load: f64,
     brake: BrakeState,
     command: f64,
+    base: (f64, f64),
 ) -> State {
     let f = tensions.0 - tensions.1;
     let wm = x[OMEGA_M];
@@ -358,14 +421,30 @@ pub fn derivative(
     } else {
         0.0
     };
-    let (dto, dwo) = match brake {
+    let (dto, mut dwo) = match brake {
         BrakeState::Stuck => (0.0, 0.0),
         BrakeState::Slipping(dir) => (
             x[OMEGA_O],
             (k.lever_out * f + smooth_load - c.bo * x[OMEGA_O] - c.brake * dir) * c.inv.jo,
         ),
     };
-    State::new(wm, dwm, di, dto, dwo)
+    let mut dwm = dwm;
+    if c.base {
+        // Relative coordinates: the base's acceleration is a pseudo-torque on each
+        // inertia (a held drum turns with the base, so it feels none relative to it).
+        dwm -= base.1;
+        if let BrakeState::Slipping(_) = brake {
+            dwo -= base.1;
+        }
+    }
+    let (dg, ddg) = match c.gyro {
+        Some((wn2, two_zw)) => (
+            x[GYRO_DOT],
+            wn2 * (x[OMEGA_O] + base.0 - x[GYRO]) - two_zw * x[GYRO_DOT],
+        ),
+        None => (0.0, 0.0),
+    };
+    State::from([wm, dwm, di, dto, dwo, dg, ddg])
 }
 
 impl System<f64, State> for &PeriodRhs<'_> {
@@ -384,8 +463,13 @@ impl System<f64, State> for &PeriodRhs<'_> {
                 return;
             }
         };
+        let (angle, rate, accel) = if c.base {
+            self.base.at(tau / self.steps, self.h * self.steps)
+        } else {
+            (0.0, 0.0, 0.0)
+        };
         let smooth = if c.smooth_load {
-            self.load.smooth_torque_nm(t, x[THETA_O])
+            self.load.smooth_torque_nm(t, x[THETA_O] + angle)
         } else {
             0.0
         };
@@ -397,6 +481,7 @@ impl System<f64, State> for &PeriodRhs<'_> {
             smooth,
             self.brake,
             self.command,
+            (rate, accel),
         );
         *dx = dxt * self.h;
     }

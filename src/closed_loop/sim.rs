@@ -6,13 +6,17 @@ use std::time::Instant;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::controller::{BrakePredictor, CommandDelay, Compensator, Pid, Sensors};
+use super::base::BaseMotion;
+use super::controller::{BrakePredictor, CommandDelay, Compensator, Sensors};
+use super::law::{ControlLaw, GyroReader, LawInputs};
 use super::params::{Amplifier, ClosedLoopParams, CompensationMode, Feedback};
 use super::period::{integrate_period, settle_boundary};
 use super::plant::{
-    load_torque, BrakeState, PlantCable, PlantCoefficients, State, CURRENT, THETA_M, THETA_O,
+    load_torque, BaseSegment, BrakeState, PlantCable, PlantCoefficients, State, CURRENT, GYRO,
+    OMEGA_M, OMEGA_O, THETA_M, THETA_O,
 };
 use crate::metrics::limit_cycle::{LimitCycle, LimitCycleDetector};
+use crate::metrics::los::{error_spectrum, los_metrics, ErrorSpectrum, LosMetrics};
 use crate::metrics::{Metrics, MetricsAccumulator, MetricsConfig, Sample, StepEvent};
 use crate::physics::{DriveFault, DriveParams, EffectsParams, Half, LoadParams, LoadTerm};
 use crate::signal::Signal;
@@ -230,6 +234,11 @@ pub struct TimeSeries {
     /// Motor angle the compensator asks for, `ic (r - e_pred)`, rad (the PID reference
     /// under motor feedback; `ic r` in mode `none`).
     pub motor_reference_rad: Vec<f64>,
+    /// Base angle about the axis, rad (0 without base motion); the line of sight is this
+    /// plus the output angle.
+    pub base_angle_rad: Vec<f64>,
+    /// Gyro reading as the controller gets it, rad/s (0 without a gyro).
+    pub gyro_rad_s: Vec<f64>,
 }
 
 impl TimeSeries {
@@ -249,6 +258,8 @@ impl TimeSeries {
             load_torque_nm: v(),
             feedforward: v(),
             motor_reference_rad: v(),
+            base_angle_rad: v(),
+            gyro_rad_s: v(),
         }
     }
 
@@ -282,7 +293,20 @@ pub struct ModeResult {
     /// metrics window.
     #[serde(default)]
     pub limit_cycle: LimitCycle,
+    /// Line-of-sight statistics over the metrics window: RMS, peak, jitter within each
+    /// exposure; `None` when the window holds no sample.
+    #[serde(default)]
+    pub los: Option<LosMetrics>,
+    /// Welch PSD and cumulative RMS of the line-of-sight error over the metrics window
+    /// (recorded runs only; written as its own CSV, not in the summary).
+    #[serde(skip)]
+    pub spectrum: Option<ErrorSpectrum>,
 }
+
+/// Most samples of the line-of-sight error kept for jitter and spectra (2^22: 210 s at
+/// 20 kHz, 34 MB); a longer window is judged on its first 2^22 samples, and the result
+/// says how long a stretch that was.
+pub const MAX_LOS_SAMPLES: usize = 1 << 22;
 
 /// Result of a closed-loop run.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -322,15 +346,15 @@ impl ClosedLoopSource for ClosedLoopSetup<'_> {
     }
 }
 
-fn check_tables(signal: &Signal) -> Result<(), ClosedLoopError> {
+fn check_tables(signal: &Signal, key: &str) -> Result<(), ClosedLoopError> {
     match signal {
         Signal::Table { path, samples, .. } if samples.is_empty() => {
             Err(ClosedLoopError::TableNotLoaded {
-                key: "closed_loop.reference".into(),
+                key: key.into(),
                 path: path.clone(),
             })
         }
-        Signal::Sum { parts } => parts.iter().try_for_each(check_tables),
+        Signal::Sum { parts } => parts.iter().try_for_each(|p| check_tables(p, key)),
         _ => Ok(()),
     }
 }
@@ -397,7 +421,10 @@ pub fn run_closed_loop(
     }
     p.validate_effects(scenario.effects)
         .map_err(|(key, message)| ClosedLoopError::Invalid { key, message })?;
-    check_tables(&p.reference)?;
+    check_tables(&p.reference, "closed_loop.reference")?;
+    if let Some(b) = &p.base_motion {
+        check_tables(b, "closed_loop.base_motion")?;
+    }
     if let (Some(path), true) = (
         &scenario.load.disturbance_csv,
         scenario.load.disturbance.is_empty(),
@@ -505,6 +532,36 @@ fn stop(
     }
 }
 
+/// The base's motion over the fraction `[from, to]` of the period that starts at `a` and
+/// ends at `b` (length `ts`), on the period's Hermite curve.
+fn piece_of(
+    a: &crate::signal::SignalPoint,
+    b: &crate::signal::SignalPoint,
+    from: f64,
+    to: f64,
+    ts: f64,
+) -> BaseSegment {
+    let whole = BaseSegment {
+        rate0: a.rate,
+        rate1: b.rate,
+        accel0: a.accel,
+        accel1: b.accel,
+        angle0: a.value,
+    };
+    if from == 0.0 && to == 1.0 {
+        return whole;
+    }
+    let (angle0, rate0, accel0) = whole.at(from, ts);
+    let (_, rate1, accel1) = whole.at(to, ts);
+    BaseSegment {
+        rate0,
+        rate1,
+        accel0,
+        accel1,
+        angle0,
+    }
+}
+
 fn run_mode(
     scenario: &ClosedLoopSetup<'_>,
     mode: CompensationMode,
@@ -523,7 +580,12 @@ fn run_mode(
     let mut cable = PlantCable::new(p.cable, drive);
     let mut sensors = Sensors::new(&p.sensors);
     let command_limit = p.motor.command_limit();
-    let mut pid = Pid::new(&p.controller, command_limit);
+    let mut law = ControlLaw::new(p, ic, command_limit);
+    let mut gyro = p
+        .gyro
+        .as_ref()
+        .and_then(|g| GyroReader::new(g, p.controller.sample_rate_hz));
+    let mut base = p.base_motion.as_ref().map(|b| BaseMotion::new(b, ts));
     let mut delay = CommandDelay::new(p.controller.computation_delay_samples);
     let mut comp = mode
         .model()
@@ -559,13 +621,32 @@ fn run_mode(
         steps: step_events(&p.reference, p.duration_s),
     });
     let mut hunting = LimitCycleDetector::default();
+    let window_samples = ((p.duration_s - p.metrics_start_s) * p.controller.sample_rate_hz)
+        .max(0.0)
+        .ceil() as usize
+        + 1;
+    let mut los_errors: Vec<f64> = Vec::with_capacity(window_samples.min(MAX_LOS_SAMPLES));
     let decimation = options.decimation.max(1) as u64;
     let mut series = options
         .record
         .then(|| TimeSeries::with_capacity((n / decimation + 1) as usize));
 
     let mut x = State::zeros();
+    let mut base_now = base.as_mut().map(|b| b.at_sample(0)).unwrap_or_default();
+    // The gyro starts settled on the base's rate, and the controller aligns its gyro angle
+    // with the line of sight at switch-on.
+    x[GYRO] = base_now.rate;
+    let mut gyro_angle = base_now.value;
     let mut brake = BrakeState::Stuck;
+    if p.start == super::params::StartState::InertiallyStill && base_now.rate != 0.0 {
+        // The drum turns against the base, the cable unstretched (D' = 0).
+        x[OMEGA_O] = -base_now.rate;
+        x[OMEGA_M] = ic * x[OMEGA_O];
+        x[GYRO] = 0.0;
+        if coeff.breakaway > 0.0 {
+            brake = BrakeState::Slipping(x[OMEGA_O].signum());
+        }
+    }
     let mut prev_ref = p.reference.at(0.0).value;
     let mut prev_e_pred = 0.0;
     let mut stats = SolverStats::default();
@@ -577,7 +658,15 @@ fn run_mode(
     for k in 0..=n {
         let t = k as f64 * ts;
         boundary_solves += 1;
-        let forces = match settle_boundary(&coeff, &mut cable, load, &mut brake, &mut x, t) {
+        let forces = match settle_boundary(
+            &coeff,
+            &mut cable,
+            load,
+            &mut brake,
+            &mut x,
+            t,
+            (base_now.value, base_now.accel),
+        ) {
             Ok(f) => f,
             Err(f) => {
                 completion = stop(
@@ -639,17 +728,44 @@ fn run_mode(
             let i_ff = m_pred / (ic * coeff.kt);
             u_ff += if voltage_mode { coeff.r * i_ff } else { i_ff };
         }
+        let gyro_reading = gyro.as_mut().map_or(0.0, |g| g.read(x[GYRO]));
         let (rr, mut yy) = match c.feedback {
             Feedback::Motor => (r_m, ym),
             Feedback::Output => (ic * r.value, ic * yo),
+            Feedback::GyroAngle => (ic * r.value, ic * gyro_angle),
         };
+        gyro_angle += ts * gyro_reading;
         let injected = options.injection.map(|i| (i.site, i.at(t)));
         if let Some((InjectionSite::Measurement, d)) = injected {
             yy += d;
         }
-        let mut u = pid.update(rr, yy, u_ff);
+        let mut u = law.update(&LawInputs {
+            reference: rr,
+            measurement: yy,
+            rate_feedforward: r.rate + shift_rate / ic,
+            gyro: gyro_reading,
+            motor_encoder: ym,
+            feedforward: u_ff,
+        });
         if let Some((InjectionSite::Command, d)) = injected {
             u = (u + d).clamp(-command_limit, command_limit);
+        }
+        if let Some(i) = instability.filter(|_| u.abs() >= command_limit) {
+            // An unstable linear loop that reaches the amplifier's limit has not found a
+            // working point: what follows is a saturated oscillation, not a result.
+            completion = Completion::Incomplete {
+                fault: format!(
+                    "the loop is unstable (on its exact linear reference the largest closed-loop pole has |z| = {:.5}: a mode growing at {:.1} 1/s at {:.1} Hz) and its command reached the amplifier limit {} at t = {t:.4} s (mode {}); lower closed_loop.controller gains (rate_loop.kp, kp), add or retune filters at the drive's resonance, or check the delay (`cable-servo margins` shows the margins)",
+                    i.pole_magnitude,
+                    i.growth_per_s,
+                    i.frequency_hz,
+                    crate::number(command_limit),
+                    mode.name()
+                ),
+                time_s: t,
+                kind: StopKind::Unstable,
+            };
+            break;
         }
         let held = delay.push(u);
         if !voltage_mode {
@@ -660,24 +776,29 @@ fn run_mode(
             };
         }
 
+        // The line of sight: the drum's angle on the moving base.
+        let los = x[THETA_O] + base_now.value;
         let sample = Sample {
             t_s: t,
             reference_rad: r.value,
-            output_rad: x[THETA_O],
+            output_rad: los,
             transmission_error_rad: Some(x[THETA_O] - x[THETA_M] / ic),
             command: Some(u),
             current_a: Some(x[CURRENT]),
         };
         metrics.push(&sample);
         if t >= p.metrics_start_s {
-            hunting.push(t, r.value, x[THETA_O]);
+            hunting.push(t, r.value, los);
+            if los_errors.len() < MAX_LOS_SAMPLES {
+                los_errors.push((los - r.value) * 1e3);
+            }
         }
         if let Some(s) = series.as_mut().filter(|_| k % decimation == 0) {
             s.t_s.push(t);
             s.reference_rad.push(r.value);
             s.motor_angle_rad.push(x[THETA_M]);
             s.output_angle_rad.push(x[THETA_O]);
-            s.pointing_error_mrad.push((x[THETA_O] - r.value) * 1e3);
+            s.pointing_error_mrad.push((los - r.value) * 1e3);
             s.transmission_error_mrad
                 .push((x[THETA_O] - x[THETA_M] / ic) * 1e3);
             s.tension_upper_n.push(tu);
@@ -687,6 +808,8 @@ fn run_mode(
             s.load_torque_nm.push(load_torque(&coeff, brake, &forces));
             s.feedforward.push(u_ff);
             s.motor_reference_rad.push(r_m);
+            s.base_angle_rad.push(base_now.value);
+            s.gyro_rad_s.push(gyro_reading);
         }
         reached = t;
         if k == n {
@@ -704,6 +827,10 @@ fn run_mode(
         } else {
             [(0.0, 1.0, held.second), (1.0, 1.0, held.second)]
         };
+        let base_next = base
+            .as_mut()
+            .map(|b| b.at_sample(k + 1))
+            .unwrap_or_default();
         let mut fault = None;
         for (from, to, command) in pieces {
             if to <= from {
@@ -721,6 +848,7 @@ fn run_mode(
                 t + from * ts,
                 (to - from) * ts,
                 sub,
+                piece_of(&base_now, &base_next, from, to, ts),
                 &mut x,
             );
             stats.steps += u64::from(end.stats.accepted_steps);
@@ -732,6 +860,7 @@ fn run_mode(
             }
         }
         stats.periods += 1;
+        base_now = base_next;
         if let Some(f) = fault {
             completion = stop(
                 describe(&f, t + ts, mode, last_torque, coeff.ro),
@@ -762,8 +891,16 @@ fn run_mode(
         stats.tension_solves = 2 * (stats.rhs_evaluations + boundary_solves);
     }
     stats.compensator_faults = comp.as_ref().map_or(0, Compensator::faults);
+    let fs = p.controller.sample_rate_hz;
+    let los = (!los_errors.is_empty()).then(|| los_metrics(&los_errors, fs, &p.los));
+    let spectrum = options
+        .record
+        .then(|| error_spectrum(&los_errors, fs, p.los.psd_segment_s))
+        .flatten();
     stats.wall_s = wall.elapsed().as_secs_f64();
     ModeResult {
+        los,
+        spectrum,
         mode,
         metrics: metrics.finish(),
         stats,

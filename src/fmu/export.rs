@@ -283,7 +283,7 @@ pub fn documentation(scenario: &Scenario, values: &Values) -> String {
 <li><b>Parameters</b> start at the scenario's values (resources/scenario.toml); values set by the host before <code>fmi2ExitInitializationMode</code> override them and are checked there: a bad one returns fmi2Error with the parameter, its value and the allowed range, and the instance stays in initialization mode.</li>\n\
 <li><b>Faults.</b> A slack span or gross slip on the pulley ends the step with fmi2Discard, the time and the cause logged; outputs hold the last good communication point, <code>regime</code> says which fault (2 slack, 3 gross slip), <code>fmi2GetBooleanStatus(fmi2Terminated)</code> is true. Bad calls (order, step size, value) return fmi2Error with a message and change nothing; a fault inside the library returns fmi2Error and never reaches the host as a crash.</li>\n\
 <li><b>Saved states.</b> <code>fmi2GetFMUstate</code>/<code>fmi2SetFMUstate</code> copy the whole state, cable memory included; serialisation is not supported.</li>\n\
-<li><b>Base motion.</b> A base angular rate input (the carrier turning under the drum) is reserved as value reference 4, <code>base_rate_rad_s</code>; the plant does not model base motion yet.</li>\n\
+<li><b>Base motion.</b> A base angular rate input (the carrier turning under the drum) is reserved as value reference 4, <code>base_rate_rad_s</code>; the FMU does not take it yet (the native simulation models base motion: <code>closed_loop.base_motion</code>).</li>\n\
 </ul>\n",
     );
     let _ = writeln!(

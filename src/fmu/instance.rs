@@ -282,6 +282,7 @@ impl Plant {
             &mut self.brake,
             &mut self.x,
             t,
+            (0.0, 0.0),
         )?;
         Ok(self.outputs(&forces))
     }
@@ -535,6 +536,7 @@ impl Instance {
             t,
             h,
             substeps as u32,
+            Default::default(),
             &mut plant.x,
         );
         let result = match period.fault {

@@ -4,7 +4,7 @@
 //!
 //! Value references: inputs 1-99, outputs 100-199, parameters 1000 and up. Reference 4 is
 //! kept for the base angular rate input (`base_rate_rad_s`, the turret's carrier turning
-//! under the drum), which the plant does not model yet.
+//! under the drum), which the FMU does not take yet (the native loop models base motion).
 
 use crate::closed_loop::{Amplifier, ClosedLoopParams};
 use crate::physics::EffectsParams;

@@ -240,6 +240,8 @@ pub struct Chart {
     pub y_range: Option<(f64, f64)>,
     /// log10 x axis (for sweeps); samples with non-positive x are skipped.
     pub log_x: bool,
+    /// log10 y axis (spectra); samples with non-positive y are skipped, and so are bands.
+    pub log_y: bool,
 }
 
 /// Heat map over two parameters, `z[iy][ix]`.

@@ -113,7 +113,7 @@ pub(super) fn staircase(x: &[f64], y: &[f64]) -> Vec<Pt> {
 
 /// Splits a series into runs of consecutive drawable samples (drawing
 /// coordinates; non-finite or out-of-domain samples break runs).
-pub(super) fn drawable_runs(s: &Series, log_x: bool) -> Vec<(Vec<f64>, Vec<f64>)> {
+pub(super) fn drawable_runs(s: &Series, log_x: bool, log_y: bool) -> Vec<(Vec<f64>, Vec<f64>)> {
     let n = s.x.len().min(s.y.len());
     let mut runs = Vec::new();
     let mut cx = Vec::new();
@@ -128,7 +128,15 @@ pub(super) fn drawable_runs(s: &Series, log_x: bool) -> Vec<(Vec<f64>, Vec<f64>)
         } else {
             s.x[i]
         };
-        let y = s.y[i];
+        let y = if log_y {
+            if s.y[i] > 0.0 {
+                s.y[i].log10()
+            } else {
+                f64::NAN
+            }
+        } else {
+            s.y[i]
+        };
         if x.is_finite() && y.is_finite() {
             cx.push(x);
             cy.push(y);
@@ -232,10 +240,11 @@ pub(super) fn plot_buckets(fig_width: u32) -> usize {
 
 pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedChart, PlotError> {
     let log_x = chart.log_x;
+    let log_y = chart.log_y;
     let runs: Vec<Vec<(Vec<f64>, Vec<f64>)>> = chart
         .series
         .iter()
-        .map(|s| drawable_runs(s, log_x))
+        .map(|s| drawable_runs(s, log_x, log_y))
         .collect();
 
     // Data extents in drawing coordinates.
@@ -252,7 +261,7 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
         }
     }
     let has_data = xmin <= xmax;
-    for b in &chart.bands {
+    for b in chart.bands.iter().filter(|_| !log_y) {
         for v in [b.lo, b.hi] {
             if v.is_finite() && !(b.lo.is_nan() || b.hi.is_nan()) {
                 ymin = ymin.min(v);
@@ -266,15 +275,19 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
         None => auto_range(xmin, xmax, log_x),
     };
     let (y0, y1) = match chart.y_range {
-        Some(r) => explicit_range(r, false, "y")?,
-        None => auto_range(ymin, ymax, false),
+        Some(r) => explicit_range(r, log_y, "y")?,
+        None => auto_range(ymin, ymax, log_y),
     };
     let x_axis = if log_x {
         Axis::log10(x0, x1)
     } else {
         Axis::linear(x0, x1, 8)
     };
-    let y_axis = Axis::linear(y0, y1, 6);
+    let y_axis = if log_y {
+        Axis::log10(y0, y1)
+    } else {
+        Axis::linear(y0, y1, 6)
+    };
     let bounds = Bounds { x0, x1, y0, y1 };
 
     let mut series = Vec::with_capacity(chart.series.len());
@@ -330,7 +343,7 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
     }
 
     let mut bands = Vec::new();
-    for b in &chart.bands {
+    for b in chart.bands.iter().filter(|_| !log_y) {
         if b.lo.is_nan() || b.hi.is_nan() {
             continue;
         }

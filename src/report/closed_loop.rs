@@ -17,7 +17,7 @@ use crate::scenario::Scenario;
 /// Header of `timeseries.csv` (units in the names); the command and feedforward columns
 /// are `motor_command_a`, `feedforward_a` with a current amplifier and `motor_command_v`,
 /// `feedforward_v` with a voltage one.
-pub const TIMESERIES_HEADER: [&str; 14] = [
+pub const TIMESERIES_HEADER: [&str; 16] = [
     "mode",
     "t_s",
     "reference_rad",
@@ -32,6 +32,8 @@ pub const TIMESERIES_HEADER: [&str; 14] = [
     "load_torque_nm",
     "feedforward_a",
     "motor_reference_rad",
+    "base_angle_rad",
+    "gyro_rad_s",
 ];
 
 #[derive(Serialize)]
@@ -47,6 +49,8 @@ struct ModeSummary<'a> {
     completion: &'a Completion,
     simulated_s: f64,
     limit_cycle: &'a crate::metrics::limit_cycle::LimitCycle,
+    /// Line-of-sight statistics (RMS, peak, jitter per exposure).
+    los: Option<&'a crate::metrics::los::LosMetrics>,
 }
 
 #[derive(Serialize)]
@@ -85,6 +89,7 @@ fn mode_summary(m: &ModeResult) -> ModeSummary<'_> {
         completion: &m.completion,
         simulated_s: m.simulated_s,
         limit_cycle: &m.limit_cycle,
+        los: m.los.as_ref(),
     }
 }
 
@@ -129,6 +134,8 @@ pub fn write_closed_loop_outputs(
                     s.load_torque_nm[i],
                     s.feedforward[i],
                     s.motor_reference_rad[i],
+                    s.base_angle_rad[i],
+                    s.gyro_rad_s[i],
                 ];
                 // One buffer for every field: formatting, not allocation, is the cost.
                 w.write_field(m.mode.name()).map_err(csv_err)?;
@@ -178,6 +185,32 @@ pub fn write_closed_loop_outputs(
         solver: total,
         scenario,
     };
+    if result.modes.iter().any(|m| m.spectrum.is_some()) {
+        let path = dir.join("error_psd.csv");
+        let csv_err = |e| ReportError::csv(&path, e);
+        let mut w = csv::Writer::from_path(&path).map_err(csv_err)?;
+        w.write_record([
+            "mode",
+            "frequency_hz",
+            "psd_mrad2_per_hz",
+            "cumulative_rms_mrad",
+        ])
+        .map_err(csv_err)?;
+        for m in &result.modes {
+            let Some(sp) = &m.spectrum else { continue };
+            for i in 0..sp.frequency_hz.len() {
+                w.write_record([
+                    m.mode.name().to_string(),
+                    format!("{:.6e}", sp.frequency_hz[i]),
+                    format!("{:.6e}", sp.psd_mrad2_per_hz[i]),
+                    format!("{:.6e}", sp.cumulative_rms_mrad[i]),
+                ])
+                .map_err(csv_err)?;
+            }
+        }
+        w.flush().map_err(|e| ReportError::io(&path, e))?;
+        written.push(path);
+    }
     let path = dir.join("summary.json");
     let value = serde_json::to_value(&summary).map_err(|e| ReportError::Encode {
         path: path.clone(),
@@ -191,9 +224,16 @@ pub fn write_closed_loop_outputs(
 /// Fixed-width table: mode, RMS, peak, p95 (mrad), whether it passes, and completion; for
 /// a reference with steps, a second table of the step figures that decide the pass.
 pub fn format_table(result: &ClosedLoopResult) -> String {
+    let exposure_ms = result
+        .modes
+        .iter()
+        .find_map(|m| m.los.as_ref().map(|l| l.exposure_s * 1e3));
+    let jitter_head = exposure_ms.map_or("jitter_mrad".to_string(), |e| {
+        format!("jitter{e:.0}ms_mrad")
+    });
     let mut out = format!(
-        "{:<12} {:>10} {:>10} {:>10} {:>8}  {}\n",
-        "mode", "rms_mrad", "peak_mrad", "p95_mrad", "passes", "status"
+        "{:<12} {:>10} {:>10} {:>10} {:>16} {:>8}  {}\n",
+        "mode", "rms_mrad", "peak_mrad", "p95_mrad", jitter_head, "passes", "status"
     );
     for m in &result.modes {
         let status = match &m.completion {
@@ -205,12 +245,18 @@ pub fn format_table(result: &ClosedLoopResult) -> String {
             (Completion::Complete, n) if n > 0 => format!("{v:.5}"),
             _ => "-".to_string(),
         };
+        let jitter = m
+            .los
+            .as_ref()
+            .and_then(|l| l.jitter_rms_max_mrad)
+            .map_or("-".to_string(), figure);
         out.push_str(&format!(
-            "{:<12} {:>10} {:>10} {:>10} {:>8}  {}\n",
+            "{:<12} {:>10} {:>10} {:>10} {:>16} {:>8}  {}\n",
             m.mode.name(),
             figure(m.metrics.rms_mrad),
             figure(m.metrics.peak_mrad),
             figure(m.metrics.p95_mrad),
+            jitter,
             if m.metrics.passes_target && matches!(m.completion, Completion::Complete) {
                 "yes"
             } else {
@@ -252,15 +298,16 @@ fn format_step_table(result: &ClosedLoopResult) -> String {
         None => none.to_string(),
     };
     let mut out = format!(
-        "steps (worst over the steps; passes = every step settles and its error after settling is within {} mrad)\n",
+        "steps (worst over the steps; stares = stare windows that pass: the step settled and its error after settling stayed within {0} mrad; passes = every stare passes)\n",
         result
             .modes
             .first()
             .map_or(0.0, |m| m.metrics.target_mrad)
     );
     out.push_str(&format!(
-        "{:<12} {:>8} {:>12} {:>10} {:>16} {:>15} {:>14} {:>11} {:>8}\n",
+        "{:<12} {:>8} {:>8} {:>12} {:>10} {:>16} {:>15} {:>14} {:>11} {:>8}\n",
         "mode",
+        "stares",
         "settled",
         "overshoot_%",
         "rise_ms",
@@ -274,9 +321,11 @@ fn format_step_table(result: &ClosedLoopResult) -> String {
         let Some(s) = &m.metrics.step_summary else {
             continue;
         };
+        let stares = m.metrics.steps.iter().filter(|st| st.passes_target).count();
         out.push_str(&format!(
-            "{:<12} {:>8} {:>12.1} {:>10} {:>16} {:>15} {:>14} {:>11.3} {:>8}\n",
+            "{:<12} {:>8} {:>8} {:>12.1} {:>10} {:>16} {:>15} {:>14} {:>11.3} {:>8}\n",
             m.mode.name(),
+            format!("{stares}/{}", s.judged),
             format!("{}/{}", s.settled, s.judged),
             s.max_overshoot_percent,
             opt(s.max_rise_time_s, 1e3, "not reached"),
@@ -428,7 +477,7 @@ pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(S
                 .in_slot(mode_slot(*mode))
         })
         .collect();
-    vec![
+    let mut figures = vec![
         ("pointing_error".into(), pointing),
         (
             "error_vs_angle".into(),
@@ -472,7 +521,81 @@ pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(S
                 Vec::new(),
             )),
         ),
-    ]
+    ];
+    if let Some(f) = spectrum_figure(result, target_mrad) {
+        figures.push(("error_psd".into(), f));
+    }
+    figures
+}
+
+/// The target as a grey line across the spectra's frequency span (a log axis
+/// cannot shade a band down to zero).
+pub fn target_line(spectra: &[&crate::metrics::los::ErrorSpectrum], target_mrad: f64) -> Series {
+    let top = spectra
+        .iter()
+        .filter_map(|s| s.frequency_hz.last().copied())
+        .fold(0.0, f64::max);
+    let bottom = spectra
+        .iter()
+        .filter_map(|s| s.frequency_hz.get(1).copied())
+        .fold(f64::INFINITY, f64::min);
+    Series::line(
+        format!("target {target_mrad} mrad"),
+        vec![bottom, top],
+        vec![target_mrad, target_mrad],
+    )
+    .in_slot(7)
+}
+
+/// Welch PSD of the line-of-sight error (log-log) over cumulative RMS against frequency:
+/// which frequencies the error lives at, and how much of the target each band uses.
+fn spectrum_figure(result: &ClosedLoopResult, target_mrad: f64) -> Option<Figure> {
+    let spectra: Vec<(CompensationMode, &crate::metrics::los::ErrorSpectrum)> = result
+        .modes
+        .iter()
+        .filter_map(|m| m.spectrum.as_ref().map(|s| (m.mode, s)))
+        .collect();
+    if spectra.is_empty() {
+        return None;
+    }
+    let series = |f: &dyn Fn(&crate::metrics::los::ErrorSpectrum) -> Vec<f64>| -> Vec<Series> {
+        spectra
+            .iter()
+            .map(|(m, s)| {
+                Series::line(m.name(), s.frequency_hz.clone(), f(s)).in_slot(mode_slot(*m))
+            })
+            .collect()
+    };
+    Some(Figure::Panels {
+        title: "Line-of-sight error spectrum (metrics window)".into(),
+        charts: vec![
+            Chart {
+                title: "power spectral density (Welch, Hann, 50 % overlap)".into(),
+                x_label: "frequency [Hz]".into(),
+                y_label: "PSD [mrad^2/Hz]".into(),
+                series: series(&|s| s.psd_mrad2_per_hz.clone()),
+                log_x: true,
+                log_y: true,
+                ..Chart::default()
+            },
+            Chart {
+                title: "cumulative RMS from 0 Hz".into(),
+                x_label: "frequency [Hz]".into(),
+                y_label: "RMS up to f [mrad]".into(),
+                series: {
+                    let mut v = series(&|s| s.cumulative_rms_mrad.clone());
+                    v.push(target_line(
+                        &spectra.iter().map(|x| x.1).collect::<Vec<_>>(),
+                        target_mrad,
+                    ));
+                    v
+                },
+                log_x: true,
+                log_y: true,
+                ..Chart::default()
+            },
+        ],
+    })
 }
 
 /// Picks the `(x, y)` columns of a chart from a series.
@@ -498,4 +621,99 @@ pub fn plot_closed_loop(
         files.extend(d?);
     }
     Ok(files)
+}
+
+/// Write `error_budget.csv`: one row per mode and effect (the last row of a mode is the
+/// rest with every listed effect off), with the total and the RSS repeated on each row so
+/// a spreadsheet can group by mode.
+pub fn write_budget(
+    dir: &Path,
+    budget: &crate::closed_loop::budget::ErrorBudget,
+) -> Result<PathBuf, ReportError> {
+    let path = dir.join("error_budget.csv");
+    let csv_err = |e| ReportError::csv(&path, e);
+    let mut w = csv::Writer::from_path(&path).map_err(csv_err)?;
+    w.write_record([
+        "mode",
+        "effect",
+        "rms_without_mrad",
+        "contribution_mrad",
+        "share_of_total_percent",
+        "total_mrad",
+        "rss_mrad",
+        "status",
+    ])
+    .map_err(csv_err)?;
+    let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6e}"));
+    for m in &budget.modes {
+        for l in &m.lines {
+            let share = m
+                .total_mrad
+                .zip(l.contribution_mrad)
+                .filter(|(t, _)| *t > 0.0)
+                .map(|(t, c)| 100.0 * c * c / (t * t));
+            w.write_record([
+                m.mode.name().to_string(),
+                l.effect.map_or("rest", |e| e.name()).to_string(),
+                opt(l.rms_without_mrad),
+                opt(l.contribution_mrad),
+                share.map_or(String::new(), |s| format!("{s:.2}")),
+                opt(m.total_mrad),
+                opt(m.rss_mrad),
+                l.status.clone(),
+            ])
+            .map_err(csv_err)?;
+        }
+    }
+    w.flush().map_err(|e| ReportError::io(&path, e))?;
+    Ok(path)
+}
+
+/// The budget as a console table: per mode, each effect's contribution and share of the
+/// mean square, the rest, the RSS against the total.
+pub fn format_budget(budget: &crate::closed_loop::budget::ErrorBudget) -> String {
+    let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.5}"));
+    let mut out = String::from(
+        "error budget (RMS line-of-sight error; contribution = sqrt(total^2 - without^2))\n",
+    );
+    for m in &budget.modes {
+        out.push_str(&format!(
+            "{:<12} {:<16} {:>16} {:>18} {:>8}\n",
+            m.mode.name(),
+            "effect off",
+            "rms_without_mrad",
+            "contribution_mrad",
+            "share_%"
+        ));
+        for l in &m.lines {
+            let share = m
+                .total_mrad
+                .zip(l.contribution_mrad)
+                .filter(|(t, _)| *t > 0.0)
+                .map_or("-".to_string(), |(t, c)| {
+                    format!("{:.1}", 100.0 * c * c / (t * t))
+                });
+            out.push_str(&format!(
+                "{:<12} {:<16} {:>16} {:>18} {:>8}{}\n",
+                "",
+                l.effect.map_or("rest (all off)", |e| e.name()),
+                f(l.rms_without_mrad),
+                f(l.contribution_mrad),
+                share,
+                if l.status == "ok" {
+                    String::new()
+                } else {
+                    format!("  {}", l.status)
+                }
+            ));
+        }
+        out.push_str(&format!(
+            "{:<12} {:<16} total {} mrad, RSS of the lines {} mrad\n",
+            "",
+            "",
+            f(m.total_mrad),
+            f(m.rss_mrad)
+        ));
+    }
+    out
 }

@@ -3,6 +3,7 @@
 //! (their failures are reported as warnings).
 
 pub mod closed_loop;
+pub mod compare;
 pub mod diagnosis;
 pub mod freqresp;
 pub mod quasi_static;

@@ -16,6 +16,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ),
     ("eots_scan", include_str!("../../scenarios/eots_scan.toml")),
     (
+        "gimbal_stabilized",
+        include_str!("../../scenarios/gimbal_stabilized.toml"),
+    ),
+    (
         "step_stare",
         include_str!("../../scenarios/step_stare.toml"),
     ),

@@ -241,7 +241,11 @@ impl Scenario {
     pub fn signals_mut(&mut self) -> Vec<&mut Signal> {
         self.closed_loop
             .as_mut()
-            .map(|c| vec![&mut c.reference])
+            .map(|c| {
+                let mut v = vec![&mut c.reference];
+                v.extend(c.base_motion.as_mut());
+                v
+            })
             .unwrap_or_default()
     }
 

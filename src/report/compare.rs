@@ -1,0 +1,351 @@
+//! Files of a design comparison: `compare.csv` (one row per design), `summary.json`, each
+//! design's own run files under `designs/<name>/`, and overlay figures with one fixed
+//! colour per design (its position on the command line).
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use crate::closed_loop::linear::Margins;
+use crate::closed_loop::{CompensationMode, Completion, ModeResult};
+use crate::plot::{save_panels, Chart, HBand, PlotError, Series};
+use crate::report::ReportError;
+use crate::scenario::Scenario;
+
+/// One design's outcome.
+#[derive(Clone, Debug)]
+pub struct DesignOutcome {
+    /// Name (scenario name, or the name given with its overrides).
+    pub name: String,
+    /// What it is: the scenario file or the overrides applied.
+    pub description: String,
+    /// The resolved scenario.
+    pub scenario: Scenario,
+    /// The mode compared.
+    pub mode: CompensationMode,
+    /// Its result.
+    pub result: ModeResult,
+    /// Margins of its exact linear reference.
+    pub margins: Margins,
+    /// Pointing target, mrad.
+    pub target_mrad: f64,
+}
+
+impl DesignOutcome {
+    /// Ran to the end and met the pointing target.
+    pub fn passes(&self) -> bool {
+        self.result.completion == Completion::Complete && self.result.metrics.passes_target
+    }
+
+    /// Whether its margins are ones an engineer signs (PM >= 35 deg, GM >= 6 dB, stable).
+    pub fn margins_signable(&self) -> bool {
+        crate::closed_loop::linear::margins_signable(&self.margins).is_ok()
+    }
+}
+
+#[derive(Serialize)]
+struct DesignSummary<'a> {
+    name: &'a str,
+    description: &'a str,
+    mode: &'static str,
+    passes_target: bool,
+    margins_signable: bool,
+    rms_mrad: Option<f64>,
+    peak_mrad: Option<f64>,
+    los: Option<&'a crate::metrics::los::LosMetrics>,
+    margins: &'a Margins,
+    completion: &'a Completion,
+    scenario: &'a Scenario,
+}
+
+fn finished(d: &DesignOutcome) -> bool {
+    d.result.completion == Completion::Complete && d.result.metrics.samples > 0
+}
+
+/// Write `compare.csv`, `summary.json` and each design's run files.
+pub fn write_compare(dir: &Path, designs: &[DesignOutcome]) -> Result<Vec<PathBuf>, ReportError> {
+    let mut written = Vec::new();
+    let path = dir.join("compare.csv");
+    let csv_err = |e| ReportError::csv(&path, e);
+    let mut w = crate::report::csv_writer(&path)?;
+    w.write_record([
+        "design",
+        "mode",
+        "status",
+        "passes_target",
+        "rms_mrad",
+        "peak_mrad",
+        "jitter_max_mrad",
+        "jitter_p95_mrad",
+        "exposure_s",
+        "phase_margin_deg",
+        "gain_margin_db",
+        "ms",
+        "crossover_hz",
+        "margins_signable",
+        "description",
+    ])
+    .map_err(csv_err)?;
+    let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6e}"));
+    for d in designs {
+        let ok = finished(d);
+        let los = d.result.los.as_ref().filter(|_| ok);
+        w.write_record([
+            d.name.clone(),
+            d.mode.name().to_string(),
+            d.result.completion.status().to_string(),
+            d.passes().to_string(),
+            opt(ok.then_some(d.result.metrics.rms_mrad)),
+            opt(ok.then_some(d.result.metrics.peak_mrad)),
+            opt(los.and_then(|l| l.jitter_rms_max_mrad)),
+            opt(los.and_then(|l| l.jitter_rms_p95_mrad)),
+            opt(los.map(|l| l.exposure_s)),
+            opt(d.margins.phase_margin_deg),
+            opt(d.margins.gain_margin_db),
+            opt(Some(d.margins.ms)),
+            opt(d.margins.crossover_hz),
+            d.margins_signable().to_string(),
+            d.description.clone(),
+        ])
+        .map_err(csv_err)?;
+    }
+    w.flush().map_err(|e| ReportError::io(&path, e))?;
+    written.push(path);
+    let summaries: Vec<DesignSummary> = designs
+        .iter()
+        .map(|d| DesignSummary {
+            name: &d.name,
+            description: &d.description,
+            mode: d.mode.name(),
+            passes_target: d.passes(),
+            margins_signable: d.margins_signable(),
+            rms_mrad: finished(d).then_some(d.result.metrics.rms_mrad),
+            peak_mrad: finished(d).then_some(d.result.metrics.peak_mrad),
+            los: d.result.los.as_ref().filter(|_| finished(d)),
+            margins: &d.margins,
+            completion: &d.result.completion,
+            scenario: &d.scenario,
+        })
+        .collect();
+    let path = dir.join("summary.json");
+    let value = serde_json::json!({
+        "program_version": env!("CARGO_PKG_VERSION"),
+        "complete": designs.iter().all(|d| d.result.completion == Completion::Complete),
+        "all_pass": designs.iter().all(DesignOutcome::passes),
+        "designs": summaries,
+    });
+    crate::report::write_json(&path, &value)?;
+    written.push(path);
+    for d in designs {
+        let sub = dir.join("designs").join(&d.name);
+        let result = crate::closed_loop::ClosedLoopResult {
+            modes: vec![d.result.clone()],
+            duration_s: d
+                .scenario
+                .closed_loop
+                .as_ref()
+                .map_or(0.0, |c| c.duration_s),
+            complete: d.result.completion == Completion::Complete,
+        };
+        written.extend(crate::report::closed_loop::write_closed_loop_outputs(
+            &sub,
+            &d.scenario,
+            &result,
+        )?);
+    }
+    Ok(written)
+}
+
+/// The comparison table for the terminal.
+pub fn format_compare(designs: &[DesignOutcome]) -> String {
+    let f = |v: Option<f64>, p: usize| v.map_or("-".to_string(), |v| format!("{v:.p$}"));
+    let width = designs
+        .iter()
+        .map(|d| d.name.len())
+        .max()
+        .unwrap_or(6)
+        .max(6);
+    let mut out = format!(
+        "{:<width$} {:<10} {:>9} {:>9} {:>11} {:>7} {:>6} {:>5} {:>7} {:>9}  {}\n",
+        "design",
+        "mode",
+        "rms_mrad",
+        "peak_mrad",
+        "jitter_mrad",
+        "PM_deg",
+        "GM_dB",
+        "Ms",
+        "passes",
+        "signable",
+        "status"
+    );
+    for d in designs {
+        let ok = finished(d);
+        let mut status = match &d.result.completion {
+            Completion::Complete => "complete".to_string(),
+            Completion::Incomplete { fault, .. } => format!("INCOMPLETE: {fault}"),
+        };
+        if !d.margins.stable {
+            status.push_str(&format!(
+                "; linear reference UNSTABLE (|z| = {:.4})",
+                d.margins.spectral_radius
+            ));
+        }
+        if let crate::metrics::limit_cycle::LimitCycle::Detected {
+            amplitude_mrad,
+            frequency_hz,
+            ..
+        } = d.result.limit_cycle
+        {
+            status.push_str(&format!(
+                "; LIMIT CYCLE {amplitude_mrad:.3} mrad at {frequency_hz:.1} Hz"
+            ));
+        }
+        out.push_str(&format!(
+            "{:<width$} {:<10} {:>9} {:>9} {:>11} {:>7} {:>6} {:>5} {:>7} {:>9}  {}\n",
+            d.name,
+            d.mode.name(),
+            f(ok.then_some(d.result.metrics.rms_mrad), 4),
+            f(ok.then_some(d.result.metrics.peak_mrad), 4),
+            f(
+                d.result
+                    .los
+                    .as_ref()
+                    .filter(|_| ok)
+                    .and_then(|l| l.jitter_rms_max_mrad),
+                4
+            ),
+            f(d.margins.phase_margin_deg, 1),
+            f(d.margins.gain_margin_db, 1),
+            f(Some(d.margins.ms), 2),
+            if d.passes() { "yes" } else { "no" },
+            if d.margins_signable() { "yes" } else { "no" },
+            status
+        ));
+    }
+    out
+}
+
+/// Overlay figures: line-of-sight error against time (whole run, and the metrics window
+/// on an axis fitted to the designs), and the error's PSD over its cumulative RMS. Design
+/// `i` takes palette slot `i` in every figure.
+pub fn plot_compare(dir: &Path, designs: &[DesignOutcome]) -> Result<Vec<PathBuf>, PlotError> {
+    let target = designs.first().map_or(0.1, |d| d.target_mrad);
+    let band = || {
+        vec![HBand {
+            lo: -target,
+            hi: target,
+            label: format!("target +-{target} mrad"),
+        }]
+    };
+    let error: Vec<Series> = designs
+        .iter()
+        .enumerate()
+        .filter_map(|(i, d)| {
+            let s = d.result.series.as_ref()?;
+            Some(Series::line(&d.name, s.t_s.clone(), s.pointing_error_mrad.clone()).in_slot(i))
+        })
+        .collect();
+    let mut files = Vec::new();
+    if !error.is_empty() {
+        let window = designs
+            .iter()
+            .find(|d| d.result.metrics.samples > 0)
+            .map(|d| (d.result.metrics.window_s[0], d.result.metrics.window_s[1]));
+        // The second panel is scaled to the designs that pass, so they can be told apart
+        // (to every design when none passes).
+        let any_pass = designs.iter().any(DesignOutcome::passes);
+        let largest = designs
+            .iter()
+            .filter(|d| !any_pass || d.passes())
+            .filter_map(|d| {
+                let s = d.result.series.as_ref()?;
+                let (a, b) = window?;
+                Some(
+                    s.t_s
+                        .iter()
+                        .zip(&s.pointing_error_mrad)
+                        .filter(|(t, e)| **t >= a && **t <= b && e.is_finite())
+                        .fold(0.0_f64, |m, (_, e)| m.max(e.abs())),
+                )
+            })
+            .fold(0.0_f64, f64::max);
+        let mut fitted = Chart {
+            title: if any_pass {
+                "metrics window, axis fitted to the designs that pass".into()
+            } else {
+                "metrics window".into()
+            },
+            x_label: "time [s]".into(),
+            y_label: "line-of-sight error [mrad]".into(),
+            series: error.clone(),
+            bands: band(),
+            ..Chart::default()
+        };
+        if let Some((a, b)) = window.filter(|(a, b)| b > a) {
+            let y = (1.1 * largest).max(1.2 * target);
+            fitted.x_range = Some((a, b));
+            fitted.y_range = Some((-y, y));
+        }
+        files.extend(save_panels(
+            "Line-of-sight error by design",
+            &[
+                Chart {
+                    title: "whole run".into(),
+                    x_label: "time [s]".into(),
+                    y_label: "line-of-sight error [mrad]".into(),
+                    series: error,
+                    bands: band(),
+                    ..Chart::default()
+                },
+                fitted,
+            ],
+            &dir.join("compare_error"),
+        )?);
+    }
+    let spectra: Vec<(usize, &DesignOutcome, &crate::metrics::los::ErrorSpectrum)> = designs
+        .iter()
+        .enumerate()
+        .filter_map(|(i, d)| d.result.spectrum.as_ref().map(|s| (i, d, s)))
+        .collect();
+    if !spectra.is_empty() {
+        let series = |f: &dyn Fn(&crate::metrics::los::ErrorSpectrum) -> Vec<f64>| {
+            spectra
+                .iter()
+                .map(|(i, d, s)| Series::line(&d.name, s.frequency_hz.clone(), f(s)).in_slot(*i))
+                .collect::<Vec<_>>()
+        };
+        files.extend(save_panels(
+            "Line-of-sight error spectrum by design (metrics window)",
+            &[
+                Chart {
+                    title: "power spectral density (Welch, Hann, 50 % overlap)".into(),
+                    x_label: "frequency [Hz]".into(),
+                    y_label: "PSD [mrad^2/Hz]".into(),
+                    series: series(&|s| s.psd_mrad2_per_hz.clone()),
+                    log_x: true,
+                    log_y: true,
+                    ..Chart::default()
+                },
+                Chart {
+                    title: "cumulative RMS from 0 Hz".into(),
+                    x_label: "frequency [Hz]".into(),
+                    y_label: "RMS up to f [mrad]".into(),
+                    series: {
+                        let mut v = series(&|s| s.cumulative_rms_mrad.clone());
+                        v.push(crate::report::closed_loop::target_line(
+                            &spectra.iter().map(|x| x.2).collect::<Vec<_>>(),
+                            target,
+                        ));
+                        v
+                    },
+                    log_x: true,
+                    log_y: true,
+                    ..Chart::default()
+                },
+            ],
+            &dir.join("compare_psd"),
+        )?);
+    }
+    Ok(files)
+}
