@@ -58,7 +58,7 @@ Scenario files are TOML; every command accepts repeated --set KEY=VALUE override
 validated like the file (e.g. --set drive.preload_n=70 --set drive.routing=open).\n\
 Built-in scenarios (usable by name from any directory): eots_tracking (the default), eots_scan, \
 eots_mismatch, eots_runout, step_stare, eots_tolerance, paper_bench, paper_tension, memory_vs_memoryless, \
-paper_fig11, gimbal_ident, davinci_tool4; `cable-servo show NAME` prints one.\n\n\
+paper_fig11, gimbal_ident, davinci_tool4, gimbal_stabilized; `cable-servo show NAME` prints one.\n\n\
 Exit codes: 0 success, 2 usage error, 3 input error, 4 physical failure (results kept, marked \
 incomplete), 5 output error (existing results without --force), 130/143 interrupted by \
 SIGINT/SIGTERM."
@@ -313,7 +313,7 @@ enum Command {
         /// Closed-loop scenario file or built-in name (default: eots_tracking).
         scenario: Option<String>,
         /// Loop point: plant_input (L), output_disturbance (S), input_disturbance (PS),
-        /// reference (T_r).
+        /// reference (T_r), base_motion (line of sight over base angle).
         #[arg(long)]
         point: Option<String>,
         /// Injection amplitudes, comma-separated: A (or V) at the plant input, output mrad

@@ -36,6 +36,8 @@ fn a_mode_keeps_its_colour_in_every_figure() {
                 "none" => 0,
                 "memoryless" => 1,
                 "memory" => 2,
+                // The target drawn as a line on a log axis: grey, outside the modes' slots.
+                "target 0.1 mrad" => 7,
                 other => panic!("{stem}: unexpected series {other}"),
             };
             assert_eq!(slot, Some(want), "{stem}: {label}");

@@ -167,8 +167,9 @@ pub fn los_metrics(e_mrad: &[f64], fs_hz: f64, p: &LosParams) -> LosMetrics {
     }
 }
 
-/// In-place radix-2 FFT of `(re, im)` (length a power of two).
-fn fft(re: &mut [f64], im: &mut [f64]) {
+/// In-place radix-2 FFT of `(re, im)` (length a power of two) with the twiddle factors
+/// `(cos, sin)` of `-2 pi k / n`, `k < n/2`, computed once per segment length.
+fn fft(re: &mut [f64], im: &mut [f64], twiddle: &[(f64, f64)]) {
     let n = re.len();
     let mut j = 0;
     for i in 1..n {
@@ -185,10 +186,10 @@ fn fft(re: &mut [f64], im: &mut [f64]) {
     }
     let mut len = 2;
     while len <= n {
-        let ang = -std::f64::consts::TAU / len as f64;
+        let stride = n / len;
         for start in (0..n).step_by(len) {
             for k in 0..len / 2 {
-                let (s, c) = (ang * k as f64).sin_cos();
+                let (c, s) = twiddle[k * stride];
                 let (a, b) = (start + k, start + k + len / 2);
                 let tr = re[b] * c - im[b] * s;
                 let ti = re[b] * s + im[b] * c;
@@ -226,13 +227,19 @@ pub fn error_spectrum(e_mrad: &[f64], fs_hz: f64, segment_s: f64) -> Option<Erro
     let mut acc = vec![0.0; bins];
     let mut segments = 0usize;
     let (mut re, mut im) = (vec![0.0; m], vec![0.0; m]);
+    let twiddle: Vec<(f64, f64)> = (0..m / 2)
+        .map(|k| {
+            let (s, c) = (-std::f64::consts::TAU * k as f64 / m as f64).sin_cos();
+            (c, s)
+        })
+        .collect();
     let mut start = 0;
     while start + m <= e.len() {
         for i in 0..m {
             re[i] = e[start + i] * w[i];
             im[i] = 0.0;
         }
-        fft(&mut re, &mut im);
+        fft(&mut re, &mut im, &twiddle);
         for (k, a) in acc.iter_mut().enumerate() {
             *a += re[k] * re[k] + im[k] * im[k];
         }

@@ -185,7 +185,11 @@ pub fn write_closed_loop_outputs(
         solver: total,
         scenario,
     };
-    if result.modes.iter().any(|m| m.spectrum.is_some()) {
+    if result
+        .modes
+        .iter()
+        .any(|m| m.spectrum.is_some() && m.completion == Completion::Complete)
+    {
         let path = dir.join("error_psd.csv");
         let csv_err = |e| ReportError::csv(&path, e);
         let mut w = csv::Writer::from_path(&path).map_err(csv_err)?;
@@ -196,7 +200,11 @@ pub fn write_closed_loop_outputs(
             "cumulative_rms_mrad",
         ])
         .map_err(csv_err)?;
-        for m in &result.modes {
+        for m in result
+            .modes
+            .iter()
+            .filter(|m| m.completion == Completion::Complete)
+        {
             let Some(sp) = &m.spectrum else { continue };
             for i in 0..sp.frequency_hz.len() {
                 w.write_record([
@@ -553,6 +561,8 @@ fn spectrum_figure(result: &ClosedLoopResult, target_mrad: f64) -> Option<Figure
     let spectra: Vec<(CompensationMode, &crate::metrics::los::ErrorSpectrum)> = result
         .modes
         .iter()
+        // A mode that stopped has no spectrum of its own to show.
+        .filter(|m| m.completion == Completion::Complete)
         .filter_map(|m| m.spectrum.as_ref().map(|s| (m.mode, s)))
         .collect();
     if spectra.is_empty() {

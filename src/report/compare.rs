@@ -181,25 +181,30 @@ pub fn format_compare(designs: &[DesignOutcome]) -> String {
     );
     for d in designs {
         let ok = finished(d);
+        // The whole stop message is printed as a warning; the row names it.
         let mut status = match &d.result.completion {
             Completion::Complete => "complete".to_string(),
-            Completion::Incomplete { fault, .. } => format!("INCOMPLETE: {fault}"),
+            Completion::Incomplete { kind, time_s, .. } => {
+                format!("STOPPED: {} at t = {time_s:.3} s", kind.name())
+            }
         };
-        if !d.margins.stable {
-            status.push_str(&format!(
-                "; linear reference UNSTABLE (|z| = {:.4})",
-                d.margins.spectral_radius
-            ));
-        }
-        if let crate::metrics::limit_cycle::LimitCycle::Detected {
-            amplitude_mrad,
-            frequency_hz,
-            ..
-        } = d.result.limit_cycle
-        {
-            status.push_str(&format!(
-                "; LIMIT CYCLE {amplitude_mrad:.3} mrad at {frequency_hz:.1} Hz"
-            ));
+        if d.result.completion == Completion::Complete {
+            if !d.margins.stable {
+                status.push_str(&format!(
+                    "; linear reference UNSTABLE (|z| = {:.4})",
+                    d.margins.spectral_radius
+                ));
+            }
+            if let crate::metrics::limit_cycle::LimitCycle::Detected {
+                amplitude_mrad,
+                frequency_hz,
+                ..
+            } = d.result.limit_cycle
+            {
+                status.push_str(&format!(
+                    "; LIMIT CYCLE {amplitude_mrad:.3} mrad at {frequency_hz:.1} Hz"
+                ));
+            }
         }
         out.push_str(&format!(
             "{:<width$} {:<10} {:>9} {:>9} {:>11} {:>7} {:>6} {:>5} {:>7} {:>9}  {}\n",
@@ -270,15 +275,25 @@ pub fn plot_compare(dir: &Path, designs: &[DesignOutcome]) -> Result<Vec<PathBuf
                 )
             })
             .fold(0.0_f64, f64::max);
+        // Only the designs that pass there, each in its own colour still.
+        let passing: Vec<Series> = designs
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| !any_pass || d.passes())
+            .filter_map(|(i, d)| {
+                let s = d.result.series.as_ref()?;
+                Some(Series::line(&d.name, s.t_s.clone(), s.pointing_error_mrad.clone()).in_slot(i))
+            })
+            .collect();
         let mut fitted = Chart {
             title: if any_pass {
-                "metrics window, axis fitted to the designs that pass".into()
+                "metrics window, the designs that pass".into()
             } else {
                 "metrics window".into()
             },
             x_label: "time [s]".into(),
             y_label: "line-of-sight error [mrad]".into(),
-            series: error.clone(),
+            series: passing,
             bands: band(),
             ..Chart::default()
         };
@@ -306,6 +321,8 @@ pub fn plot_compare(dir: &Path, designs: &[DesignOutcome]) -> Result<Vec<PathBuf
     let spectra: Vec<(usize, &DesignOutcome, &crate::metrics::los::ErrorSpectrum)> = designs
         .iter()
         .enumerate()
+        // A design that stopped has no spectrum of its own to show.
+        .filter(|(_, d)| d.result.completion == Completion::Complete)
         .filter_map(|(i, d)| d.result.spectrum.as_ref().map(|s| (i, d, s)))
         .collect();
     if !spectra.is_empty() {

@@ -210,9 +210,9 @@ pub fn plot(dir: &Path, r: &FreqResponse, lin: &LinearLoop) -> Result<Vec<PathBu
         unwrapped(exact.iter().map(|c| c.arg().to_degrees())),
     ));
     let title = format!(
-        "Frequency response at the {} ({}), measured by injection at {} amplitude(s)",
-        r.point.name(),
+        "{} at {}, {} amplitude(s) simulated",
         r.transfer,
+        r.point.name(),
         r.amplitudes.len()
     );
     written.extend(save_panels(&title, &[mag, phase], &dir.join("bode"))?);
