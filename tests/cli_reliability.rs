@@ -422,3 +422,66 @@ fn absurd_thread_counts_are_lowered_with_a_note() {
     );
     assert!(tmp.path().join("s/sweep.csv").is_file());
 }
+
+/// A run too large to hold in memory is refused before it starts, with the estimate and
+/// the setting that lowers it, and leaves nothing behind.
+#[test]
+fn runs_too_large_to_hold_are_refused_with_the_setting_that_lowers_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("long");
+    let o = cable_servo(
+        &[
+            "run",
+            "eots_tracking",
+            "--set",
+            "closed_loop.duration_s=20000",
+            "--out",
+            p(&out),
+        ],
+        dir.path(),
+    );
+    no_panic(&o);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(
+        err.contains("MB in memory") && err.contains("lower closed_loop.timeseries_rate_hz"),
+        "{err}"
+    );
+    assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
+}
+
+/// Gains five times too high: the amplifier's limit would hold the loop in a saturated
+/// oscillation that once ran "complete" at 4 mrad RMS; it now stops, named as unstable,
+/// with the gains to check, and the results are marked incomplete.
+#[test]
+fn a_saturated_unstable_loop_is_stopped_and_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("hot");
+    let o = cable_servo(
+        &[
+            "run",
+            "eots_tracking",
+            "--set",
+            "closed_loop.controller.kp=1500",
+            "--set",
+            "closed_loop.controller.ki=100000",
+            "--set",
+            "closed_loop.controller.kd=12.5",
+            "--set",
+            "closed_loop.duration_s=3",
+            "--out",
+            p(&out),
+        ],
+        dir.path(),
+    );
+    no_panic(&o);
+    let (err, table) = (stderr(&o), stdout(&o));
+    assert_eq!(o.status.code(), Some(4), "{err}");
+    assert!(
+        err.contains("the loop is unstable") && err.contains("amplifier limit"),
+        "{err}"
+    );
+    assert!(err.contains("kp = 1500, ki = 100000, kd = 12.5"), "{err}");
+    assert!(table.contains(" - "), "{table}");
+    assert!(out.join("INCOMPLETE.txt").is_file());
+}

@@ -116,6 +116,62 @@ pub enum ClosedLoopError {
         /// The filter.
         requested: String,
     },
+    /// The run would hold more in memory than a run may.
+    #[error("the run would hold about {estimate_mb:.0} MB in memory ({what}), more than the {limit_mb:.0} MB a run may use: {remedy}")]
+    TooLarge {
+        /// Estimated memory, MB.
+        estimate_mb: f64,
+        /// The limit, MB.
+        limit_mb: f64,
+        /// What takes the memory.
+        what: String,
+        /// Which settings lower it.
+        remedy: String,
+    },
+}
+
+/// Most memory a closed-loop run may plan to hold, MB: the time series and the
+/// line-of-sight error kept for jitter and spectra.
+pub const MAX_RUN_MEMORY_MB: f64 = 2048.0;
+
+/// Columns of a recorded time series (one f64 each per row).
+const SERIES_COLUMNS: usize = 15;
+
+/// Memory a run will hold and the time it will take, estimated before it starts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorkEstimate {
+    /// Control periods per mode.
+    pub periods: u64,
+    /// Modes run.
+    pub modes: usize,
+    /// Rows of time series kept per mode.
+    pub series_rows: u64,
+    /// Memory held, MB (time series plus line-of-sight error).
+    pub memory_mb: f64,
+    /// Computing time on one core at about 0.6 us per period, s (a 20 s, 20 kHz mode
+    /// takes about 0.2 s on the cable with memory).
+    pub cpu_s: f64,
+}
+
+/// The work of `p` with `modes` modes under `options`.
+pub fn estimate_work(p: &ClosedLoopParams, modes: usize, options: &RunOptions) -> WorkEstimate {
+    let periods = p.periods();
+    let rows = if options.record {
+        periods / options.decimation.max(1) as u64 + 1
+    } else {
+        0
+    };
+    let window = ((p.duration_s - p.metrics_start_s).max(0.0) * p.controller.sample_rate_hz)
+        .ceil()
+        .min(MAX_LOS_SAMPLES as f64);
+    let bytes = modes as f64 * (rows as f64 * SERIES_COLUMNS as f64 + window) * 8.0;
+    WorkEstimate {
+        periods,
+        modes,
+        series_rows: rows,
+        memory_mb: bytes / 1e6,
+        cpu_s: modes as f64 * periods as f64 * 0.6e-6 * f64::from(p.rk4_substeps).max(1.0),
+    }
 }
 
 /// How a mode's run ended.
@@ -445,6 +501,26 @@ pub fn run_closed_loop(
             requested: format!("{:?}", options.modes),
         });
     }
+    let work = estimate_work(p, modes.len(), options);
+    if work.memory_mb > MAX_RUN_MEMORY_MB {
+        return Err(ClosedLoopError::TooLarge {
+            estimate_mb: work.memory_mb,
+            limit_mb: MAX_RUN_MEMORY_MB,
+            what: format!(
+                "{} mode(s) x {} rows of time series at closed_loop.timeseries_rate_hz = {} Hz over duration_s = {} s",
+                work.modes,
+                work.series_rows,
+                crate::number(p.timeseries_rate_hz),
+                crate::number(p.duration_s)
+            ),
+            remedy: format!(
+                "lower closed_loop.timeseries_rate_hz (at most about {} Hz fits), shorten duration_s, or list fewer modes",
+                crate::number(
+                    (p.timeseries_rate_hz * MAX_RUN_MEMORY_MB / work.memory_mb * 0.9).floor()
+                )
+            ),
+        });
+    }
     // An unstable loop ends in slack or slip; the linear reference names the cause.
     let instability = super::linear::LinearLoop::new(p, setup.drive).instability();
     // Modes are independent runs: side by side on the cores (results in mode order).
@@ -500,6 +576,36 @@ fn describe(
     )
 }
 
+/// The settings an unstable loop's message asks to check.
+fn gains_to_check(c: &super::params::ControllerParams) -> String {
+    let mut out = format!(
+        "check closed_loop.controller kp = {}, ki = {}, kd = {}, derivative_filter_hz = {} and computation_delay_samples = {}",
+        crate::number(c.kp),
+        crate::number(c.ki),
+        crate::number(c.kd),
+        crate::number(c.derivative_filter_hz),
+        crate::number(c.computation_delay_samples)
+    );
+    if let Some(r) = &c.rate_loop {
+        out.push_str(&format!(
+            ", rate_loop.kp = {}, rate_loop.ki = {}",
+            crate::number(r.kp),
+            crate::number(r.ki)
+        ));
+    }
+    let filters = c.measurement_filters.len()
+        + c.rate_command_filters.len()
+        + c.rate_measurement_filters.len()
+        + c.command_filters.len();
+    if filters > 0 {
+        out.push_str(&format!(
+            " and the {filters} filter(s) (a notch belongs on the drive's resonance)"
+        ));
+    }
+    out.push_str(" (`cable-servo margins` shows the margins)");
+    out
+}
+
 /// A stop, named as the loop's instability when the exact linear reference is unstable.
 fn stop(
     fault: String,
@@ -511,15 +617,11 @@ fn stop(
     match instability {
         Some(i) => Completion::Incomplete {
             fault: format!(
-                "the loop is unstable (on its exact linear reference the largest closed-loop pole has |z| = {:.5}: a mode growing at {:.1} 1/s at {:.1} Hz), so it ended in: {fault}; check closed_loop.controller kp = {}, ki = {}, kd = {}, derivative_filter_hz = {} and computation_delay_samples = {} (`cable-servo margins` shows the margins)",
+                "the loop is unstable (on its exact linear reference the largest closed-loop pole has |z| = {:.5}: a mode growing at {:.1} 1/s at {:.1} Hz), so it ended in: {fault}; {}",
                 i.pole_magnitude,
                 i.growth_per_s,
                 i.frequency_hz,
-                controller.kp,
-                controller.ki,
-                controller.kd,
-                controller.derivative_filter_hz,
-                controller.computation_delay_samples
+                gains_to_check(controller)
             ),
             time_s,
             kind: StopKind::Unstable,
@@ -755,12 +857,13 @@ fn run_mode(
             // working point: what follows is a saturated oscillation, not a result.
             completion = Completion::Incomplete {
                 fault: format!(
-                    "the loop is unstable (on its exact linear reference the largest closed-loop pole has |z| = {:.5}: a mode growing at {:.1} 1/s at {:.1} Hz) and its command reached the amplifier limit {} at t = {t:.4} s (mode {}); lower closed_loop.controller gains (rate_loop.kp, kp), add or retune filters at the drive's resonance, or check the delay (`cable-servo margins` shows the margins)",
+                    "the loop is unstable (on its exact linear reference the largest closed-loop pole has |z| = {:.5}: a mode growing at {:.1} 1/s at {:.1} Hz) and its command reached the amplifier limit {} at t = {t:.4} s (mode {}); {}",
                     i.pole_magnitude,
                     i.growth_per_s,
                     i.frequency_hz,
                     crate::number(command_limit),
-                    mode.name()
+                    mode.name(),
+                    gains_to_check(c)
                 ),
                 time_s: t,
                 kind: StopKind::Unstable,
