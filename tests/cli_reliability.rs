@@ -485,3 +485,44 @@ fn a_saturated_unstable_loop_is_stopped_and_named() {
     assert!(table.contains(" - "), "{table}");
     assert!(out.join("INCOMPLETE.txt").is_file());
 }
+
+/// Numbers far outside any servo axis pass a sign check but not the physical ranges: each
+/// is refused naming the key, the value and the range with its reason, and nothing is
+/// written.
+#[test]
+fn loop_values_outside_physical_ranges_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    for (set, key, range) in [
+        (
+            "closed_loop.motor.resistance_ohm=1e-300",
+            "closed_loop.motor.resistance_ohm",
+            "outside 0.001 to 1000",
+        ),
+        (
+            "closed_loop.output.inertia_kg_m2=1e30",
+            "closed_loop.output.inertia_kg_m2",
+            "a drum with its payload",
+        ),
+        (
+            "closed_loop.controller.kp=1e300",
+            "closed_loop.controller.kp",
+            "a servo gain",
+        ),
+        (
+            "closed_loop.motor.current_limit_a=1e-9",
+            "closed_loop.motor.current_limit_a",
+            "an amplifier's current",
+        ),
+    ] {
+        let out = dir.path().join("r");
+        let o = cable_servo(
+            &["run", "eots_tracking", "--set", set, "--out", p(&out)],
+            dir.path(),
+        );
+        no_panic(&o);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(3), "{set}: {err}");
+        assert!(err.contains(key) && err.contains(range), "{set}: {err}");
+        assert!(entries(dir.path()).is_empty(), "{set}");
+    }
+}

@@ -898,6 +898,7 @@ impl ClosedLoopParams {
             nonneg(k, v)?;
         }
         pos("controller.derivative_filter_hz", c.derivative_filter_hz)?;
+        self.validate_ranges()?;
         let periods = self.duration_s * c.sample_rate_hz;
         if periods > 1e9 {
             return Err((
@@ -953,6 +954,168 @@ impl ClosedLoopParams {
 }
 
 impl ClosedLoopParams {
+    /// Physical ranges of the loop's numbers: values far outside any servo axis (a
+    /// resistance of 1e-300 ohm, an inertia of 1e30 kg m^2) pass the sign checks but only
+    /// produce absurd angles or a solver that cannot keep up; each bound says why.
+    fn validate_ranges(&self) -> Result<(), (String, String)> {
+        let key = |k: &str| format!("closed_loop.{k}");
+        let m = &self.motor;
+        let c = &self.controller;
+        let mut checks: Vec<(&str, f64, f64, f64, &str)> = vec![
+            (
+                "motor.resistance_ohm",
+                m.resistance_ohm,
+                1e-3,
+                1e3,
+                "a winding's resistance",
+            ),
+            (
+                "motor.inductance_h",
+                m.inductance_h,
+                1e-7,
+                10.0,
+                "a winding's inductance",
+            ),
+            (
+                "motor.torque_constant_nm_per_a",
+                m.torque_constant_nm_per_a,
+                1e-4,
+                100.0,
+                "a torque motor's constant",
+            ),
+            (
+                "motor.back_emf_v_s_per_rad",
+                m.back_emf(),
+                1e-4,
+                100.0,
+                "a torque motor's constant",
+            ),
+            (
+                "motor.inertia_kg_m2",
+                m.inertia_kg_m2,
+                1e-9,
+                10.0,
+                "a rotor with its pulley",
+            ),
+            (
+                "motor.viscous_nm_s_per_rad",
+                m.viscous_nm_s_per_rad,
+                0.0,
+                100.0,
+                "bearing drag",
+            ),
+            (
+                "motor.coulomb_nm",
+                m.coulomb_nm,
+                0.0,
+                1e3,
+                "bearing and seal friction",
+            ),
+            (
+                "motor.coulomb_smoothing_rad_s",
+                m.coulomb_smoothing_rad_s,
+                1e-6,
+                10.0,
+                "the speed below which friction is linear",
+            ),
+            (
+                "output.inertia_kg_m2",
+                self.output.inertia_kg_m2,
+                1e-6,
+                1e4,
+                "a drum with its payload",
+            ),
+            (
+                "output.viscous_nm_s_per_rad",
+                self.output.viscous_nm_s_per_rad,
+                0.0,
+                1e3,
+                "bearing drag",
+            ),
+            (
+                "sensors.motor_noise_rad",
+                self.sensors.motor_noise_rad,
+                0.0,
+                0.1,
+                "encoder noise",
+            ),
+            (
+                "sensors.output_noise_rad",
+                self.sensors.output_noise_rad,
+                0.0,
+                0.1,
+                "encoder noise",
+            ),
+            (
+                "controller.sample_rate_hz",
+                c.sample_rate_hz,
+                10.0,
+                1e6,
+                "a sampled servo",
+            ),
+            ("controller.kp", c.kp, 0.0, 1e9, "a servo gain"),
+            ("controller.ki", c.ki, 0.0, 1e12, "a servo gain"),
+            ("controller.kd", c.kd, 0.0, 1e6, "a servo gain"),
+            (
+                "controller.velocity_feedforward",
+                c.velocity_feedforward,
+                0.0,
+                1e3,
+                "a feedforward gain",
+            ),
+            (
+                "controller.acceleration_feedforward",
+                c.acceleration_feedforward,
+                0.0,
+                1e3,
+                "a feedforward gain",
+            ),
+            (
+                "controller.brake_transition_s",
+                c.brake_transition_s,
+                0.0,
+                100.0,
+                "a brake reversal",
+            ),
+        ];
+        if let Some(v) = m.current_limit_a {
+            checks.push((
+                "motor.current_limit_a",
+                v,
+                1e-3,
+                1e4,
+                "an amplifier's current",
+            ));
+        }
+        if let Some(v) = m.voltage_limit_v {
+            checks.push((
+                "motor.voltage_limit_v",
+                v,
+                1e-3,
+                1e5,
+                "an amplifier's voltage",
+            ));
+        }
+        if let Some(r) = &c.rate_loop {
+            checks.push(("controller.rate_loop.kp", r.kp, 0.0, 1e9, "a servo gain"));
+            checks.push(("controller.rate_loop.ki", r.ki, 0.0, 1e12, "a servo gain"));
+        }
+        for (k, v, lo, hi, what) in checks {
+            if !(v.is_finite() && v >= lo && v <= hi) {
+                return Err((
+                    key(k),
+                    format!(
+                        "{} is outside {} to {}, the range of {what}",
+                        crate::number(v),
+                        crate::number(lo),
+                        crate::number(hi)
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Checks of the base motion, the gyro and the control law's structure.
     fn validate_structure(&self) -> Result<(), (String, String)> {
         let key = |k: &str| format!("closed_loop.{k}");
