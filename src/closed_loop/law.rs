@@ -12,7 +12,10 @@
 //! u     = clamp(F_cmd(fb) + u_ff - d_hat)           d_hat: disturbance observer, A
 //! d_hat = Q (J/Kt) s^2 theta_m - Q u_{k-m}          Q: 2nd-order low-pass, m = 1 + ceil(delay)
 //! ```
-//! With none of these parts the law is the PID alone, evaluated exactly as before.
+//! With none of these parts the law is the PID alone, evaluated exactly as before. With
+//! them, the PID holds its integral while its own output (before the filters) is clipped,
+//! the rate PI while the final command is clipped; the command is clipped once more after
+//! the filters, feedforward and observer.
 
 use rand::rngs::StdRng;
 use rand::SeedableRng;

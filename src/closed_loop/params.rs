@@ -119,8 +119,8 @@ pub enum RateSource {
 /// w_cmd = PID(position) + r'                 (output rad/s)
 /// u     = kp (w_cmd - w_meas) + ki T sum(w_cmd - w_meas)    (A or V)
 /// ```
-/// The position gains then have units (rad/s) per motor rad (with `ic = 5`, kp = 30 gives
-/// a 24 Hz... position bandwidth about `kp / (2 pi ic)`... see README).
+/// The position gains then have units (rad/s) per motor rad: with a fast rate loop the
+/// position loop crosses over near `kp ic` rad/s (kp = 20 with ic = 5.125: about 16 Hz).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RateLoopParams {
