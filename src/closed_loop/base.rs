@@ -110,6 +110,27 @@ pub fn smooth_at(signal: &Signal, t: f64) -> SignalPoint {
     }
 }
 
+/// The cubic Hermite curve from `p0` (slope `m0`) to `p1` (slope `m1`) on `s` in [0, 1]:
+/// its value and first and second derivatives with respect to `s`.
+#[inline]
+pub fn hermite_cubic(p0: f64, m0: f64, p1: f64, m1: f64, s: f64) -> [f64; 3] {
+    let (s2, s3) = (s * s, s * s * s);
+    [
+        (2.0 * s3 - 3.0 * s2 + 1.0) * p0
+            + (s3 - 2.0 * s2 + s) * m0
+            + (-2.0 * s3 + 3.0 * s2) * p1
+            + (s3 - s2) * m1,
+        (6.0 * s2 - 6.0 * s) * p0
+            + (3.0 * s2 - 4.0 * s + 1.0) * m0
+            + (-6.0 * s2 + 6.0 * s) * p1
+            + (3.0 * s2 - 2.0 * s) * m1,
+        (12.0 * s - 6.0) * p0
+            + (6.0 * s - 4.0) * m0
+            + (-12.0 * s + 6.0) * p1
+            + (6.0 * s - 2.0) * m1,
+    ]
+}
+
 /// Cubic Hermite interpolation with Catmull-Rom slopes (one-sided at the ends), held at
 /// the end values outside the table.
 fn hermite(samples: &[(f64, f64)], t: f64) -> SignalPoint {
@@ -137,20 +158,7 @@ fn hermite(samples: &[(f64, f64)], t: f64) -> SignalPoint {
     let (t1, p1) = samples[k];
     let h = t1 - t0;
     let (m0, m1) = (slope(k - 1) * h, slope(k) * h);
-    let s = (t - t0) / h;
-    let (s2, s3) = (s * s, s * s * s);
-    let value = (2.0 * s3 - 3.0 * s2 + 1.0) * p0
-        + (s3 - 2.0 * s2 + s) * m0
-        + (-2.0 * s3 + 3.0 * s2) * p1
-        + (s3 - s2) * m1;
-    let d1 = (6.0 * s2 - 6.0 * s) * p0
-        + (3.0 * s2 - 4.0 * s + 1.0) * m0
-        + (-6.0 * s2 + 6.0 * s) * p1
-        + (3.0 * s2 - 2.0 * s) * m1;
-    let d2 = (12.0 * s - 6.0) * p0
-        + (6.0 * s - 4.0) * m0
-        + (-12.0 * s + 6.0) * p1
-        + (6.0 * s - 2.0) * m1;
+    let [value, d1, d2] = hermite_cubic(p0, m0, p1, m1, (t - t0) / h);
     SignalPoint {
         value,
         rate: d1 / h,

@@ -61,15 +61,8 @@ impl BaseSegment {
     pub fn at(&self, s: f64, dt: f64) -> (f64, f64, f64) {
         let (p0, p1) = (self.rate0, self.rate1);
         let (m0, m1) = (self.accel0 * dt, self.accel1 * dt);
+        let [rate, d_ds, _] = super::base::hermite_cubic(p0, m0, p1, m1, s);
         let (s2, s3, s4) = (s * s, s * s * s, s * s * s * s);
-        let rate = (2.0 * s3 - 3.0 * s2 + 1.0) * p0
-            + (s3 - 2.0 * s2 + s) * m0
-            + (-2.0 * s3 + 3.0 * s2) * p1
-            + (s3 - s2) * m1;
-        let d_ds = (6.0 * s2 - 6.0 * s) * p0
-            + (3.0 * s2 - 4.0 * s + 1.0) * m0
-            + (-6.0 * s2 + 6.0 * s) * p1
-            + (3.0 * s2 - 2.0 * s) * m1;
         let integral = (0.5 * s4 - s3 + s) * p0
             + (0.25 * s4 - 2.0 / 3.0 * s3 + 0.5 * s2) * m0
             + (-0.5 * s4 + s3) * p1

@@ -9,6 +9,7 @@ use serde::Serialize;
 use crate::closed_loop::{
     ClosedLoopResult, CompensationMode, Completion, ModeResult, SolverStats, TimeSeries,
 };
+use crate::metrics::los::ErrorSpectrum;
 use crate::metrics::Metrics;
 use crate::plot::{save_chart, save_panels, Chart, HBand, PlotError, Series};
 use crate::report::ReportError;
@@ -538,7 +539,7 @@ pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(S
 
 /// The target as a grey line across the spectra's frequency span (a log axis
 /// cannot shade a band down to zero).
-pub fn target_line(spectra: &[&crate::metrics::los::ErrorSpectrum], target_mrad: f64) -> Series {
+pub fn target_line(spectra: &[&ErrorSpectrum], target_mrad: f64) -> Series {
     let top = spectra
         .iter()
         .filter_map(|s| s.frequency_hz.last().copied())
@@ -558,54 +559,62 @@ pub fn target_line(spectra: &[&crate::metrics::los::ErrorSpectrum], target_mrad:
 /// Welch PSD of the line-of-sight error (log-log) over cumulative RMS against frequency:
 /// which frequencies the error lives at, and how much of the target each band uses.
 fn spectrum_figure(result: &ClosedLoopResult, target_mrad: f64) -> Option<Figure> {
-    let spectra: Vec<(CompensationMode, &crate::metrics::los::ErrorSpectrum)> = result
+    let spectra: Vec<(String, usize, &ErrorSpectrum)> = result
         .modes
         .iter()
         // A mode that stopped has no spectrum of its own to show.
         .filter(|m| m.completion == Completion::Complete)
-        .filter_map(|m| m.spectrum.as_ref().map(|s| (m.mode, s)))
+        .filter_map(|m| {
+            m.spectrum
+                .as_ref()
+                .map(|s| (m.mode.name().to_string(), mode_slot(m.mode), s))
+        })
         .collect();
-    if spectra.is_empty() {
-        return None;
-    }
-    let series = |f: &dyn Fn(&crate::metrics::los::ErrorSpectrum) -> Vec<f64>| -> Vec<Series> {
+    (!spectra.is_empty()).then(|| Figure::Panels {
+        title: "Line-of-sight error spectrum (metrics window)".into(),
+        charts: spectrum_charts(&spectra, target_mrad),
+    })
+}
+
+/// The two panels of a spectrum figure for curves `(label, palette slot, spectrum)`: the
+/// PSD on log-log axes, and the cumulative RMS with the target as a line.
+pub fn spectrum_charts(
+    spectra: &[(String, usize, &ErrorSpectrum)],
+    target_mrad: f64,
+) -> Vec<Chart> {
+    let series = |f: &dyn Fn(&ErrorSpectrum) -> Vec<f64>| -> Vec<Series> {
         spectra
             .iter()
-            .map(|(m, s)| {
-                Series::line(m.name(), s.frequency_hz.clone(), f(s)).in_slot(mode_slot(*m))
+            .map(|(label, slot, s)| {
+                Series::line(label, s.frequency_hz.clone(), f(s)).in_slot(*slot)
             })
             .collect()
     };
-    Some(Figure::Panels {
-        title: "Line-of-sight error spectrum (metrics window)".into(),
-        charts: vec![
-            Chart {
-                title: "power spectral density (Welch, Hann, 50 % overlap)".into(),
-                x_label: "frequency [Hz]".into(),
-                y_label: "PSD [mrad^2/Hz]".into(),
-                series: series(&|s| s.psd_mrad2_per_hz.clone()),
-                log_x: true,
-                log_y: true,
-                ..Chart::default()
-            },
-            Chart {
-                title: "cumulative RMS from 0 Hz".into(),
-                x_label: "frequency [Hz]".into(),
-                y_label: "RMS up to f [mrad]".into(),
-                series: {
-                    let mut v = series(&|s| s.cumulative_rms_mrad.clone());
-                    v.push(target_line(
-                        &spectra.iter().map(|x| x.1).collect::<Vec<_>>(),
-                        target_mrad,
-                    ));
-                    v
-                },
-                log_x: true,
-                log_y: true,
-                ..Chart::default()
-            },
-        ],
-    })
+    let mut cumulative = series(&|s| s.cumulative_rms_mrad.clone());
+    cumulative.push(target_line(
+        &spectra.iter().map(|x| x.2).collect::<Vec<_>>(),
+        target_mrad,
+    ));
+    vec![
+        Chart {
+            title: "power spectral density (Welch, Hann, 50 % overlap)".into(),
+            x_label: "frequency [Hz]".into(),
+            y_label: "PSD [mrad^2/Hz]".into(),
+            series: series(&|s| s.psd_mrad2_per_hz.clone()),
+            log_x: true,
+            log_y: true,
+            ..Chart::default()
+        },
+        Chart {
+            title: "cumulative RMS from 0 Hz".into(),
+            x_label: "frequency [Hz]".into(),
+            y_label: "RMS up to f [mrad]".into(),
+            series: cumulative,
+            log_x: true,
+            log_y: true,
+            ..Chart::default()
+        },
+    ]
 }
 
 /// Picks the `(x, y)` columns of a chart from a series.

@@ -318,49 +318,17 @@ pub fn plot_compare(dir: &Path, designs: &[DesignOutcome]) -> Result<Vec<PathBuf
             &dir.join("compare_error"),
         )?);
     }
-    let spectra: Vec<(usize, &DesignOutcome, &crate::metrics::los::ErrorSpectrum)> = designs
+    let spectra: Vec<(String, usize, &crate::metrics::los::ErrorSpectrum)> = designs
         .iter()
         .enumerate()
         // A design that stopped has no spectrum of its own to show.
         .filter(|(_, d)| d.result.completion == Completion::Complete)
-        .filter_map(|(i, d)| d.result.spectrum.as_ref().map(|s| (i, d, s)))
+        .filter_map(|(i, d)| d.result.spectrum.as_ref().map(|s| (d.name.clone(), i, s)))
         .collect();
     if !spectra.is_empty() {
-        let series = |f: &dyn Fn(&crate::metrics::los::ErrorSpectrum) -> Vec<f64>| {
-            spectra
-                .iter()
-                .map(|(i, d, s)| Series::line(&d.name, s.frequency_hz.clone(), f(s)).in_slot(*i))
-                .collect::<Vec<_>>()
-        };
         files.extend(save_panels(
             "Line-of-sight error spectrum by design (metrics window)",
-            &[
-                Chart {
-                    title: "power spectral density (Welch, Hann, 50 % overlap)".into(),
-                    x_label: "frequency [Hz]".into(),
-                    y_label: "PSD [mrad^2/Hz]".into(),
-                    series: series(&|s| s.psd_mrad2_per_hz.clone()),
-                    log_x: true,
-                    log_y: true,
-                    ..Chart::default()
-                },
-                Chart {
-                    title: "cumulative RMS from 0 Hz".into(),
-                    x_label: "frequency [Hz]".into(),
-                    y_label: "RMS up to f [mrad]".into(),
-                    series: {
-                        let mut v = series(&|s| s.cumulative_rms_mrad.clone());
-                        v.push(crate::report::closed_loop::target_line(
-                            &spectra.iter().map(|x| x.2).collect::<Vec<_>>(),
-                            target,
-                        ));
-                        v
-                    },
-                    log_x: true,
-                    log_y: true,
-                    ..Chart::default()
-                },
-            ],
+            &crate::report::closed_loop::spectrum_charts(&spectra, target),
             &dir.join("compare_psd"),
         )?);
     }
