@@ -26,7 +26,7 @@
 use nalgebra::{Complex, DMatrix, DVector};
 use serde::Serialize;
 
-use super::filters::{Biquad, FilterChain, FilterSpec};
+use super::filters::{Biquad, FilterSpec};
 use super::params::{Amplifier, ClosedLoopParams, Feedback, RateSource};
 use crate::physics::DriveParams;
 
@@ -79,8 +79,8 @@ struct LawModel {
     command_filters: Vec<Biquad>,
     /// Observer filters `(Q (J/Kt) s^2, Q)` and the command delay it uses.
     observer: Option<(Biquad, Biquad, usize)>,
-    /// Specs, for the frequency responses.
-    specs: LawSpecs,
+    /// Control rate, Hz.
+    fs: f64,
 }
 
 #[derive(Clone, Debug)]
@@ -92,16 +92,6 @@ struct RateModel {
     a_v: f64,
     command_filters: Vec<Biquad>,
     measurement_filters: Vec<Biquad>,
-}
-
-#[derive(Clone, Debug)]
-struct LawSpecs {
-    fs: f64,
-    measurement: FilterChain,
-    rate_command: FilterChain,
-    rate_measurement: FilterChain,
-    command: FilterChain,
-    observer: Option<(FilterChain, FilterChain)>,
 }
 
 /// An unstable sampled closed loop's fastest-growing mode.
@@ -255,15 +245,7 @@ impl LinearLoop {
                     super::law::observer_delay(p),
                 )
             }),
-            specs: LawSpecs {
-                fs,
-                measurement: FilterChain::new(&ctl.measurement_filters, fs),
-                rate_command: FilterChain::new(&ctl.rate_command_filters, fs),
-                rate_measurement: FilterChain::new(&ctl.rate_measurement_filters, fs),
-                command: FilterChain::new(&ctl.command_filters, fs),
-                observer: super::law::observer_filters(p, ic)
-                    .map(|(inv, q)| (FilterChain::new(&[inv], fs), FilterChain::new(&[q], fs))),
-            },
+            fs,
         });
         LinearLoop {
             a_cont: a,
@@ -321,7 +303,7 @@ impl LinearLoop {
             // The plain PID on its one measurement.
             return self.c_scale.map(|w| -pid * w);
         };
-        let fs = law.specs.fs;
+        let fs = law.fs;
         // Position measurement in terms of the three quantities.
         let mut meas = [zero; 3];
         match law.feedback {
@@ -331,12 +313,12 @@ impl LinearLoop {
                 meas[ROW_GYRO] = Complex::from(law.ic * self.ts) * zi / (one - zi);
             }
         }
-        let pos = pid * law.specs.measurement.response(f_hz, fs);
+        let pos = pid * chain_response(&law.measurement_filters, f_hz, fs);
         let mut fb = meas.map(|m| -pos * m);
         if let Some(r) = &law.rate {
             let pi = Complex::from(r.kp) + Complex::from(r.ki_t) / (one - zi);
-            let frc = law.specs.rate_command.response(f_hz, fs);
-            let frm = law.specs.rate_measurement.response(f_hz, fs);
+            let frc = chain_response(&r.command_filters, f_hz, fs);
+            let frm = chain_response(&r.measurement_filters, f_hz, fs);
             let mut w = [zero; 3];
             match r.source {
                 RateSource::Gyro => w[ROW_GYRO] = one,
@@ -349,11 +331,10 @@ impl LinearLoop {
                 fb[j] = pi * (frc * fb[j] - frm * w[j]);
             }
         }
-        let fc = law.specs.command.response(f_hz, fs);
+        let fc = chain_response(&law.command_filters, f_hz, fs);
         let mut u = fb.map(|v| fc * v);
-        if let Some((inv, q)) = &law.specs.observer {
-            let md = law.observer.as_ref().map_or(1, |o| o.2) as i32;
-            let denom = one - q.response(f_hz, fs) * zi.powi(md);
+        if let Some((inv, q, md)) = &law.observer {
+            let denom = one - q.response(f_hz, fs) * zi.powi(*md as i32);
             u[ROW_MOTOR] -= inv.response(f_hz, fs);
             u = u.map(|v| v / denom);
         }
@@ -741,6 +722,13 @@ impl LinearLoop {
             ..self.clone()
         }
     }
+}
+
+/// Response of filters in series at `f_hz`.
+fn chain_response(chain: &[Biquad], f_hz: f64, fs: f64) -> Complex<f64> {
+    chain
+        .iter()
+        .fold(Complex::from(1.0), |acc, b| acc * b.response(f_hz, fs))
 }
 
 fn dot(r: &DVector<f64>, x: &DVector<Complex<f64>>) -> Complex<f64> {

@@ -137,7 +137,7 @@ pub const MAX_RUN_MEMORY_MB: f64 = 2048.0;
 /// Columns of a recorded time series (one f64 each per row).
 const SERIES_COLUMNS: usize = 15;
 
-/// Memory a run will hold and the time it will take, estimated before it starts.
+/// Memory a run will hold, estimated before it starts.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WorkEstimate {
     /// Control periods per mode.
@@ -148,9 +148,6 @@ pub struct WorkEstimate {
     pub series_rows: u64,
     /// Memory held, MB (time series plus line-of-sight error).
     pub memory_mb: f64,
-    /// Computing time on one core at about 0.6 us per period, s (a 20 s, 20 kHz mode
-    /// takes about 0.2 s on the cable with memory).
-    pub cpu_s: f64,
 }
 
 /// The work of `p` with `modes` modes under `options`.
@@ -170,7 +167,6 @@ pub fn estimate_work(p: &ClosedLoopParams, modes: usize, options: &RunOptions) -
         modes,
         series_rows: rows,
         memory_mb: bytes / 1e6,
-        cpu_s: modes as f64 * periods as f64 * 0.6e-6 * f64::from(p.rk4_substeps).max(1.0),
     }
 }
 
