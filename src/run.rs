@@ -202,11 +202,32 @@ fn run_closed_loop(
         decimation,
         ..closed_loop::RunOptions::default()
     };
-    let result = closed_loop::run_closed_loop(scenario, &options)?;
-    report::closed_loop::write_closed_loop_outputs(dir, scenario, &result)?;
+    let (result, rows) = closed_loop::run_closed_loop_then(
+        scenario,
+        &options,
+        report::closed_loop::timeseries_rows,
+    )?;
     let target = scenario.closed_loop.as_ref().map_or(0.1, |c| c.target_mrad);
-    if let Err(e) = report::closed_loop::plot_closed_loop(dir, &result, target) {
-        warnings.push(format!("plots incomplete: {e}"));
+    // The figures are drawn from the result in memory while the data files are written:
+    // neither waits for the other, and a figure that fails, even by a panic in the
+    // drawing library, becomes a warning and never touches the data.
+    let (written, drawn) = std::thread::scope(|s| {
+        let figures = s.spawn(|| {
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                report::closed_loop::plot_closed_loop(dir, &result, target)
+            }))
+        });
+        let written =
+            report::closed_loop::write_closed_loop_outputs_with_rows(dir, scenario, &result, rows);
+        (written, figures.join())
+    });
+    written?;
+    match drawn {
+        Ok(Ok(Ok(_))) => {}
+        Ok(Ok(Err(e))) => warnings.push(format!("plots incomplete: {e}")),
+        Ok(Err(_)) | Err(_) => {
+            warnings.push("plots incomplete: the drawing library failed (panicked)".into())
+        }
     }
     let failure = result.modes.iter().find_map(|m| match &m.completion {
         closed_loop::Completion::Complete => None,

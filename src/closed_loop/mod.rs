@@ -26,7 +26,7 @@ pub use params::{
     RateLoopParams, RateSource, SensorParams, StartState,
 };
 pub use sim::{
-    estimate_work, run_closed_loop, run_closed_loop_metrics, ClosedLoopError, ClosedLoopResult,
-    ClosedLoopSetup, ClosedLoopSource, Completion, Injection, InjectionSite, ModeResult,
-    RunOptions, SolverStats, StopKind, TimeSeries, WorkEstimate,
+    estimate_work, run_closed_loop, run_closed_loop_metrics, run_closed_loop_then, ClosedLoopError,
+    ClosedLoopResult, ClosedLoopSetup, ClosedLoopSource, Completion, Injection, InjectionSite,
+    ModeResult, RunOptions, SolverStats, StopKind, TimeSeries, WorkEstimate,
 };

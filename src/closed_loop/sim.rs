@@ -445,6 +445,17 @@ pub fn run_closed_loop(
     source: &(impl ClosedLoopSource + ?Sized),
     options: &RunOptions,
 ) -> Result<ClosedLoopResult, ClosedLoopError> {
+    run_closed_loop_then(source, options, |_| ()).map(|(result, _)| result)
+}
+
+/// [`run_closed_loop`], and `then` applied to each mode's result on that mode's thread as
+/// soon as the mode ends (its outputs, say), while the other modes still run: the cores
+/// stay busy through the end of the slowest mode. The values come back in mode order.
+pub fn run_closed_loop_then<T: Send>(
+    source: &(impl ClosedLoopSource + ?Sized),
+    options: &RunOptions,
+    then: impl Fn(&ModeResult) -> T + Sync,
+) -> Result<(ClosedLoopResult, Vec<T>), ClosedLoopError> {
     let setup = source.closed_loop_setup()?;
     let scenario = &setup;
     let p = setup.params;
@@ -519,16 +530,37 @@ pub fn run_closed_loop(
     }
     // An unstable loop ends in slack or slip; the linear reference names the cause.
     let instability = super::linear::LinearLoop::new(p, setup.drive).instability();
-    // Modes are independent runs: side by side on the cores (results in mode order).
-    let results: Vec<ModeResult> = modes
-        .par_iter()
-        .map(|&m| run_mode(&setup, m, options, instability))
-        .collect();
-    Ok(ClosedLoopResult {
-        complete: results.iter().all(|r| r.completion == Completion::Complete),
-        modes: results,
-        duration_s: p.duration_s,
-    })
+    // Modes are independent runs, side by side on the cores (results in mode order).
+    // Inside a pool (a sweep's cases) the pool shares the cores out; alone, one thread
+    // per mode: three modes on two cores then finish together in 1.5 mode-times, where
+    // a two-thread pool needs two.
+    let one = |m: CompensationMode| {
+        let r = run_mode(&setup, m, options, instability);
+        let t = then(&r);
+        (r, t)
+    };
+    let done: Vec<(ModeResult, T)> = if rayon::current_thread_index().is_some() || modes.len() == 1
+    {
+        modes.par_iter().map(|&m| one(m)).collect()
+    } else {
+        std::thread::scope(|s| {
+            let one = &one;
+            let handles: Vec<_> = modes.iter().map(|&m| s.spawn(move || one(m))).collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+                .collect()
+        })
+    };
+    let (results, values): (Vec<ModeResult>, Vec<T>) = done.into_iter().unzip();
+    Ok((
+        ClosedLoopResult {
+            complete: results.iter().all(|r| r.completion == Completion::Complete),
+            modes: results,
+            duration_s: p.duration_s,
+        },
+        values,
+    ))
 }
 
 /// Metrics of every mode without time series: the cheap call for one sweep case.

@@ -99,19 +99,27 @@ fn window_len(fs_hz: f64, exposure_s: f64) -> usize {
 }
 
 /// Jitter of every exposure window `(rms about the window mean, window mean)`, sliding one
-/// sample at a time; O(n) by running sums, anchored afresh every window length so rounding
-/// cannot accumulate.
+/// sample at a time; see [`for_each_exposure`].
 pub fn exposure_windows(e: &[f64], w: usize) -> Vec<(f64, f64)> {
+    let mut out = Vec::with_capacity(e.len().saturating_sub(w) + 1);
+    for_each_exposure(e, w, |rms, mean| out.push((rms, mean)));
+    out
+}
+
+/// Calls `f(rms about the window mean, window mean)` for every exposure window of `w`
+/// samples, sliding one sample at a time; O(n) by running sums, anchored afresh every
+/// window length so rounding cannot accumulate. Nothing is called when `e` is shorter
+/// than one window.
+fn for_each_exposure(e: &[f64], w: usize, mut f: impl FnMut(f64, f64)) {
     if w == 0 || e.len() < w {
-        return Vec::new();
+        return;
     }
     // Sums of the values about the record's mean: the variance is then a difference of
     // small numbers, not of two large ones.
     let centre = e.iter().sum::<f64>() / e.len() as f64;
-    let e: Vec<f64> = e.iter().map(|v| v - centre).collect();
-    let mut out = Vec::with_capacity(e.len() - w + 1);
     let (mut s1, mut s2) = (0.0, 0.0);
     for &v in &e[..w] {
+        let v = v - centre;
         s1 += v;
         s2 += v * v;
     }
@@ -119,38 +127,48 @@ pub fn exposure_windows(e: &[f64], w: usize) -> Vec<(f64, f64)> {
     for start in 0..=(e.len() - w) {
         if start > 0 {
             if start % w == 0 {
-                s1 = e[start..start + w].iter().sum();
-                s2 = e[start..start + w].iter().map(|v| v * v).sum();
+                (s1, s2) = e[start..start + w].iter().fold((0.0, 0.0), |(a, b), v| {
+                    let v = v - centre;
+                    (a + v, b + v * v)
+                });
             } else {
-                let (old, new) = (e[start - 1], e[start + w - 1]);
+                let (old, new) = (e[start - 1] - centre, e[start + w - 1] - centre);
                 s1 += new - old;
                 s2 += new * new - old * old;
             }
         }
         let mean = s1 * inv;
-        out.push(((s2 * inv - mean * mean).max(0.0).sqrt(), mean + centre));
+        f((s2 * inv - mean * mean).max(0.0).sqrt(), mean + centre);
     }
-    out
 }
 
 /// The line-of-sight figures of error series `e_mrad` sampled at `fs_hz`.
 pub fn los_metrics(e_mrad: &[f64], fs_hz: f64, p: &LosParams) -> LosMetrics {
-    let e: Vec<f64> = e_mrad.iter().copied().filter(|v| v.is_finite()).collect();
+    let kept: Vec<f64>;
+    let e = if e_mrad.iter().all(|v| v.is_finite()) {
+        e_mrad
+    } else {
+        kept = e_mrad.iter().copied().filter(|v| v.is_finite()).collect();
+        &kept
+    };
     let n = e.len();
     let (mut sum, mut sq, mut peak) = (0.0, 0.0, 0.0_f64);
-    for &v in &e {
+    for &v in e {
         sum += v;
         sq += v * v;
         peak = peak.max(v.abs());
     }
     let nf = n.max(1) as f64;
-    let windows = exposure_windows(&e, window_len(fs_hz, p.exposure_s));
-    let (max, p95, mean_max) = if windows.is_empty() {
+    let mut jit = Vec::with_capacity(n);
+    let mut mean_max = 0.0_f64;
+    for_each_exposure(e, window_len(fs_hz, p.exposure_s), |rms, mean| {
+        jit.push(rms);
+        mean_max = mean_max.max(mean.abs());
+    });
+    let (max, p95, mean_max) = if jit.is_empty() {
         (None, None, None)
     } else {
-        let mut jit: Vec<f64> = windows.iter().map(|w| w.0).collect();
         let max = jit.iter().copied().fold(0.0, f64::max);
-        let mean_max = windows.iter().map(|w| w.1.abs()).fold(0.0, f64::max);
         let k = ((0.95 * jit.len() as f64).ceil() as usize).clamp(1, jit.len()) - 1;
         let (_, p95, _) = jit.select_nth_unstable_by(k, f64::total_cmp);
         (Some(max), Some(*p95), Some(mean_max))
@@ -209,7 +227,13 @@ fn fft(re: &mut [f64], im: &mut [f64], twiddle: &[(f64, f64)]) {
 /// mean is kept, so the cumulative RMS at the top bin is the total RMS. `None` for fewer
 /// than 16 finite samples.
 pub fn error_spectrum(e_mrad: &[f64], fs_hz: f64, segment_s: f64) -> Option<ErrorSpectrum> {
-    let e: Vec<f64> = e_mrad.iter().copied().filter(|v| v.is_finite()).collect();
+    let kept: Vec<f64>;
+    let e = if e_mrad.iter().all(|v| v.is_finite()) {
+        e_mrad
+    } else {
+        kept = e_mrad.iter().copied().filter(|v| v.is_finite()).collect();
+        &kept
+    };
     if e.len() < 16 || !(fs_hz.is_finite() && fs_hz > 0.0) {
         return None;
     }
@@ -233,18 +257,24 @@ pub fn error_spectrum(e_mrad: &[f64], fs_hz: f64, segment_s: f64) -> Option<Erro
             (c, s)
         })
         .collect();
-    let mut start = 0;
-    while start + m <= e.len() {
+    // Two real segments per complex transform, one as the real part and one as the
+    // imaginary part: for z = a + i b, |A_k|^2 + |B_k|^2 = (|Z_k|^2 + |Z_(m-k)|^2) / 2,
+    // the cross terms cancel. A lone last segment (b = 0) obeys the same formula.
+    let starts: Vec<usize> = (0..)
+        .map(|j| j * hop)
+        .take_while(|s| s + m <= e.len())
+        .collect();
+    for pair in starts.chunks(2) {
         for i in 0..m {
-            re[i] = e[start + i] * w[i];
-            im[i] = 0.0;
+            re[i] = e[pair[0] + i] * w[i];
+            im[i] = pair.get(1).map_or(0.0, |&b| e[b + i] * w[i]);
         }
         fft(&mut re, &mut im, &twiddle);
         for (k, a) in acc.iter_mut().enumerate() {
-            *a += re[k] * re[k] + im[k] * im[k];
+            let j = (m - k) % m;
+            *a += 0.5 * (re[k] * re[k] + im[k] * im[k] + re[j] * re[j] + im[j] * im[j]);
         }
-        segments += 1;
-        start += hop;
+        segments += pair.len();
     }
     let df = fs_hz / m as f64;
     let scale = 1.0 / (fs_hz * w2 * segments as f64);
@@ -309,6 +339,51 @@ mod tests {
         assert!((s.cumulative_rms_mrad[below] / m - 1.0).abs() < 0.05);
         let above = s.frequency_hz.iter().position(|f| *f >= f0 + 5.0).unwrap();
         assert!((s.cumulative_rms_mrad[above] / rms - 1.0).abs() < 0.01);
+    }
+
+    /// The paired transform against one transform per segment, written out plainly, for
+    /// even and odd numbers of segments.
+    #[test]
+    fn paired_segments_equal_one_transform_each() {
+        use rand::Rng;
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        for len in [64usize, 96, 128, 160, 1000] {
+            let e: Vec<f64> = (0..len).map(|_| rng.gen_range(-1.0..1.0) + 0.3).collect();
+            let s = error_spectrum(&e, 100.0, 0.32).unwrap();
+            let m = 32;
+            let w: Vec<f64> = (0..m)
+                .map(|i| (std::f64::consts::PI * i as f64 / m as f64).sin().powi(2))
+                .collect();
+            let twiddle: Vec<(f64, f64)> = (0..m / 2)
+                .map(|k| {
+                    let (s, c) = (-std::f64::consts::TAU * k as f64 / m as f64).sin_cos();
+                    (c, s)
+                })
+                .collect();
+            let mut acc = vec![0.0; m / 2 + 1];
+            let mut start = 0;
+            let mut segments = 0;
+            while start + m <= len {
+                let mut re: Vec<f64> = (0..m).map(|i| e[start + i] * w[i]).collect();
+                let mut im = vec![0.0; m];
+                fft(&mut re, &mut im, &twiddle);
+                for (k, a) in acc.iter_mut().enumerate() {
+                    *a += re[k] * re[k] + im[k] * im[k];
+                }
+                segments += 1;
+                start += m / 2;
+            }
+            let w2: f64 = w.iter().map(|v| v * v).sum();
+            for (k, a) in acc.iter().enumerate() {
+                let one_sided = if k == 0 || k == m / 2 { 1.0 } else { 2.0 };
+                let want = a * one_sided / (100.0 * w2 * segments as f64);
+                let got = s.psd_mrad2_per_hz[k];
+                assert!(
+                    (got - want).abs() <= 1e-12 * want.abs().max(1e-6),
+                    "{len} samples, bin {k}: {got} vs {want}"
+                );
+            }
+        }
     }
 
     #[test]

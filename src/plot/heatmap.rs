@@ -122,9 +122,23 @@ pub(super) struct PreparedHeatmap {
     pub(super) has_missing: bool,
 }
 
+/// Cell centres in drawing coordinates: log10 of the values on a log axis (which must
+/// then be positive).
+fn drawing_centres(c: &[f64], log: bool, what: &str) -> Result<Vec<f64>, PlotError> {
+    if !log {
+        return Ok(c.to_vec());
+    }
+    if let Some(v) = c.iter().find(|v| v.is_nan() || **v <= 0.0) {
+        return Err(PlotError::InvalidInput(format!(
+            "heat map {what} value {v} is not positive on a log axis"
+        )));
+    }
+    Ok(c.iter().map(|v| v.log10()).collect())
+}
+
 pub(super) fn prepare_heatmap(map: &Heatmap) -> Result<PreparedHeatmap, PlotError> {
-    let xe = cell_edges(&map.x, "x")?;
-    let ye = cell_edges(&map.y, "y")?;
+    let xe = cell_edges(&drawing_centres(&map.x, map.log_x, "x")?, "x")?;
+    let ye = cell_edges(&drawing_centres(&map.y, map.log_y, "y")?, "y")?;
     let (nx, ny) = (map.x.len(), map.y.len());
     if map.z.len() != ny {
         return Err(PlotError::InvalidInput(format!(
@@ -208,8 +222,16 @@ pub(super) fn prepare_heatmap(map: &Heatmap) -> Result<PreparedHeatmap, PlotErro
         x_label: map.x_label.clone(),
         y_label: map.y_label.clone(),
         z_label: map.z_label.clone(),
-        x: Axis::linear(xl, xh, 8),
-        y: Axis::linear(yl, yh, 8),
+        x: if map.log_x {
+            Axis::log10(xl, xh)
+        } else {
+            Axis::linear(xl, xh, 8)
+        },
+        y: if map.log_y {
+            Axis::log10(yl, yh)
+        } else {
+            Axis::linear(yl, yh, 8)
+        },
         z: Axis::linear(z0, z1, 8),
         cells,
         contour,

@@ -270,6 +270,12 @@ pub struct Heatmap {
     pub z: Vec<Vec<f64>>,
     /// Optional contour level.
     pub contour: Option<f64>,
+    /// log10 x axis (a log-spaced sweep variable): cell edges at the geometric means of
+    /// neighbouring centres, so every cell has its centre in the middle on the axis. The
+    /// values must then be positive.
+    pub log_x: bool,
+    /// log10 y axis, as `log_x`.
+    pub log_y: bool,
 }
 
 /// Writes `<stem>.png` (1200x700) and `<stem>.svg`; returns both paths.

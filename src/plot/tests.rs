@@ -419,6 +419,8 @@ fn save_chart_extreme_values() {
         y: vec![0.0, 1.0],
         z: vec![vec![big, -big], vec![f64::INFINITY, 0.0]],
         contour: Some(0.5),
+        log_x: false,
+        log_y: false,
     };
     check_outputs(
         &save_heatmap(&map, &dir.join("heat")).expect("heat"),
@@ -517,6 +519,8 @@ fn save_heatmap_nan_and_contour() {
         y,
         z,
         contour: Some(0.1),
+        log_x: false,
+        log_y: false,
     };
     let prepared = prepare_heatmap(&map).expect("prepare");
     assert!(prepared.has_missing);
@@ -549,6 +553,64 @@ fn save_heatmap_nan_and_contour() {
     ));
     let bad = Heatmap { x: vec![], ..map };
     assert!(save_heatmap(&bad, &dir.join("bad")).is_err());
+}
+
+/// A log-spaced sweep variable on a log axis: every cell equally wide, its centre in the
+/// middle (edges at geometric means), the axis logarithmic; a value that is not positive
+/// is refused.
+#[test]
+fn heatmap_log_axes_centre_log_spaced_cells() {
+    let dir = out_dir("heatmap_log");
+    let x: Vec<f64> = vec![1.0, 10.0, 100.0, 1000.0];
+    let y = vec![5.0, 50.0, 500.0];
+    let z: Vec<Vec<f64>> = y
+        .iter()
+        .map(|yv| x.iter().map(|xv| (xv * yv).log10()).collect())
+        .collect();
+    let map = Heatmap {
+        title: "log axes".into(),
+        x_label: "kp".into(),
+        y_label: "ki".into(),
+        z_label: "rms_mrad".into(),
+        x,
+        y,
+        z,
+        contour: Some(2.0),
+        log_x: true,
+        log_y: true,
+    };
+    let p = prepare_heatmap(&map).expect("prepared");
+    assert!(p.x.log && p.y.log);
+    for (i, (a, b, _)) in p.cells.iter().take(4).enumerate() {
+        assert!(
+            (b.0 - a.0 - 1.0).abs() < 1e-12,
+            "cell {i} is {} decades",
+            b.0 - a.0
+        );
+        assert!(
+            (0.5 * (a.0 + b.0) - i as f64).abs() < 1e-12,
+            "cell {i} off centre"
+        );
+    }
+    check_outputs(
+        &save_heatmap(&map, &dir.join("log")).expect("drawn"),
+        HEATMAP_SIZE,
+    );
+    let linear = prepare_heatmap(&Heatmap {
+        log_x: false,
+        log_y: false,
+        ..map.clone()
+    })
+    .expect("prepared");
+    assert!((linear.cells[1].1 .0 - linear.cells[1].0 .0 - 49.5).abs() < 1e-9);
+    let bad = Heatmap {
+        x: vec![0.0, 10.0, 100.0, 1000.0],
+        ..map
+    };
+    match prepare_heatmap(&bad) {
+        Err(PlotError::InvalidInput(m)) => assert!(m.contains("not positive"), "{m}"),
+        other => panic!("{other:?}"),
+    }
 }
 
 #[test]
@@ -722,4 +784,119 @@ fn bitmap_trace_stays_within_its_data_range() {
         trace_top + 1 >= bound_top && trace_bottom <= bound_bottom + 1,
         "trace rows {trace_top}..{trace_bottom}, data rows {bound_top}..{bound_bottom}"
     );
+}
+
+/// Any figure rasterised in memory as the PNG is (RGB, row by row).
+fn raster_figure<F: Figure>(fig: &F) -> (Vec<u8>, u32) {
+    output::ensure_fonts().expect("fonts");
+    let (w, h) = fig.size();
+    let mut buf = vec![0u8; (w * h * 3) as usize];
+    output::draw(
+        fig,
+        plotters::prelude::BitMapBackend::with_buffer(&mut buf, (w, h)),
+        Path::new("memory"),
+    )
+    .expect("drawn");
+    (buf, w)
+}
+
+/// Rows where two rasters differ.
+fn rows_changed(a: &[u8], b: &[u8], width: u32) -> Vec<usize> {
+    let row_bytes = width as usize * 3;
+    a.chunks(row_bytes)
+        .zip(b.chunks(row_bytes))
+        .enumerate()
+        .filter(|(_, (ra, rb))| ra != rb)
+        .map(|(i, _)| i)
+        .collect()
+}
+
+/// Data that runs far outside a fixed axis, with a legend and bands: every pixel the
+/// data, the bands or the legend change lies below the title's last row, in a single
+/// chart and in each panel of a panel figure (under the shared title and the panel's own).
+#[test]
+fn nothing_drawn_over_a_title() {
+    let x: Vec<f64> = (0..5000).map(|i| i as f64 * 1e-3).collect();
+    let wild: Vec<f64> = x
+        .iter()
+        .map(|t| 40.0 * (t * 9.0).sin() + if (t * 10.0) as i64 % 7 == 0 { 1e6 } else { 0.0 })
+        .collect();
+    let chart = |title: &str, data: bool| Chart {
+        title: title.into(),
+        x_label: "time [s]".into(),
+        y_label: "tension [N]".into(),
+        series: if data {
+            vec![
+                Series::line("upper span, a long legend label", x.clone(), wild.clone()),
+                Series::line("lower span", x.clone(), wild.iter().map(|v| -v).collect()),
+            ]
+        } else {
+            vec![Series::line("", vec![], vec![])]
+        },
+        bands: if data {
+            vec![HBand {
+                lo: -1e9,
+                hi: 1e9,
+                label: "band wider than the axis".into(),
+            }]
+        } else {
+            vec![]
+        },
+        y_range: Some((-1.0, 1.0)),
+        ..Chart::default()
+    };
+    let title = "Span tensions, a title as long as a design review's figure titles get";
+    let single = |c: Chart| {
+        chart::SingleFigure(prepare_chart(&c, plot_buckets(CHART_SIZE.0)).expect("prepared"))
+    };
+    // The title's rows: where the figure changes when only the title's text does (the
+    // same letters reversed lay out to the same height, so nothing else moves).
+    let reversed: String = title.chars().rev().collect();
+    let (titled, w) = raster_figure(&single(chart(title, false)));
+    let (other, _) = raster_figure(&single(chart(&reversed, false)));
+    let (full, _) = raster_figure(&single(chart(title, true)));
+    let title_last = *rows_changed(&titled, &other, w)
+        .last()
+        .expect("the title is drawn");
+    let data_first = *rows_changed(&titled, &full, w)
+        .first()
+        .expect("the data is drawn");
+    assert!(
+        data_first > title_last,
+        "single chart: data from row {data_first}, title down to row {title_last}"
+    );
+
+    let panels = |shared: &str, each: &str, data: bool| PanelFigure {
+        title: shared.into(),
+        panels: (0..3)
+            .map(|_| prepare_chart(&chart(each, data), plot_buckets(PANEL_WIDTH)))
+            .collect::<Result<Vec<_>, _>>()
+            .expect("prepared"),
+    };
+    let each = "Panel title of some length";
+    let each_reversed: String = each.chars().rev().collect();
+    let (titled, w) = raster_figure(&panels(title, each, false));
+    let (other, _) = raster_figure(&panels(&reversed, &each_reversed, false));
+    let (full, _) = raster_figure(&panels(title, each, true));
+    let title_rows = rows_changed(&titled, &other, w);
+    let data_rows = rows_changed(&titled, &full, w);
+    // Each panel: its titles (the shared one above the first) first, then its data.
+    let top = |p: usize| 50 + p * PANEL_HEIGHT as usize;
+    for p in 0..3 {
+        let t_last = title_rows
+            .iter()
+            .copied()
+            .filter(|r| *r < top(p + 1) && (p == 0 || *r >= top(p)))
+            .max()
+            .expect("panel title drawn");
+        let d_first = data_rows
+            .iter()
+            .copied()
+            .find(|r| *r >= top(p))
+            .expect("panel data drawn");
+        assert!(
+            d_first > t_last && t_last >= top(p),
+            "panel {p}: data from row {d_first}, its title down to row {t_last}"
+        );
+    }
 }

@@ -191,6 +191,8 @@ pub fn plot(
                     x_label: parameter_columns[0].clone(),
                     y_label: parameter_columns[1].clone(),
                     z_label: fig.clone(),
+                    log_x: log_spaced(&xs),
+                    log_y: log_spaced(&ys),
                     x: xs,
                     y: ys,
                     z,
