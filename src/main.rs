@@ -34,6 +34,9 @@ macro_rules! tell {
     }};
 }
 
+/// A run or sweep estimated to compute longer than this (s) says so before it starts.
+const LONG_RUN_S: f64 = 10.0;
+
 /// Exit codes, listed in the README.
 mod exit {
     /// Bad command line (clap's own code).
@@ -401,6 +404,15 @@ fn main() -> ExitCode {
             let dir = out.unwrap_or_else(|| {
                 run::default_results_dir(&PathBuf::from("results").join(scenario.name()), force)
             });
+            if let Some(w) = run::work_estimate(&scenario).filter(|w| w.wall_s > LONG_RUN_S) {
+                tell!(
+                    "this run computes for about {} ({} mode(s) x {} control periods, side by side on the cores) and holds about {:.0} MB",
+                    cable_servo::duration_words(w.wall_s),
+                    w.modes,
+                    w.periods,
+                    w.memory_mb
+                );
+            }
             report(run::run_scenario(&scenario, &OutputOptions { dir, force }))
         }
         Command::Compare {
@@ -466,6 +478,14 @@ fn main() -> ExitCode {
             let total = scenario.sweep.as_ref().map_or(0, |s| {
                 (0..s.case_count()).filter(|&i| shard.owns(i)).count()
             });
+            if let Some(wall_s) = run::sweep_wall_estimate(&scenario, total, sane_threads(threads))
+                .filter(|s| *s > LONG_RUN_S)
+            {
+                tell!(
+                    "this sweep computes for about {} ({total} cases)",
+                    cable_servo::duration_words(wall_s)
+                );
+            }
             let bar = indicatif::ProgressBar::new(total as u64);
             bar.set_style(
                 indicatif::ProgressStyle::with_template(

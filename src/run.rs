@@ -522,6 +522,38 @@ pub fn runner_for(scenario: &Scenario) -> Result<Box<dyn CaseRunner>, RunError> 
     }
 }
 
+/// Longest a sweep (or one shard of it) may plan to compute, s of wall time (7 days).
+pub const MAX_SWEEP_WALL_S: f64 = 7.0 * 86400.0;
+
+/// Worker threads a sweep uses for `threads` (0 = all cores).
+fn threads_used(threads: usize) -> usize {
+    if threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        threads
+    }
+}
+
+/// Estimated work of a closed-loop run of `scenario` as `run` makes it (every mode, the
+/// time series at its rate); `None` for the other studies, which take milliseconds.
+pub fn work_estimate(scenario: &Scenario) -> Option<closed_loop::WorkEstimate> {
+    let p = scenario.closed_loop.as_ref()?;
+    let options = closed_loop::RunOptions {
+        decimation: p.timeseries_decimation(),
+        ..closed_loop::RunOptions::default()
+    };
+    Some(closed_loop::estimate_work(p, p.modes.len(), &options))
+}
+
+/// Estimated wall time of `cases` closed-loop sweep cases like the scenario's own (metrics
+/// only) on `threads` workers, s; `None` for the other studies.
+pub fn sweep_wall_estimate(scenario: &Scenario, cases: usize, threads: usize) -> Option<f64> {
+    let p = scenario.closed_loop.as_ref()?;
+    let per_case =
+        closed_loop::estimate_work(p, p.modes.len(), &closed_loop::RunOptions::metrics_only());
+    Some(per_case.compute_s * cases as f64 / threads_used(threads).min(cases.max(1)) as f64)
+}
+
 /// Run the sweep declared in `scenario` (with `base` its resolved table), streaming
 /// `sweep.csv`; `progress` is called after every case.
 pub fn run_sweep(
@@ -550,6 +582,17 @@ pub fn run_sweep(
             index: case.index,
             source: Box::new(e),
         })?;
+    }
+    let owned_cases = cases.iter().filter(|c| options.shard.owns(c.index)).count();
+    if let Some(wall_s) = sweep_wall_estimate(scenario, owned_cases, options.threads) {
+        if wall_s > MAX_SWEEP_WALL_S {
+            return Err(RunError::Unsupported(format!(
+                "the sweep would compute for about {} ({owned_cases} cases of this shard, each about {} on one core), more than the {} a sweep (or one shard of it) may take: run it in shards across machines (--shard i/n), draw fewer cases, or shorten closed_loop.duration_s",
+                crate::duration_words(wall_s),
+                crate::duration_words(wall_s * threads_used(options.threads) as f64 / owned_cases.max(1) as f64),
+                crate::duration_words(MAX_SWEEP_WALL_S)
+            )));
+        }
     }
     let mut warnings = scenario.warnings();
     if options.case_timeseries && !runner.writes_case_files() {

@@ -450,6 +450,66 @@ fn runs_too_large_to_hold_are_refused_with_the_setting_that_lowers_them() {
     assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
 }
 
+/// A run that would compute for longer than a run may is refused before it starts: the
+/// command first says how long it estimated, then the refusal names the settings that
+/// shorten it; nothing is left behind. A sweep whose cases add up past a sweep's limit
+/// is refused the same way, pointing to shards.
+#[test]
+fn runs_too_long_to_compute_are_refused_with_the_settings_that_shorten_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("forever");
+    let o = cable_servo(
+        &[
+            "run",
+            "eots_tracking",
+            "--set",
+            "closed_loop.duration_s=50000",
+            "--set",
+            "closed_loop.rk4_substeps=100",
+            "--set",
+            "closed_loop.timeseries_rate_hz=0.01",
+            "--out",
+            p(&out),
+        ],
+        dir.path(),
+    );
+    no_panic(&o);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(err.contains("this run computes for about"), "{err}");
+    assert!(
+        err.contains("more than the 12 h a run may take")
+            && err.contains("shorten closed_loop.duration_s (at most about"),
+        "{err}"
+    );
+    assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
+
+    let out = dir.path().join("sweep");
+    let o = cable_servo(
+        &[
+            "sweep",
+            "eots_tolerance",
+            "--set",
+            "closed_loop.duration_s=50000",
+            "--vary",
+            "drive.preload_n=uniform(60,90)",
+            "--samples",
+            "4000",
+            "--out",
+            p(&out),
+        ],
+        dir.path(),
+    );
+    no_panic(&o);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(
+        err.contains("a sweep (or one shard of it) may take") && err.contains("--shard"),
+        "{err}"
+    );
+    assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
+}
+
 /// Gains five times too high: the amplifier's limit would hold the loop in a saturated
 /// oscillation that once ran "complete" at 4 mrad RMS; it now stops, named as unstable,
 /// with the gains to check, and the results are marked incomplete.

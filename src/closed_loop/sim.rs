@@ -116,6 +116,18 @@ pub enum ClosedLoopError {
         /// The filter.
         requested: String,
     },
+    /// The run would compute for longer than a run may.
+    #[error("the run would compute for about {} ({what}), more than the {} a run may take: {remedy}", crate::duration_words(*.estimate_s), crate::duration_words(*.limit_s))]
+    TooLong {
+        /// Estimated wall time, s.
+        estimate_s: f64,
+        /// The limit, s.
+        limit_s: f64,
+        /// What takes the time.
+        what: String,
+        /// Which settings shorten it.
+        remedy: String,
+    },
     /// The run would hold more in memory than a run may.
     #[error("the run would hold about {estimate_mb:.0} MB in memory ({what}), more than the {limit_mb:.0} MB a run may use: {remedy}")]
     TooLarge {
@@ -137,7 +149,16 @@ pub const MAX_RUN_MEMORY_MB: f64 = 2048.0;
 /// Columns of a recorded time series (one f64 each per row).
 const SERIES_COLUMNS: usize = 15;
 
-/// Memory a run will hold, estimated before it starts.
+/// Longest a single closed-loop run may plan to compute, s of wall time (12 h): beyond
+/// it a run is refused with the settings that shorten it, before anything is written.
+pub const MAX_RUN_WALL_S: f64 = 12.0 * 3600.0;
+
+/// Cost of one control period of one mode, ns: `boundary + substeps * step` (one core of
+/// the 2-core machine the benchmarks run on; the hysteretic cable with memory: 191 ms for
+/// 400 000 periods, the linear cable 83 ms). An estimate, good to a factor of two.
+const PERIOD_COST_NS: [(f64, f64); 2] = [(110.0, 370.0), (50.0, 160.0)];
+
+/// Memory and time a run will take, estimated before it starts.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WorkEstimate {
     /// Control periods per mode.
@@ -148,10 +169,22 @@ pub struct WorkEstimate {
     pub series_rows: u64,
     /// Memory held, MB (time series plus line-of-sight error).
     pub memory_mb: f64,
+    /// Computation, s on one core (all modes).
+    pub compute_s: f64,
+    /// Wall time with the modes side by side on the machine's cores, s.
+    pub wall_s: f64,
 }
 
 /// The work of `p` with `modes` modes under `options`.
 pub fn estimate_work(p: &ClosedLoopParams, modes: usize, options: &RunOptions) -> WorkEstimate {
+    let (boundary_ns, step_ns) = PERIOD_COST_NS[match p.cable {
+        super::params::CableModel::Hysteretic => 0,
+        super::params::CableModel::Linear => 1,
+    }];
+    let per_period_s = (boundary_ns + step_ns * f64::from(p.rk4_substeps)) * 1e-9;
+    let compute_s = p.periods() as f64 * modes as f64 * per_period_s;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let lanes = modes.clamp(1, cores.max(1)) as f64;
     let periods = p.periods();
     let rows = if options.record {
         periods / options.decimation.max(1) as u64 + 1
@@ -167,6 +200,8 @@ pub fn estimate_work(p: &ClosedLoopParams, modes: usize, options: &RunOptions) -
         modes,
         series_rows: rows,
         memory_mb: bytes / 1e6,
+        compute_s,
+        wall_s: compute_s / lanes,
     }
 }
 
@@ -525,6 +560,24 @@ pub fn run_closed_loop_then<T: Send>(
                 crate::number(
                     (p.timeseries_rate_hz * MAX_RUN_MEMORY_MB / work.memory_mb * 0.9).floor()
                 )
+            ),
+        });
+    }
+    if work.wall_s > MAX_RUN_WALL_S {
+        return Err(ClosedLoopError::TooLong {
+            estimate_s: work.wall_s,
+            limit_s: MAX_RUN_WALL_S,
+            what: format!(
+                "{} mode(s) x {} control periods: duration_s = {} s at sample_rate_hz = {} Hz with rk4_substeps = {}",
+                work.modes,
+                work.periods,
+                crate::number(p.duration_s),
+                crate::number(p.controller.sample_rate_hz),
+                p.rk4_substeps
+            ),
+            remedy: format!(
+                "shorten closed_loop.duration_s (at most about {} s fits), lower rk4_substeps, or list fewer modes",
+                crate::number((p.duration_s * MAX_RUN_WALL_S / work.wall_s * 0.9).floor())
             ),
         });
     }
