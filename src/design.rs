@@ -35,10 +35,12 @@ pub struct DesignAnswer {
     pub unit: &'static str,
     /// Searched range.
     pub range: (f64, f64),
-    /// Bisection tolerance.
+    /// Bisection tolerance worked to (the one asked for, or the floor when finer).
     pub tolerance: f64,
     /// Closed-loop runs made.
     pub runs: usize,
+    /// A raised tolerance or a search stopped on its limit, in words; `None` otherwise.
+    pub note: Option<String>,
     /// What the answer means.
     pub definition: String,
 }
@@ -126,9 +128,7 @@ pub fn largest_meeting_target(
             "need a range lo < hi and a tolerance > 0, got {range:?} and {tolerance}"
         )));
     }
-    let runs = std::cell::Cell::new(0usize);
-    let value = largest_passing(range.0, range.1, tolerance, |v| {
-        runs.set(runs.get() + 1);
+    let search = largest_passing(range.0, range.1, tolerance, |v| {
         meets(&with_value(base, question, v), mode)
     });
     let (unit, what) = match question {
@@ -141,11 +141,12 @@ pub fn largest_meeting_target(
     Ok(DesignAnswer {
         question,
         mode,
-        value,
+        value: search.value,
         unit,
         range,
-        tolerance,
-        runs: runs.get(),
+        tolerance: search.tolerance,
+        runs: search.probes,
+        note: search.note(tolerance),
         definition: format!(
             "largest {what} at which the {} mode keeps the peak pointing error within {} mrad over the metrics window of a complete run; bisection, assuming the loop passes below the answer and fails above",
             mode.name(),

@@ -37,6 +37,37 @@ pub fn number(v: f64) -> String {
     }
 }
 
+/// `v` to `digits` significant digits (at least 1), plain for everyday magnitudes and in
+/// exponent form beyond them: `37.2510`, `0.00123457`, `1.23457e300`.
+pub fn significant(v: f64, digits: usize) -> String {
+    let digits = digits.max(1);
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let magnitude = v.abs().log10().floor();
+    if (-4.0..9.0).contains(&magnitude) {
+        let decimals = (digits as f64 - 1.0 - magnitude).max(0.0) as usize;
+        format!("{v:.decimals$}")
+    } else {
+        format!("{v:.*e}", digits - 1)
+    }
+}
+
+/// `v` to at most 4 significant digits without trailing zeros: `0.01`, `7e-7`, `2.143`.
+pub fn compact(v: f64) -> String {
+    let s = significant(v, 4);
+    let (mantissa, exponent) = match s.find('e') {
+        Some(i) => s.split_at(i),
+        None => (s.as_str(), ""),
+    };
+    let mantissa = if mantissa.contains('.') {
+        mantissa.trim_end_matches('0').trim_end_matches('.')
+    } else {
+        mantissa
+    };
+    format!("{mantissa}{exponent}")
+}
+
 /// A duration as shown in messages: `40 s`, `12 min`, `3.5 h`, `9.2 days`.
 pub fn duration_words(s: f64) -> String {
     if !s.is_finite() {
@@ -68,5 +99,19 @@ mod words_tests {
         assert_eq!(super::duration_words(43200.0), "12 h");
         assert_eq!(super::duration_words(9.0 * 86400.0), "9 days");
         assert_eq!(super::duration_words(3e15), "3.5e10 days");
+    }
+
+    #[test]
+    fn significant_digits_never_run_to_hundreds() {
+        assert_eq!(super::significant(37.251, 6), "37.2510");
+        assert_eq!(super::significant(0.00123456789, 3), "0.00123");
+        assert_eq!(super::significant(1.234567e300, 6), "1.23457e300");
+        assert_eq!(super::significant(-2.5e-12, 2), "-2.5e-12");
+        assert_eq!(super::significant(1e8, 3), "100000000");
+        assert!(super::significant(f64::MAX, 6).len() < 16);
+        assert_eq!(super::compact(0.01), "0.01");
+        assert_eq!(super::compact(7.000000000000001e-7), "7e-7");
+        assert_eq!(super::compact(2.14307), "2.143");
+        assert_eq!(super::compact(1200.0), "1200");
     }
 }

@@ -569,11 +569,19 @@ fn main() -> ExitCode {
             say!(
                 "least preload at M = {load_nm} N m ({} model): {}",
                 cable_servo::study::quasi_static::model_name(model),
-                r.preload_n
-                    .map_or(format!("none up to {max_n} N"), |p| format!(
-                        "{p:.3} N (+{tol_n} N)"
-                    ))
+                r.preload_n.map_or(
+                    format!("none up to {} N", cable_servo::number(r.range_n.1)),
+                    |p| format!(
+                        "{} N (+{} N, {} probes)",
+                        cable_servo::significant(p, 6),
+                        cable_servo::compact(r.tolerance_n),
+                        r.probes
+                    )
+                )
             );
+            if let Some(note) = &r.note {
+                say!("  note: {note}");
+            }
             say!(
                 "  for comparison M/(2*drum_radius_m) = {:.3} N (slack limit if span tensions moved equally and oppositely)",
                 r.slack_bound_n
@@ -980,8 +988,22 @@ fn closed_loop_answer(
     match cable_servo::design::largest_meeting_target(&scenario, question, mode, (min, max), tol) {
         Ok(a) => {
             match a.value {
-                Some(v) => say!("{v:.4} {} ({} closed-loop runs)", a.unit, a.runs),
-                None => say!("none: even {min} {} misses the target", a.unit),
+                Some(v) => say!(
+                    "{} {} (-{} {}, {} closed-loop runs)",
+                    cable_servo::significant(v, 6),
+                    a.unit,
+                    cable_servo::compact(a.tolerance),
+                    a.unit,
+                    a.runs
+                ),
+                None => say!(
+                    "none: even {} {} misses the target",
+                    cable_servo::number(min),
+                    a.unit
+                ),
+            }
+            if let Some(note) = &a.note {
+                say!("  note: {note}");
             }
             say!("  definition: {}", a.definition);
             if a.value.is_some() {

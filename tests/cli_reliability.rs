@@ -586,3 +586,50 @@ fn loop_values_outside_physical_ranges_are_refused() {
         assert!(entries(dir.path()).is_empty(), "{set}");
     }
 }
+
+/// A bisection asked for a tolerance no double resolves, or over a range of hundreds of
+/// decades, ends after a few dozen probes, says the tolerance it worked to, and prints
+/// no number of hundreds of digits.
+#[test]
+fn design_searches_end_and_say_what_tolerance_they_reached() {
+    let dir = tempfile::tempdir().unwrap();
+    for args in [
+        &[
+            "design",
+            "least-preload",
+            "--load-nm",
+            "0.5",
+            "--tol-n",
+            "1e-300",
+        ][..],
+        &[
+            "design",
+            "least-preload",
+            "--load-nm",
+            "0.5",
+            "--max-n",
+            "1e300",
+        ][..],
+    ] {
+        let o = cable_servo(args, dir.path());
+        no_panic(&o);
+        let out = stdout(&o);
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {out}{}", stderr(&o));
+        let probes: usize = out
+            .split(" probes)")
+            .next()
+            .and_then(|s| s.rsplit(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("probes in {out}"));
+        assert!(probes <= 64, "{probes} probes: {out}");
+        let longest = out
+            .split(|c: char| !(c.is_ascii_digit() || c == '.' || c == 'e' || c == '-'))
+            .map(str::len)
+            .max()
+            .unwrap_or(0);
+        assert!(longest < 24, "a number of {longest} characters: {out}");
+        if args.contains(&"1e-300") {
+            assert!(out.contains("tolerance 1e-300 raised to"), "{out}");
+        }
+    }
+}

@@ -100,6 +100,9 @@ pub struct LmResult {
     pub jacobian: DMatrix<f64>,
     /// Iterations used.
     pub iterations: usize,
+    /// Whether the fit stopped because no step improved it any more; `false` when it
+    /// stopped on its iteration limit still improving.
+    pub converged: bool,
 }
 
 /// Why a fit failed.
@@ -158,6 +161,7 @@ where
     let mut lambda = 1e-3;
     let mut j = jac(&mut r, &x, &res);
     let mut iterations = 0;
+    let mut converged = false;
     while iterations < max_iter {
         iterations += 1;
         let jt = j.transpose();
@@ -191,6 +195,7 @@ where
             lambda *= 10.0;
         }
         if !improved {
+            converged = true;
             break;
         }
         j = jac(&mut r, &x, &res);
@@ -200,6 +205,7 @@ where
         cost,
         jacobian: j,
         iterations,
+        converged,
     })
 }
 
@@ -227,6 +233,31 @@ mod tests {
         )
         .unwrap();
         assert!((fit.x[0] - 2.0).abs() < 1e-6 && (fit.x[1] - 0.7).abs() < 1e-6);
+        assert!(fit.converged && fit.iterations < 100, "{}", fit.iterations);
+    }
+
+    /// A fit cut short by its iteration limit says so: it is not reported as converged.
+    #[test]
+    fn a_fit_on_its_iteration_limit_is_not_converged() {
+        let t: Vec<f64> = (0..50).map(|i| i as f64 * 0.1).collect();
+        let y: Vec<f64> = t.iter().map(|t| 2.0 * (-0.7 * t).exp()).collect();
+        let fit = levenberg_marquardt(
+            |p| {
+                Some(
+                    t.iter()
+                        .zip(&y)
+                        .map(|(t, y)| p[0] * (-p[1] * t).exp() - y)
+                        .collect(),
+                )
+            },
+            &[1.0, 0.1],
+            &[0.0, 0.0],
+            &[10.0, 5.0],
+            2,
+        )
+        .unwrap();
+        assert_eq!(fit.iterations, 2);
+        assert!(!fit.converged);
     }
 
     #[test]

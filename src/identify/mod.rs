@@ -604,6 +604,19 @@ pub fn diagnose(
         drive: drive_out,
         effects: effects_out,
         traces,
+        fits_on_limit: [
+            ("base calibration", &base_fit),
+            ("extended calibration", &ext_fit),
+        ]
+        .iter()
+        .filter(|(_, f)| !f.converged)
+        .map(|(what, f)| {
+            format!(
+                "{what}: stopped on its limit of {} iterations while still improving",
+                f.iterations
+            )
+        })
+        .collect(),
     })
 }
 

@@ -237,6 +237,11 @@ pub struct Fitted {
     pub cost: f64,
     /// Rows fitted.
     pub n_fit: usize,
+    /// Iterations of the nonlinear fit (0 when there is nothing nonlinear to fit).
+    pub iterations: usize,
+    /// Whether the nonlinear fit converged; `false` when it stopped on its iteration
+    /// limit still improving.
+    pub converged: bool,
 }
 
 type ReplayKey = [u64; 4];
@@ -643,12 +648,12 @@ impl<'a> Evaluator<'a> {
         }
         // Surface why the start fails (slack, gross slip) instead of a bare fit error.
         self.design(&start)?;
-        let x = if nl.is_empty() {
-            Vec::new()
+        let (x, iterations, converged) = if nl.is_empty() {
+            (Vec::new(), 0, true)
         } else {
             let lm = levenberg_marquardt(|x| resid(x, self), &start, &lo, &hi, iters)
                 .map_err(|e| IdentifyError::Fit(e.to_string()))?;
-            lm.x
+            (lm.x, lm.iterations, lm.converged)
         };
         let d = self.design(&x)?;
         let coef = self
@@ -671,6 +676,8 @@ impl<'a> Evaluator<'a> {
             lin: d.names,
             cost,
             n_fit,
+            iterations,
+            converged,
         })
     }
 

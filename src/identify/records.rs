@@ -179,6 +179,11 @@ pub struct Diagnosis {
     /// logs without any left out.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub ignored_columns: Vec<(String, Vec<String>)>,
+    /// Calibrations that stopped on their iteration limit while still improving, each
+    /// with its limit: their parameters are the best reached, not a converged optimum.
+    /// Empty when every calibration converged.
+    #[serde(default)]
+    pub fits_on_limit: Vec<String>,
     /// What was cut from the start of each log (start-up transient), in `logs` order.
     pub start_cuts: Vec<startup::StartCut>,
     /// Calibrated drive.

@@ -34,6 +34,12 @@ pub fn summary_text(d: &Diagnosis) -> String {
     for c in d.start_cuts.iter().filter(|c| c.cut_s > 0.0) {
         let _ = writeln!(s, "Start-up: {}: {}", c.log, c.reason);
     }
+    for f in &d.fits_on_limit {
+        let _ = writeln!(
+            s,
+            "Not converged: {f}; its parameters are the best it reached"
+        );
+    }
     let verdict = match d.cause.as_str() {
         "none" => "nothing beyond sensor noise: the calibrated base model explains the data".to_string(),
         "unexplained" => "structure remains that no effect in the library explains (look at the residual plots: resonance, sensor fault, load not logged?)".to_string(),

@@ -25,50 +25,127 @@ pub fn flattening_preload(points: &[(f64, f64)], asymptote: f64, tolerance: f64)
     Some(p0 + (p1 - p0) * (b0 - limit) / (b0 - b1))
 }
 
-/// Smallest `x` in `[lo, hi]` for which `meets(x)` holds, to within `tol` (same unit as
-/// `x`), for a predicate that fails below some threshold and holds above it. Returns a
-/// value that passes (the upper end of the final bracket), or `None` when `hi` fails.
-/// `meets` is called about `log2((hi - lo) / tol) + 2` times.
-pub fn least_passing(lo: f64, hi: f64, tol: f64, meets: impl Fn(f64) -> bool) -> Option<f64> {
-    if !meets(hi) {
-        return None;
-    }
-    if meets(lo) {
-        return Some(lo);
-    }
-    let (mut fail, mut pass) = (lo, hi);
-    while pass - fail > tol {
-        let m = 0.5 * (fail + pass);
-        if meets(m) {
-            pass = m;
-        } else {
-            fail = m;
+/// Finest tolerance a bisection resolves, relative to the larger magnitude of its range's
+/// ends: finer asks for digits a double cannot hold between the bracket's ends.
+pub const BISECTION_TOLERANCE_FLOOR_REL: f64 = 1e-9;
+
+/// Most probes of one bisection. With the tolerance floor a search needs at most about
+/// `log2(1e9) + 2 = 32` probes on a range that starts at zero, and only ranges spanning
+/// many decades need more; the limit is a guard, and a search that meets it says so.
+pub const MAX_BISECTION_PROBES: usize = 200;
+
+/// Outcome of a bisection.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Bisection {
+    /// The value found (see the search); `None` when the end that must pass fails.
+    pub value: Option<f64>,
+    /// Tolerance the search worked to: the one asked for, or the floor when that was finer.
+    pub tolerance: f64,
+    /// Whether the asked tolerance was raised to the floor.
+    pub tolerance_raised: bool,
+    /// Probes made (calls of the predicate).
+    pub probes: usize,
+    /// Whether the search stopped on [`MAX_BISECTION_PROBES`] before its tolerance: the
+    /// value then passes, but the bracket is wider than the tolerance.
+    pub stopped_on_limit: bool,
+}
+
+impl Bisection {
+    /// What a report should add to the value: a raised tolerance, a search stopped on its
+    /// limit; `None` when neither happened.
+    pub fn note(&self, asked: f64) -> Option<String> {
+        let mut notes = Vec::new();
+        if self.tolerance_raised {
+            notes.push(format!(
+                "tolerance {} raised to {} (a search resolves at most {} of its range's magnitude)",
+                crate::compact(asked),
+                crate::compact(self.tolerance),
+                crate::number(BISECTION_TOLERANCE_FLOOR_REL)
+            ));
         }
+        if self.stopped_on_limit {
+            notes.push(format!(
+                "the search stopped on its limit of {MAX_BISECTION_PROBES} probes before reaching its tolerance; narrow the range"
+            ));
+        }
+        (!notes.is_empty()).then(|| notes.join("; "))
     }
-    Some(pass)
+}
+
+/// The bisection behind [`least_passing`] and [`largest_passing`]: the end that must pass
+/// is `hi` when `passing_end_is_hi`, else `lo`; floor and probe limit applied.
+fn bisect(
+    lo: f64,
+    hi: f64,
+    tol: f64,
+    passing_end_is_hi: bool,
+    meets: impl Fn(f64) -> bool,
+) -> Bisection {
+    let floor = (BISECTION_TOLERANCE_FLOOR_REL * lo.abs().max(hi.abs())).max(f64::MIN_POSITIVE);
+    let tolerance = if tol.is_finite() && tol >= floor {
+        tol
+    } else {
+        floor
+    };
+    let probes = std::cell::Cell::new(0usize);
+    let probe = |x: f64| {
+        probes.set(probes.get() + 1);
+        meets(x)
+    };
+    let (must_pass, may_pass) = if passing_end_is_hi {
+        (hi, lo)
+    } else {
+        (lo, hi)
+    };
+    let mut stopped_on_limit = false;
+    let value = if !probe(must_pass) {
+        None
+    } else if probe(may_pass) {
+        Some(may_pass)
+    } else {
+        let (mut pass, mut fail) = (must_pass, may_pass);
+        while (pass - fail).abs() > tolerance {
+            if probes.get() >= MAX_BISECTION_PROBES {
+                stopped_on_limit = true;
+                break;
+            }
+            let m = 0.5 * (pass + fail);
+            // Adjacent doubles: nothing lies between them to probe.
+            if m == pass || m == fail {
+                break;
+            }
+            if probe(m) {
+                pass = m;
+            } else {
+                fail = m;
+            }
+        }
+        Some(pass)
+    };
+    Bisection {
+        value,
+        tolerance,
+        tolerance_raised: tolerance != tol,
+        probes: probes.get(),
+        stopped_on_limit,
+    }
+}
+
+/// Smallest `x` in `[lo, hi]` for which `meets(x)` holds, to within `tol` (same unit as
+/// `x`; raised to the floor when finer), for a predicate that fails below some threshold
+/// and holds above it. The value passes (the upper end of the final bracket); `None` when
+/// `hi` fails. `meets` is called about `log2((hi - lo) / tol) + 2` times.
+pub fn least_passing(lo: f64, hi: f64, tol: f64, meets: impl Fn(f64) -> bool) -> Bisection {
+    bisect(lo, hi, tol, true, meets)
 }
 
 /// Largest `x` in `[lo, hi]` for which `meets(x)` holds, to within `tol` (same unit as
-/// `x`), for a predicate that holds below some threshold and fails above it: the largest
-/// load, or the fastest scan, that still meets the pointing target. Returns a value that
-/// passes (the lower end of the final bracket), or `None` when `lo` fails.
-pub fn largest_passing(lo: f64, hi: f64, tol: f64, meets: impl Fn(f64) -> bool) -> Option<f64> {
-    if !meets(lo) {
-        return None;
-    }
-    if meets(hi) {
-        return Some(hi);
-    }
-    let (mut pass, mut fail) = (lo, hi);
-    while fail - pass > tol {
-        let m = 0.5 * (pass + fail);
-        if meets(m) {
-            pass = m;
-        } else {
-            fail = m;
-        }
-    }
-    Some(pass)
+/// `x`; raised to the floor when finer), for a predicate that holds below some threshold
+/// and fails above it: the largest load, or the fastest scan, that still meets the
+/// pointing target. The value passes (the lower end of the final bracket); `None` when
+/// `lo` fails.
+pub fn largest_passing(lo: f64, hi: f64, tol: f64, meets: impl Fn(f64) -> bool) -> Bisection {
+    bisect(lo, hi, tol, false, meets)
 }
 
 /// Definition printed with [`least_preload_at_load`].
@@ -85,8 +162,12 @@ pub struct LeastPreload {
     /// The answer, N: passes, and `tolerance_n` less does not (`None`: even the upper end
     /// of the search fails).
     pub preload_n: Option<f64>,
-    /// Bisection tolerance, N.
+    /// Bisection tolerance worked to, N (the one asked for, or the floor when finer).
     pub tolerance_n: f64,
+    /// Probes made (backlash protocols run).
+    pub probes: usize,
+    /// A raised tolerance or a search stopped on its limit, in words; `None` otherwise.
+    pub note: Option<String>,
     /// Searched range, N.
     pub range_n: (f64, f64),
     /// `M / (2 r_drum)`, N, for comparison: the slack limit if the span tensions moved by
@@ -118,10 +199,13 @@ pub fn least_preload_at_load(
         };
         d.validate().is_ok() && backlash(&d, &params).regime == Regime::Ok
     };
+    let search = least_passing(lo_n, hi_n, tol_n, ok);
     LeastPreload {
         load_nm,
-        preload_n: least_passing(lo_n, hi_n, tol_n, ok),
-        tolerance_n: tol_n,
+        preload_n: search.value,
+        tolerance_n: search.tolerance,
+        probes: search.probes,
+        note: search.note(tol_n),
         range_n: (lo_n, hi_n),
         slack_bound_n: load_nm / (2.0 * drive.drum_radius_m),
         definition: LEAST_PRELOAD_DEFINITION,
@@ -143,20 +227,58 @@ mod tests {
 
     #[test]
     fn least_preload_bisects() {
-        let p = least_passing(1.0, 500.0, 1e-6, |x| x >= 37.25).unwrap();
+        let p = least_passing(1.0, 500.0, 1e-6, |x| x >= 37.25)
+            .value
+            .unwrap();
         assert!((p - 37.25).abs() < 1e-5);
-        assert_eq!(least_passing(1.0, 2.0, 1e-3, |_| false), None);
+        assert_eq!(least_passing(1.0, 2.0, 1e-3, |_| false).value, None);
     }
 
     #[test]
     fn passing_bounds_bracket_the_threshold() {
-        let x = largest_passing(0.0, 10.0, 1e-9, |v| v <= 2.5).unwrap();
-        assert!(x <= 2.5 && 2.5 - x < 1e-9, "{x}");
-        assert_eq!(largest_passing(0.0, 10.0, 1e-3, |_| true), Some(10.0));
-        assert_eq!(largest_passing(0.0, 10.0, 1e-3, |_| false), None);
-        let x = least_passing(0.0, 10.0, 1e-9, |v| v >= 7.0).unwrap();
-        assert!(x >= 7.0 && x - 7.0 < 1e-9, "{x}");
-        assert_eq!(least_passing(0.0, 10.0, 1e-3, |_| true), Some(0.0));
+        let x = largest_passing(0.0, 10.0, 1e-8, |v| v <= 2.5)
+            .value
+            .unwrap();
+        assert!(x <= 2.5 && 2.5 - x < 1e-8, "{x}");
+        assert_eq!(largest_passing(0.0, 10.0, 1e-3, |_| true).value, Some(10.0));
+        assert_eq!(largest_passing(0.0, 10.0, 1e-3, |_| false).value, None);
+        let x = least_passing(0.0, 10.0, 1e-8, |v| v >= 7.0).value.unwrap();
+        assert!(x >= 7.0 && x - 7.0 < 1e-8, "{x}");
+        assert_eq!(least_passing(0.0, 10.0, 1e-3, |_| true).value, Some(0.0));
+    }
+
+    /// Tolerances finer than a double resolves, or none at all, and ranges over hundreds
+    /// of decades: every search ends, within its probe limit, and says what it did.
+    #[test]
+    fn absurd_tolerances_and_ranges_end_and_say_so() {
+        for tol in [1e-300, 0.0, -1.0, f64::NAN, f64::MIN_POSITIVE] {
+            let b = least_passing(1.0, 500.0, tol, |x| x >= 37.25);
+            let x = b.value.unwrap();
+            assert!(
+                x >= 37.25 && x - 37.25 <= 500.0 * BISECTION_TOLERANCE_FLOOR_REL,
+                "{x}"
+            );
+            assert!(
+                b.tolerance_raised && b.probes <= MAX_BISECTION_PROBES,
+                "{b:?}"
+            );
+            assert!(
+                b.note(tol).unwrap().contains("raised to"),
+                "{:?}",
+                b.note(tol)
+            );
+        }
+        let b = largest_passing(1e-300, 1e300, 1e-6, |x| x <= 3.0);
+        assert!(
+            b.value.unwrap() <= 3.0 && b.probes <= MAX_BISECTION_PROBES,
+            "{b:?}"
+        );
+        let fine = least_passing(0.0, 10.0, 1e-3, |v| v >= 7.0);
+        assert_eq!(fine.note(1e-3), None);
+        assert!(!fine.stopped_on_limit && fine.probes < 20);
+        // A range whose bracket cannot shrink to the tolerance within the limit.
+        let wide = least_passing(-1e300, 1e300, 1e-6, |x| x >= 1.0);
+        assert!(wide.value.unwrap() >= 1.0 && wide.probes <= MAX_BISECTION_PROBES + 2);
     }
 
     #[test]
