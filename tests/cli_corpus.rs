@@ -142,11 +142,22 @@ fn bad_scenarios_are_rejected_with_their_messages() {
     report("scenario", cases.len(), failures);
 }
 
-/// `(argument, expected texts)` from `cases.txt`.
-fn set_cases() -> Vec<(String, Vec<String>)> {
-    let path = corpus("sets").join("cases.txt");
-    let text = fs::read_to_string(&path).unwrap();
-    text.lines()
+/// The scenario a sets file applies to (`# scenario: NAME` line, a built-in name;
+/// `scenarios/paper_bench.toml` without one) and its `(argument, expected texts)` cases.
+fn set_cases(path: &Path) -> (String, Vec<(String, Vec<String>)>) {
+    let text = fs::read_to_string(path).unwrap();
+    let scenario = text
+        .lines()
+        .find_map(|l| l.strip_prefix("# scenario:"))
+        .map(|n| n.trim().to_string())
+        .unwrap_or_else(|| {
+            root()
+                .join("scenarios/paper_bench.toml")
+                .to_string_lossy()
+                .into_owned()
+        });
+    let cases = text
+        .lines()
         .filter(|l| !l.trim().is_empty() && !l.starts_with('#'))
         .map(|l| {
             let mut parts = l.split(" | ");
@@ -159,46 +170,58 @@ fn set_cases() -> Vec<(String, Vec<String>)> {
             );
             (arg, want)
         })
-        .collect()
+        .collect();
+    (scenario, cases)
 }
 
+/// Every `sets/*.txt` file: the quasi-static `cases.txt`, the closed loop's and the
+/// stabilised gimbal's.
 #[test]
 fn bad_set_arguments_are_rejected_with_their_messages() {
-    let cases = set_cases();
-    assert!(cases.len() >= 7, "only {} --set cases", cases.len());
-    let scenario = root().join("scenarios/paper_bench.toml");
+    let files = files_with_ext(&corpus("sets"), "txt");
+    assert!(files.len() >= 3, "only {} sets files", files.len());
     let mut failures = Vec::new();
-    for (arg, want) in &cases {
-        let tmp = tempfile::tempdir().unwrap();
-        let out_dir = tmp.path().join("out");
-        let out = run(
-            &[
-                "run",
-                scenario.to_str().unwrap(),
-                "--out",
-                out_dir.to_str().unwrap(),
-                &format!("--set={arg}"),
-            ],
-            tmp.path(),
+    let mut checked = 0;
+    for file in &files {
+        let (scenario, cases) = set_cases(file);
+        assert!(
+            cases.len() >= 7,
+            "{}: only {} cases",
+            file.display(),
+            cases.len()
         );
-        check_rejected(
-            &format!("--set {arg}"),
-            &out,
-            3,
-            want,
-            tmp.path(),
-            &mut failures,
-        );
-        // Table files named by a --set are read after the scenario is accepted; their
-        // messages name the file instead.
-        if !stderr(&out).contains("--set") && !stderr(&out).contains("cannot read") {
-            failures.push(format!(
-                "--set {arg}: message does not say it comes from --set: {}",
-                stderr(&out)
-            ));
+        checked += cases.len();
+        for (arg, want) in &cases {
+            let tmp = tempfile::tempdir().unwrap();
+            let out_dir = tmp.path().join("out");
+            let out = run(
+                &[
+                    "run",
+                    &scenario,
+                    "--out",
+                    out_dir.to_str().unwrap(),
+                    &format!("--set={arg}"),
+                ],
+                tmp.path(),
+            );
+            let label = format!(
+                "{}: --set {arg}",
+                file.file_name().unwrap_or_default().to_string_lossy()
+            );
+            check_rejected(&label, &out, 3, want, tmp.path(), &mut failures);
+            // Table files named by a --set are read after the scenario is accepted, and a
+            // run too large is refused as it starts: their messages name the file, or the
+            // key to change, instead.
+            let key = arg.split('=').next().unwrap_or_default();
+            let err = stderr(&out);
+            if !err.contains("--set") && !err.contains("cannot read") && !err.contains(key) {
+                failures.push(format!(
+                    "{label}: message names neither --set nor the key: {err}"
+                ));
+            }
         }
     }
-    report("--set", cases.len(), failures);
+    report("--set", checked, failures);
 }
 
 #[test]

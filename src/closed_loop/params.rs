@@ -953,6 +953,10 @@ impl ClosedLoopParams {
     }
 }
 
+/// Largest angle a closed-loop reference may reach, rad: about 16 turns, more than any
+/// pointing run turns a gimbal axis (a larger value is a unit slip, degrees for radians).
+pub const MAX_POINTING_RAD: f64 = 100.0;
+
 impl ClosedLoopParams {
     /// Physical ranges of the loop's numbers: values far outside any servo axis (a
     /// resistance of 1e-300 ohm, an inertia of 1e30 kg m^2) pass the sign checks but only
@@ -1112,6 +1116,28 @@ impl ClosedLoopParams {
                     ),
                 ));
             }
+        }
+        // Sampled on two coprime grids, so no periodic reference hides its peak between
+        // the samples of both.
+        let duration = if self.duration_s.is_finite() {
+            self.duration_s.max(0.0)
+        } else {
+            0.0
+        };
+        let peak = [4096u32, 4093]
+            .iter()
+            .flat_map(|&n| (0..=n).map(move |i| duration * f64::from(i) / f64::from(n)))
+            .map(|t| self.reference.at(t).value.abs())
+            .fold(0.0, f64::max);
+        if !(peak <= MAX_POINTING_RAD) {
+            return Err((
+                key("reference"),
+                format!(
+                    "reaches {} rad, beyond the {} rad (about 16 turns) a pointing axis turns within a run",
+                    crate::number(peak),
+                    crate::number(MAX_POINTING_RAD)
+                ),
+            ));
         }
         Ok(())
     }

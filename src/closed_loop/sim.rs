@@ -549,14 +549,14 @@ pub fn run_closed_loop_then<T: Send>(
             estimate_mb: work.memory_mb,
             limit_mb: MAX_RUN_MEMORY_MB,
             what: format!(
-                "{} mode(s) x {} rows of time series at closed_loop.timeseries_rate_hz = {} Hz over duration_s = {} s",
+                "{} mode(s) x {} rows of time series at closed_loop.timeseries_rate_hz = {} Hz over closed_loop.duration_s = {} s",
                 work.modes,
                 work.series_rows,
                 crate::number(p.timeseries_rate_hz),
                 crate::number(p.duration_s)
             ),
             remedy: format!(
-                "lower closed_loop.timeseries_rate_hz (at most about {} Hz fits), shorten duration_s, or list fewer modes",
+                "lower closed_loop.timeseries_rate_hz (at most about {} Hz fits), shorten closed_loop.duration_s, or list fewer closed_loop.modes",
                 crate::number(
                     (p.timeseries_rate_hz * MAX_RUN_MEMORY_MB / work.memory_mb * 0.9).floor()
                 )
@@ -568,7 +568,7 @@ pub fn run_closed_loop_then<T: Send>(
             estimate_s: work.wall_s,
             limit_s: MAX_RUN_WALL_S,
             what: format!(
-                "{} mode(s) x {} control periods: duration_s = {} s at sample_rate_hz = {} Hz with rk4_substeps = {}",
+                "{} mode(s) x {} control periods: closed_loop.duration_s = {} s at closed_loop.controller.sample_rate_hz = {} Hz with closed_loop.rk4_substeps = {}",
                 work.modes,
                 work.periods,
                 crate::number(p.duration_s),
@@ -576,7 +576,7 @@ pub fn run_closed_loop_then<T: Send>(
                 p.rk4_substeps
             ),
             remedy: format!(
-                "shorten closed_loop.duration_s (at most about {} s fits), lower rk4_substeps, or list fewer modes",
+                "shorten closed_loop.duration_s (at most about {} s fits), lower closed_loop.rk4_substeps, or list fewer closed_loop.modes",
                 crate::number((p.duration_s * MAX_RUN_WALL_S / work.wall_s * 0.9).floor())
             ),
         });

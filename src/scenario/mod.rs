@@ -87,6 +87,34 @@ pub struct Scenario {
     pub effects: Option<EffectsParams>,
 }
 
+/// Whether serde's message says a name was expected and something else was given (a
+/// number where `routing` wants `"open"`): its own words name neither the key's names
+/// nor the key.
+fn wrong_type_for_a_name(message: &str) -> bool {
+    [
+        "unit variant",
+        "expected string only",
+        "wanted string or table",
+    ]
+    .iter()
+    .any(|p| message.contains(p))
+}
+
+/// The names a key of an enumeration accepts (`expected one of `a`, `b``), found by
+/// offering it a name no enumeration has and reading the refusal; `None` when the key
+/// takes something else.
+fn names_at(table: &toml::Table, path: &[String]) -> Option<String> {
+    const PROBE: &str = "\u{1}";
+    let mut probe = table.clone();
+    set_path(&mut probe, path, toml::Value::String(PROBE.into())).ok()?;
+    let err = Scenario::deserialize(toml::Value::Table(probe)).err()?;
+    let message = err.message();
+    let rest = message
+        .split(&format!("unknown variant `{PROBE}`, "))
+        .nth(1)?;
+    Some(rest.lines().next().unwrap_or(rest).to_string())
+}
+
 impl Scenario {
     /// Read a scenario file, or a built-in scenario when `path` names one (`eots_tracking`).
     pub fn load(path: &str, overrides: &[String]) -> Result<Scenario, ScenarioError> {
@@ -135,8 +163,26 @@ impl Scenario {
         overrides: &[String],
     ) -> Result<Scenario, ScenarioError> {
         // Typed parse of the file alone first, so errors carry its line numbers.
-        let mut scenario: Scenario =
-            toml::from_str(text).map_err(|e| parse_error(source_name, text, &e))?;
+        let mut scenario: Scenario = toml::from_str(text).map_err(|e| {
+            let mut err = parse_error(source_name, text, &e);
+            // A number or table where a name belongs: say which names.
+            if let (ScenarioError::Parse { message, .. }, true) =
+                (&mut err, wrong_type_for_a_name(e.message()))
+            {
+                let names = e
+                    .span()
+                    .and_then(|s| errors::key_at(text, s.start))
+                    .and_then(|key| {
+                        let table = toml::from_str::<toml::Table>(text).ok()?;
+                        let path: Vec<String> = key.split('.').map(String::from).collect();
+                        names_at(&table, &path).map(|n| (key, n))
+                    });
+                if let Some((key, names)) = names {
+                    *message = format!("{key} takes a name in quotes: {names}");
+                }
+            }
+            err
+        })?;
         let mut shown_name = source_name.to_string();
         if !overrides.is_empty() {
             let mut table: toml::Table =
@@ -178,9 +224,18 @@ impl Scenario {
                     continue;
                 }
                 Scenario::deserialize(toml::Value::Table(table.clone())).map_err(|e| {
+                    let names = wrong_type_for_a_name(e.message())
+                        .then(|| names_at(&table, path))
+                        .flatten();
                     ScenarioError::Override {
                         arg: (*arg).clone(),
-                        message: plain_message(&with_suggestion(e.message())),
+                        message: match names {
+                            Some(names) => format!(
+                                "{} takes a name in quotes, not {value}: {names}",
+                                path.join(".")
+                            ),
+                            None => plain_message(&with_suggestion(e.message())),
+                        },
                     }
                 })?;
             }
