@@ -1129,7 +1129,7 @@ impl ClosedLoopParams {
             .flat_map(|&n| (0..=n).map(move |i| duration * f64::from(i) / f64::from(n)))
             .map(|t| self.reference.at(t).value.abs())
             .fold(0.0, f64::max);
-        if !(peak <= MAX_POINTING_RAD) {
+        if peak.is_nan() || peak > MAX_POINTING_RAD {
             return Err((
                 key("reference"),
                 format!(
