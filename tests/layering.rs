@@ -10,7 +10,16 @@ const LAYERS: &[(&str, &[&str])] = &[
     // Physics and the plain data and numerics everything else builds on.
     (
         "bottom",
-        &["number", "physics", "signal", "metrics", "measurement"],
+        &[
+            "number",
+            "compact",
+            "significant",
+            "duration_words",
+            "physics",
+            "signal",
+            "metrics",
+            "measurement",
+        ],
     ),
     // Computation over parameter structs, returning result records.
     (
