@@ -306,6 +306,10 @@ enum Command {
         /// Override a scenario key (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
+        /// Give the cable the tangent stiffness of first loading to this transmitted torque,
+        /// N m (large monotone motion), instead of the free span (small motion).
+        #[arg(long = "load-nm", value_name = "M")]
+        load_nm: Option<f64>,
     },
     /// Frequency response of the simulated (nonlinear) loop by sinusoidal injection at one
     /// loop point and one or more amplitudes; margins, sensitivity peak and bandwidth of
@@ -739,7 +743,11 @@ fn main() -> ExitCode {
                 ExitCode::from(e.exit_code())
             }
         },
-        Command::Margins { scenario, set } => {
+        Command::Margins {
+            scenario,
+            set,
+            load_nm,
+        } => {
             let name = scenario.as_deref().unwrap_or(DEFAULT_SCENARIO);
             let scenario = match load(name, &set) {
                 Ok(s) => s,
@@ -749,8 +757,19 @@ fn main() -> ExitCode {
                 tell!("error: {name} is not a closed-loop scenario (study = \"closed_loop\")");
                 return ExitCode::from(exit::INPUT);
             };
-            let m =
-                cable_servo::closed_loop::linear::LinearLoop::new(p, &scenario.drive).margins(4000);
+            use cable_servo::closed_loop::linear::{tangent_half_stiffness, LinearLoop};
+            let free = cable_servo::closed_loop::params::ClosedLoopParams::half_stiffness_n_per_m(
+                &scenario.drive,
+            );
+            let k = match load_nm.map(|m| tangent_half_stiffness(&scenario.drive, m)) {
+                None => free,
+                Some(Ok(k)) => k,
+                Some(Err(e)) => {
+                    tell!("error: --load-nm: {e}");
+                    return ExitCode::from(exit::INPUT);
+                }
+            };
+            let m = LinearLoop::with_half_stiffness(p, &scenario.drive, k).margins(4000);
             let opt = |v: Option<f64>, digits: usize| {
                 v.map_or_else(|| "none".to_string(), |v| format!("{v:.digits$}"))
             };
@@ -760,6 +779,16 @@ fn main() -> ExitCode {
                 p.controller.computation_delay_samples,
                 p.controller.sample_rate_hz
             );
+            match load_nm {
+                None => say!(
+                    "cable             each half {k:.4e} N/m: the free span (small motion)"
+                ),
+                Some(m) => say!(
+                    "cable             each half {k:.4e} N/m: the tangent on first loading to {} N m ({:.1} % of the free span)",
+                    cable_servo::compact(m),
+                    100.0 * k / free
+                ),
+            }
             say!(
                 "stable            {} (largest pole |z| = {:.8})",
                 m.stable,

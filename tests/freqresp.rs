@@ -3,6 +3,8 @@
 //! hysteretic cable.
 
 use cable_servo::closed_loop::freqresp::{measure, FreqRespParams, FreqResponse, LoopPoint};
+use cable_servo::closed_loop::linear::{tangent_half_stiffness, LinearLoop};
+use cable_servo::closed_loop::params::ClosedLoopParams;
 use cable_servo::closed_loop::ClosedLoopSource;
 use cable_servo::scenario::Scenario;
 
@@ -166,6 +168,37 @@ fn hysteretic_cable_softens_with_amplitude() {
     assert!(
         large_thd > 10.0 * small_thd,
         "{large_thd} against {small_thd}"
+    );
+    // The large swing is bracketed by the two linear references: the free span (small
+    // motions) above it, the tangent stiffness on first loading to the swing's peak cable
+    // torque below it (near the antiresonance the motor barely moves, so the cable carries
+    // the motor's torque: ro/ri * kt * 2 A at the drum).
+    let setup = s.closed_loop_setup().unwrap_or_else(|e| panic!("{e}"));
+    let (p, drive) = (setup.params, setup.drive);
+    let dip_of = |k: f64| {
+        let lin = LinearLoop::with_half_stiffness(p, drive, k);
+        (3000..6000)
+            .map(|i| f64::from(i) * 0.01)
+            .min_by(|a, b| {
+                lin.loop_gain(*a)
+                    .norm()
+                    .total_cmp(&lin.loop_gain(*b).norm())
+            })
+            .unwrap_or(f64::NAN)
+    };
+    let peak_nm =
+        drive.drum_radius_m / drive.pulley_radius_m * p.motor.torque_constant_nm_per_a * 2.0;
+    let k_free = ClosedLoopParams::half_stiffness_n_per_m(drive);
+    let k_tan = tangent_half_stiffness(drive, peak_nm).unwrap_or_else(|e| panic!("{e}"));
+    let (f_free, f_tan) = (dip_of(k_free), dip_of(k_tan));
+    println!("references: free span {f_free:.2} Hz, tangent at {peak_nm:.2} N m {f_tan:.2} Hz ({:.1} % of the stiffness)", 100.0 * k_tan / k_free);
+    assert!(
+        (f_free / exact_dip - 1.0).abs() < 0.02,
+        "{f_free} vs {exact_dip}"
+    );
+    assert!(
+        f_tan < large && large < f_free,
+        "{f_tan} < {large} < {f_free}"
     );
 }
 

@@ -161,6 +161,11 @@ pub struct FreqRespParams {
     pub min_gain_margin_db: f64,
     /// Requirement: sensitivity peak at most this (2).
     pub max_ms: f64,
+    /// Transmitted torque, N m, at whose tangent stiffness (first loading from the
+    /// preload) the exact linear reference takes its cable; `None` (the default) takes the
+    /// free-span stiffness, the small-amplitude limit. The two bracket the drive: small
+    /// motions see the free span, large monotone ones the tangent.
+    pub reference_load_nm: Option<f64>,
 }
 
 impl Default for FreqRespParams {
@@ -181,6 +186,7 @@ impl Default for FreqRespParams {
             min_phase_margin_deg: 35.0,
             min_gain_margin_db: 6.0,
             max_ms: 2.0,
+            reference_load_nm: None,
         }
     }
 }
@@ -457,6 +463,17 @@ impl AmplitudeResponse {
     }
 }
 
+/// The cable of the exact linear reference.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ReferenceCable {
+    /// Transmitted torque of the tangent stiffness, N m; `None` for the free span.
+    pub load_nm: Option<f64>,
+    /// Stiffness of each half, N/m.
+    pub half_stiffness_n_per_m: f64,
+    /// The free-span stiffness of each half, N/m, for comparison.
+    pub free_span_half_stiffness_n_per_m: f64,
+}
+
 /// A frequency-response measurement.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct FreqResponse {
@@ -468,6 +485,8 @@ pub struct FreqResponse {
     pub amplitudes: Vec<AmplitudeResponse>,
     /// Margins of the exact linear reference (cable as its linear spring).
     pub exact_margins: Margins,
+    /// The stiffness the exact reference gave its cable.
+    pub reference_cable: ReferenceCable,
     /// Simulation runs made (one per frequency and amplitude, refinements included).
     pub runs: usize,
     /// Simulated time over all runs, s.
@@ -940,7 +959,18 @@ pub fn measure(
     spec.validate(p)?;
     let freqs = spec.frequencies(p.controller.sample_rate_hz)?;
     let amps = spec.amplitudes(p.motor.command_limit())?;
-    let lin = LinearLoop::new(p, setup.drive);
+    let free = ClosedLoopParams::half_stiffness_n_per_m(setup.drive);
+    let k = match spec.reference_load_nm {
+        None => free,
+        Some(m) => super::linear::tangent_half_stiffness(setup.drive, m)
+            .map_err(|message| invalid("reference_load_nm", message))?,
+    };
+    let reference_cable = ReferenceCable {
+        load_nm: spec.reference_load_nm,
+        half_stiffness_n_per_m: k,
+        free_span_half_stiffness_n_per_m: free,
+    };
+    let lin = LinearLoop::with_half_stiffness(p, setup.drive, k);
     let bench = Bench { setup, spec, lin };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
@@ -1022,6 +1052,7 @@ pub fn measure(
         transfer: spec.point.transfer().to_string(),
         amplitudes,
         exact_margins: bench.lin.margins(4000),
+        reference_cable,
         runs,
         simulated_s,
     })

@@ -142,11 +142,102 @@ fn augmented_exp(a: &DMatrix<f64>, b: &DVector<f64>, tau: f64) -> (DMatrix<f64>,
     )
 }
 
+/// Tangent stiffness of the preloaded drive on first loading to the transmitted torque
+/// `load_nm` (N m), as the stiffness of each of two equal linear halves (N/m): half of
+/// `d(Tu - Tl)/dD` on the loading branch, where `D` is the span displacement that carries
+/// `ro (Tu - Tl) = load_nm` from a virgin preloaded state.
+///
+/// At zero load this is the free-span stiffness [`ClosedLoopParams::half_stiffness_n_per_m`];
+/// as the load grows the slip zones on the wraps add compliance and it falls. It is the
+/// stiffness of continued loading: a small motion reversed about that load sees the wraps
+/// stick again, and with them the free-span stiffness. A load the drive cannot carry on
+/// first loading (a slack span or gross slip) is an error that says which.
+pub fn tangent_half_stiffness(drive: &DriveParams, load_nm: f64) -> Result<f64, String> {
+    use super::params::CableModel;
+    use super::plant::PlantCable;
+    let free = ClosedLoopParams::half_stiffness_n_per_m(drive);
+    if !load_nm.is_finite() {
+        return Err(format!("load {load_nm} N m is not a finite torque"));
+    }
+    if load_nm == 0.0 {
+        return Ok(free);
+    }
+    let cable = PlantCable::new(CableModel::Hysteretic, drive);
+    let sign = load_nm.signum();
+    let target = load_nm.abs() / drive.drum_radius_m;
+    let force = |d: f64| {
+        cable
+            .tensions(sign * d)
+            .map(|(u, l)| sign * (u - l))
+            .map_err(|e| e.to_string())
+    };
+    // The free span is the stiffest the drive gets: from there the load needs more.
+    let mut hi = target / (2.0 * free);
+    let mut doublings = 0;
+    let slack = |_| {
+        format!(
+            "the drive cannot carry {} N m on first loading from its {} N preload: a span goes slack first (the halves carry at most about 2 x preload_n x drum_radius_m = {} N m); raise drive.preload_n above about {} N or lower the load",
+            crate::number(load_nm),
+            crate::number(drive.preload_n),
+            crate::compact(2.0 * drive.preload_n * drive.drum_radius_m),
+            crate::compact(load_nm.abs() / (2.0 * drive.drum_radius_m))
+        )
+    };
+    while force(hi).map_err(slack)? < target {
+        hi *= 2.0;
+        doublings += 1;
+        if doublings > 200 {
+            return Err(format!(
+                "no span displacement carries {} N m",
+                crate::number(load_nm)
+            ));
+        }
+    }
+    let mut lo = 0.0;
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if mid <= lo || mid >= hi {
+            break;
+        }
+        if force(mid)? < target {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let d = hi;
+    let mut committed = cable.clone();
+    committed.commit(sign * d).map_err(|e| {
+        format!(
+            "the drive cannot carry {} N m on first loading from its {} N preload: {e}",
+            crate::number(load_nm),
+            crate::number(drive.preload_n)
+        )
+    })?;
+    // Central difference on the loading curve (smooth for D > 0, and through D = 0 where
+    // both sides start at the free span). The step is large enough that the difference of
+    // two spans of about the preload keeps its digits, small enough for the curvature.
+    let h = (d * 1e-4).max(1e-10);
+    let k_d = (force(d + h)? - force(d - h)?) / (2.0 * h);
+    if !(k_d.is_finite() && k_d > 0.0) {
+        return Err(format!(
+            "the drive has no stiffness left at {} N m",
+            crate::number(load_nm)
+        ));
+    }
+    Ok(0.5 * k_d)
+}
+
 impl LinearLoop {
     /// The loop of `p` around `drive`, with the cable as its linear spring.
     pub fn new(p: &ClosedLoopParams, drive: &DriveParams) -> Self {
+        Self::with_half_stiffness(p, drive, ClosedLoopParams::half_stiffness_n_per_m(drive))
+    }
+
+    /// The loop with each half of the cable a linear spring of `k` N/m: the free-span
+    /// stiffness of [`Self::new`], or a tangent stiffness from [`tangent_half_stiffness`].
+    pub fn with_half_stiffness(p: &ClosedLoopParams, drive: &DriveParams, k: f64) -> Self {
         let (ri, ro) = (drive.pulley_radius_m, drive.drum_radius_m);
-        let k = ClosedLoopParams::half_stiffness_n_per_m(drive);
         let cd = p.cable_damping_n_s_per_m(drive);
         let m = &p.motor;
         let (jm, bm, kt) = (
@@ -763,6 +854,82 @@ pub fn margins_signable(m: &Margins) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Tangent stiffness against physics.md's closed forms for first loading of a virgin
+    /// wrap (`(r Tpre/(G mu)) f(v)`, `f(x) = x - 1 - ln x`, on the pulley and on the drum,
+    /// plus the free span), solved here by plain bisection: the tension split at the load,
+    /// its oracle `Tu = 103.52112 N` at 0.72 N m, and `d(Tu - Tl)/dD`.
+    #[test]
+    fn tangent_stiffness_matches_the_first_loading_closed_forms() {
+        let drive = DriveParams::default();
+        let (p, g, mu) = (
+            drive.preload_n,
+            drive.cable_modulus_n,
+            drive.friction_coefficient,
+        );
+        let lf = 77.6918e-3; // physics.md section 6, figure-eight free span
+        let r = drive.pulley_radius_m + drive.drum_radius_m;
+        let f = |x: f64| x - 1.0 - x.ln();
+        // Elongation of a half at tension t (rising above the preload or falling below).
+        let elong = |t: f64| {
+            let x = t / p;
+            let wraps = r * p * f(x) / (g * mu);
+            lf * (t - p) / g + if t >= p { wraps } else { -wraps }
+        };
+        let d_elong = |t: f64| lf / g + r * (1.0 - p / t).abs() / (g * mu);
+        let tension_for = |e: f64| {
+            let (mut lo, mut hi) = (1e-6 * p, 3.0 * p);
+            for _ in 0..200 {
+                let m = 0.5 * (lo + hi);
+                if elong(m) < e {
+                    lo = m;
+                } else {
+                    hi = m;
+                }
+            }
+            0.5 * (lo + hi)
+        };
+        let split = |m_nm: f64| {
+            let (mut lo, mut hi) = (0.0, 1e-3);
+            for _ in 0..200 {
+                let d = 0.5 * (lo + hi);
+                let torque = drive.drum_radius_m * (tension_for(d) - tension_for(-d));
+                if torque < m_nm {
+                    lo = d;
+                } else {
+                    hi = d;
+                }
+            }
+            let d = 0.5 * (lo + hi);
+            (tension_for(d), tension_for(-d))
+        };
+        let (tu, _) = split(0.72);
+        assert!((tu - 103.52112).abs() < 1e-4, "oracle Tu {tu}");
+        for m_nm in [0.05, 0.3, 0.72, 1.3] {
+            let (tu, tl) = split(m_nm);
+            let want = 0.5 * (1.0 / d_elong(tu) + 1.0 / d_elong(tl));
+            let got = tangent_half_stiffness(&drive, m_nm).expect("carried");
+            assert!(
+                (got / want - 1.0).abs() < 1e-4,
+                "{m_nm} N m: {got} N/m, closed forms {want} N/m"
+            );
+            let neg = tangent_half_stiffness(&drive, -m_nm).expect("carried");
+            assert!((neg / got - 1.0).abs() < 1e-6, "{neg} vs {got}");
+        }
+        let free = ClosedLoopParams::half_stiffness_n_per_m(&drive);
+        assert_eq!(tangent_half_stiffness(&drive, 0.0), Ok(free));
+        let tiny = tangent_half_stiffness(&drive, 1e-6).expect("carried");
+        assert!((tiny / free - 1.0).abs() < 1e-3, "{tiny} vs {free}");
+        let mut last = free;
+        for m_nm in [0.1, 0.5, 1.0, 2.0, 4.0] {
+            let k = tangent_half_stiffness(&drive, m_nm).expect("carried");
+            assert!(k < last, "{m_nm} N m: {k} not below {last}");
+            last = k;
+        }
+        // Past slack: the lower span would have to push.
+        let e = tangent_half_stiffness(&drive, 25.0).expect_err("not carried");
+        assert!(e.contains("cannot carry 25 N m"), "{e}");
+    }
 
     /// The bench loop of `scenarios/eots_tracking.toml`, read without the scenario layer.
     fn bench() -> (ClosedLoopParams, DriveParams) {

@@ -119,6 +119,7 @@ pub fn write_outputs(dir: &Path, scenario: &Scenario, r: &FreqResponse) -> Resul
                 "passes": r.amplitudes.iter().all(AmplitudeResponse::passes),
                 "amplitudes": amplitudes,
                 "exact_linear_reference": r.exact_margins,
+                "reference_cable": r.reference_cable,
                 "runs": r.runs,
                 "simulated_s": r.simulated_s,
             }
@@ -303,6 +304,20 @@ pub fn format_table(r: &FreqResponse) -> String {
         "-",
         if e.stable { "stable" } else { "UNSTABLE" }
     ));
+    let c = &r.reference_cable;
+    t.push_str(&match c.load_nm {
+        None => format!(
+            "exact linear reference: each cable half a spring of {:.4e} N/m, the free span (the small-amplitude limit)\n",
+            c.half_stiffness_n_per_m
+        ),
+        Some(m) => format!(
+            "exact linear reference: each cable half a spring of {:.4e} N/m, the tangent stiffness on first loading to {} N m ({:.1} % of the free span's {:.4e} N/m)\n",
+            c.half_stiffness_n_per_m,
+            crate::compact(m),
+            100.0 * c.half_stiffness_n_per_m / c.free_span_half_stiffness_n_per_m,
+            c.free_span_half_stiffness_n_per_m
+        ),
+    });
     for a in &r.amplitudes {
         for s in &a.shortfalls {
             t.push_str(&format!("{} {}: {s}\n", a.amplitude, a.unit));
