@@ -62,26 +62,62 @@ pub fn binned_structure(resid: &[f64], signal: &[f64]) -> f64 {
     (s / n as f64).sqrt()
 }
 
+/// How strongly `resid` (rad, the logs' samples in order) follows the input angle, the
+/// transmitted load and the input velocity of `logs`: the RMS of its bin means along each
+/// ([`binned_structure`]), over the noise floor `floor` (rad); strongest first.
+pub fn residual_signatures(
+    logs: &[Prepared],
+    resid: &[f64],
+    floor: f64,
+) -> Vec<super::ResidualSignature> {
+    let along = |pick: fn(&Prepared) -> &[f64]| -> Vec<f64> {
+        logs.iter().flat_map(|l| pick(l).iter().copied()).collect()
+    };
+    signatures(
+        resid,
+        &[
+            ("input angle", along(|l| &l.th_in)),
+            ("transmitted load", along(|l| &l.torque)),
+            ("input velocity", along(|l| &l.vel_in)),
+        ],
+        floor,
+    )
+}
+
+/// [`residual_signatures`] for named signals.
+fn signatures(
+    resid: &[f64],
+    signals: &[(&str, Vec<f64>)],
+    floor: f64,
+) -> Vec<super::ResidualSignature> {
+    let mut out: Vec<super::ResidualSignature> = signals
+        .iter()
+        .map(|(name, signal)| {
+            let v = binned_structure(resid, signal);
+            super::ResidualSignature {
+                variable: (*name).to_string(),
+                binned_rms_mrad: v * 1e3,
+                ratio_to_floor: v / floor.max(1e-300),
+            }
+        })
+        .collect();
+    out.sort_by(|a, b| b.ratio_to_floor.total_cmp(&a.ratio_to_floor));
+    out
+}
+
 fn residual_verdict(p: &Prepared, resid: &[f64], rmse: f64, floor: f64) -> String {
     if rmse <= 2.0 * floor {
         return "within twice the noise floor".into();
     }
-    let cands = [
-        ("input angle", binned_structure(resid, &p.th_in)),
-        ("transmitted load", binned_structure(resid, &p.torque)),
-        ("input velocity", binned_structure(resid, &p.vel_in)),
-    ];
-    let (name, v) = cands
-        .iter()
-        .copied()
-        .fold(("", 0.0), |a, b| if b.1 > a.1 { b } else { a });
-    if v > floor {
-        format!(
-            "unexplained: follows the {name} ({:.2} mrad RMS of binned means)",
-            v * 1e3
-        )
-    } else {
-        "above the floor without structure in angle, load or velocity".into()
+    match residual_signatures(std::slice::from_ref(p), resid, floor)
+        .first()
+        .filter(|g| g.ratio_to_floor > 1.0)
+    {
+        Some(g) => format!(
+            "unexplained: follows the {} ({:.2} mrad RMS of binned means)",
+            g.variable, g.binned_rms_mrad
+        ),
+        None => "above the floor without structure in angle, load or velocity".into(),
     }
 }
 
@@ -459,5 +495,32 @@ mod tests {
             .collect();
         let t = binned_structure(&other, &x);
         assert!(t < 0.2 * 1e-3 / 3f64.sqrt(), "{t}");
+    }
+
+    /// The signal a residual follows is named first, above the floor; the others, and
+    /// noise alone, stay under it.
+    #[test]
+    fn the_signal_a_residual_follows_is_named_first() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+        let n = 20_000;
+        let angle: Vec<f64> = (0..n).map(|_| rng.gen_range(0.0..1.0)).collect();
+        let load: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect();
+        let noise: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..1.0) * 0.03e-3).collect();
+        let floor = 0.02e-3;
+        let along: Vec<f64> = angle
+            .iter()
+            .zip(&noise)
+            .map(|(a, e)| 0.1e-3 * (std::f64::consts::TAU * a).sin() + e)
+            .collect();
+        let signals = [("input angle", angle), ("transmitted load", load)];
+        let s = super::signatures(&along, &signals, floor);
+        assert_eq!(s[0].variable, "input angle", "{s:?}");
+        assert!(
+            s[0].ratio_to_floor > 3.0 && s[1].ratio_to_floor < 0.5,
+            "{s:?}"
+        );
+        let s = super::signatures(&noise, &signals, floor);
+        assert!(s.iter().all(|g| g.ratio_to_floor < 0.5), "{s:?}");
     }
 }

@@ -572,6 +572,7 @@ pub fn diagnose(
             theta_in_rad: l.th_in.clone(),
             theta_out_rad: l.th_out.clone(),
             velocity_rad_s: l.vel_in.clone(),
+            load_nm: l.torque.clone(),
             measured_rad: measured,
             base_rad,
             extended_rad,
@@ -580,7 +581,9 @@ pub fn diagnose(
         start = r.end;
     }
 
+    let residual_signatures = loo::residual_signatures(&prepared, &ext_resid, floor);
     Ok(Diagnosis {
+        residual_signatures,
         cause,
         causes: chosen.iter().map(|c| c.to_string()).collect(),
         rmse_base_mrad: rmse_base * 1e3,

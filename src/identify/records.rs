@@ -126,6 +126,8 @@ pub struct Trace {
     pub theta_out_rad: Vec<f64>,
     /// Input velocity, rad/s.
     pub velocity_rad_s: Vec<f64>,
+    /// Transmitted load (the torque the drive carries), N m.
+    pub load_nm: Vec<f64>,
     /// Measured transmission error (fitted ratio, encoder zero removed), rad.
     pub measured_rad: Vec<f64>,
     /// Base model prediction, rad.
@@ -134,6 +136,20 @@ pub struct Trace {
     pub extended_rad: Vec<f64>,
     /// Whether the sample was held out in the log-level split.
     pub held_out: bool,
+}
+
+/// How strongly the extended model's residual follows one logged variable: the RMS of the
+/// residual's means in bins of equal sample count along the variable (all logs together),
+/// so noise averages out and structure along the variable stays.
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct ResidualSignature {
+    /// The variable (`input angle`, `transmitted load`, `input velocity`).
+    pub variable: String,
+    /// RMS of the residual's bin means along it, mrad.
+    pub binned_rms_mrad: f64,
+    /// That over the noise floor: above 1, structure along this variable that noise does
+    /// not explain.
+    pub ratio_to_floor: f64,
 }
 
 /// Result of [`super::diagnose`].
@@ -184,6 +200,10 @@ pub struct Diagnosis {
     /// Empty when every calibration converged.
     #[serde(default)]
     pub fits_on_limit: Vec<String>,
+    /// The extended model's residual along each logged variable, strongest first: which
+    /// variable the structure that remains follows (the residual plot to look at).
+    #[serde(default)]
+    pub residual_signatures: Vec<ResidualSignature>,
     /// What was cut from the start of each log (start-up transient), in `logs` order.
     pub start_cuts: Vec<startup::StartCut>,
     /// Calibrated drive.

@@ -85,6 +85,31 @@ pub fn summary_text(d: &Diagnosis) -> String {
             d.structure_ratio
         );
     }
+    if !d.residual_signatures.is_empty() {
+        let _ = writeln!(
+            s,
+            "Extended-model residual along each variable (RMS of its means in 20 equal-count bins, x noise floor): {}",
+            d.residual_signatures
+                .iter()
+                .map(|g| format!(
+                    "{} {:.3} mrad ({:.1}x)",
+                    g.variable, g.binned_rms_mrad, g.ratio_to_floor
+                ))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    if let Some(g) = d
+        .residual_signatures
+        .first()
+        .filter(|g| g.ratio_to_floor > 1.0 && (d.unexplained_structure || d.cause == "unexplained"))
+    {
+        let _ = writeln!(
+            s,
+            "The structure that remains follows {} most: see residual_extended.png, panel \"against {}\".",
+            g.variable, g.variable
+        );
+    }
     let _ = writeln!(s, "\nParameters (value +- 1 sigma):");
     for p in &d.params {
         let _ = writeln!(
@@ -131,16 +156,17 @@ pub fn write_diagnosis(
     let rp = dir.join("report.txt");
     wr(&rp, &summary_text(diagnosis))?;
     files.push(rp);
-    let mut csv = String::from("log,t_s,theta_in_rad,theta_out_rad,velocity_rad_s,measured_rad,base_rad,extended_rad,residual_rad\n");
+    let mut csv = String::from("log,t_s,theta_in_rad,theta_out_rad,velocity_rad_s,load_nm,measured_rad,base_rad,extended_rad,residual_rad\n");
     for (k, t) in diagnosis.traces.iter().enumerate() {
         for i in 0..t.t_s.len() {
             let _ = writeln!(
                 csv,
-                "{k},{:.5},{:.7},{:.7},{:.6},{:.4e},{:.4e},{:.4e},{:.4e}",
+                "{k},{:.5},{:.7},{:.7},{:.6},{:.6},{:.4e},{:.4e},{:.4e},{:.4e}",
                 t.t_s[i],
                 t.theta_in_rad[i],
                 t.theta_out_rad[i],
                 t.velocity_rad_s[i],
+                t.load_nm.get(i).copied().unwrap_or(f64::NAN),
                 t.measured_rad[i],
                 t.base_rad[i],
                 t.extended_rad[i],
@@ -156,7 +182,7 @@ pub fn write_diagnosis(
 }
 
 /// Error traces and residual signatures: the shape of the residual against time, input
-/// angle, output angle and velocity is what names a cause.
+/// angle, output angle, transmitted load and velocity is what names a cause.
 fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
     use crate::plot::{save_chart, save_panels, Chart, HBand, Series};
     let perr = |e: crate::plot::PlotError| IdentifyError::Write {
@@ -251,6 +277,7 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
             against("time (s)", &|t| t.t_s.clone(), base),
             against("input angle (rad)", &|t| t.theta_in_rad.clone(), base),
             against("output angle (rad)", &|t| t.theta_out_rad.clone(), base),
+            against("transmitted load (N m)", &|t| t.load_nm.clone(), base),
             against(
                 "input velocity (rad/s)",
                 &|t| t.velocity_rad_s.clone(),
