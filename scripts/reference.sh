@@ -69,7 +69,7 @@ real=../shared/real-data/davinci
 if [ -d "$real" ]; then
   $bin diagnose --scenario davinci_tool4 --data $real/tool4_00.csv --data $real/tool4_09.csv \
     --data $real/tool4_05.csv --holdout 2 --out "$work/davinci_tool4-diagnosis" >/dev/null
-  keep "$work/davinci_tool4-diagnosis" diagnosis.json report.txt error.png residual_base.png
+  keep "$work/davinci_tool4-diagnosis" diagnosis.json report.txt error.png residual_base.png residual_extended.png
 fi
 
 rm -rf "$ref"
