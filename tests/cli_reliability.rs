@@ -44,6 +44,21 @@ fn no_panic(o: &Output) {
     assert!(!err.contains("panicked"), "{err}");
 }
 
+/// Runs `args` (with `--out` under a fresh directory) and requires an input refusal: exit
+/// 3, no panic, nothing left behind. Returns stderr.
+fn refused_as_input(args: &[&str]) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let mut all: Vec<&str> = args.to_vec();
+    all.extend(["--out", p(&out)]);
+    let o = cable_servo(&all, dir.path());
+    no_panic(&o);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(3), "{args:?}: {err}");
+    assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
+    err
+}
+
 /// A quick quasi-static run.
 fn quick_run(out: &Path, extra: &[&str]) -> Output {
     let mut args = vec![
@@ -427,27 +442,16 @@ fn absurd_thread_counts_are_lowered_with_a_note() {
 /// the setting that lowers it, and leaves nothing behind.
 #[test]
 fn runs_too_large_to_hold_are_refused_with_the_setting_that_lowers_them() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("long");
-    let o = cable_servo(
-        &[
-            "run",
-            "eots_tracking",
-            "--set",
-            "closed_loop.duration_s=20000",
-            "--out",
-            p(&out),
-        ],
-        dir.path(),
-    );
-    no_panic(&o);
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(3), "{err}");
+    let err = refused_as_input(&[
+        "run",
+        "eots_tracking",
+        "--set",
+        "closed_loop.duration_s=20000",
+    ]);
     assert!(
         err.contains("MB in memory") && err.contains("lower closed_loop.timeseries_rate_hz"),
         "{err}"
     );
-    assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
 }
 
 /// A run that would compute for longer than a run may is refused before it starts: the
@@ -456,58 +460,36 @@ fn runs_too_large_to_hold_are_refused_with_the_setting_that_lowers_them() {
 /// is refused the same way, pointing to shards.
 #[test]
 fn runs_too_long_to_compute_are_refused_with_the_settings_that_shorten_them() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("forever");
-    let o = cable_servo(
-        &[
-            "run",
-            "eots_tracking",
-            "--set",
-            "closed_loop.duration_s=50000",
-            "--set",
-            "closed_loop.rk4_substeps=100",
-            "--set",
-            "closed_loop.timeseries_rate_hz=0.01",
-            "--out",
-            p(&out),
-        ],
-        dir.path(),
-    );
-    no_panic(&o);
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(3), "{err}");
+    let err = refused_as_input(&[
+        "run",
+        "eots_tracking",
+        "--set",
+        "closed_loop.duration_s=50000",
+        "--set",
+        "closed_loop.rk4_substeps=100",
+        "--set",
+        "closed_loop.timeseries_rate_hz=0.01",
+    ]);
     assert!(err.contains("this run computes for about"), "{err}");
     assert!(
         err.contains("more than the 12 h a run may take")
             && err.contains("shorten closed_loop.duration_s (at most about"),
         "{err}"
     );
-    assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
-
-    let out = dir.path().join("sweep");
-    let o = cable_servo(
-        &[
-            "sweep",
-            "eots_tolerance",
-            "--set",
-            "closed_loop.duration_s=50000",
-            "--vary",
-            "drive.preload_n=uniform(60,90)",
-            "--samples",
-            "4000",
-            "--out",
-            p(&out),
-        ],
-        dir.path(),
-    );
-    no_panic(&o);
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(3), "{err}");
+    let err = refused_as_input(&[
+        "sweep",
+        "eots_tolerance",
+        "--set",
+        "closed_loop.duration_s=50000",
+        "--vary",
+        "drive.preload_n=uniform(60,90)",
+        "--samples",
+        "4000",
+    ]);
     assert!(
         err.contains("a sweep (or one shard of it) may take") && err.contains("--shard"),
         "{err}"
     );
-    assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
 }
 
 /// Gains five times too high: the amplifier's limit would hold the loop in a saturated

@@ -213,11 +213,11 @@ where
 mod tests {
     use super::*;
 
-    #[test]
-    fn fits_exponential_within_bounds() {
+    /// `2 exp(-0.7 t)` fitted from `(1, 0.1)` within bounds, at most `max_iter` iterations.
+    fn fit_exponential(max_iter: usize) -> LmResult {
         let t: Vec<f64> = (0..50).map(|i| i as f64 * 0.1).collect();
         let y: Vec<f64> = t.iter().map(|t| 2.0 * (-0.7 * t).exp()).collect();
-        let fit = levenberg_marquardt(
+        levenberg_marquardt(
             |p| {
                 Some(
                     t.iter()
@@ -229,9 +229,14 @@ mod tests {
             &[1.0, 0.1],
             &[0.0, 0.0],
             &[10.0, 5.0],
-            100,
+            max_iter,
         )
-        .unwrap();
+        .unwrap()
+    }
+
+    #[test]
+    fn fits_exponential_within_bounds() {
+        let fit = fit_exponential(100);
         assert!((fit.x[0] - 2.0).abs() < 1e-6 && (fit.x[1] - 0.7).abs() < 1e-6);
         assert!(fit.converged && fit.iterations < 100, "{}", fit.iterations);
     }
@@ -239,23 +244,7 @@ mod tests {
     /// A fit cut short by its iteration limit says so: it is not reported as converged.
     #[test]
     fn a_fit_on_its_iteration_limit_is_not_converged() {
-        let t: Vec<f64> = (0..50).map(|i| i as f64 * 0.1).collect();
-        let y: Vec<f64> = t.iter().map(|t| 2.0 * (-0.7 * t).exp()).collect();
-        let fit = levenberg_marquardt(
-            |p| {
-                Some(
-                    t.iter()
-                        .zip(&y)
-                        .map(|(t, y)| p[0] * (-p[1] * t).exp() - y)
-                        .collect(),
-                )
-            },
-            &[1.0, 0.1],
-            &[0.0, 0.0],
-            &[10.0, 5.0],
-            2,
-        )
-        .unwrap();
+        let fit = fit_exponential(2);
         assert_eq!(fit.iterations, 2);
         assert!(!fit.converged);
     }

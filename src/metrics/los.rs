@@ -142,15 +142,19 @@ fn for_each_exposure(e: &[f64], w: usize, mut f: impl FnMut(f64, f64)) {
     }
 }
 
+/// The finite samples of `e`, copied only when some are not.
+fn finite(e: &[f64]) -> std::borrow::Cow<'_, [f64]> {
+    if e.iter().all(|v| v.is_finite()) {
+        std::borrow::Cow::Borrowed(e)
+    } else {
+        std::borrow::Cow::Owned(e.iter().copied().filter(|v| v.is_finite()).collect())
+    }
+}
+
 /// The line-of-sight figures of error series `e_mrad` sampled at `fs_hz`.
 pub fn los_metrics(e_mrad: &[f64], fs_hz: f64, p: &LosParams) -> LosMetrics {
-    let kept: Vec<f64>;
-    let e = if e_mrad.iter().all(|v| v.is_finite()) {
-        e_mrad
-    } else {
-        kept = e_mrad.iter().copied().filter(|v| v.is_finite()).collect();
-        &kept
-    };
+    let e = finite(e_mrad);
+    let e: &[f64] = &e;
     let n = e.len();
     let (mut sum, mut sq, mut peak) = (0.0, 0.0, 0.0_f64);
     for &v in e {
@@ -227,13 +231,8 @@ fn fft(re: &mut [f64], im: &mut [f64], twiddle: &[(f64, f64)]) {
 /// mean is kept, so the cumulative RMS at the top bin is the total RMS. `None` for fewer
 /// than 16 finite samples.
 pub fn error_spectrum(e_mrad: &[f64], fs_hz: f64, segment_s: f64) -> Option<ErrorSpectrum> {
-    let kept: Vec<f64>;
-    let e = if e_mrad.iter().all(|v| v.is_finite()) {
-        e_mrad
-    } else {
-        kept = e_mrad.iter().copied().filter(|v| v.is_finite()).collect();
-        &kept
-    };
+    let e = finite(e_mrad);
+    let e: &[f64] = &e;
     if e.len() < 16 || !(fs_hz.is_finite() && fs_hz > 0.0) {
         return None;
     }
