@@ -479,11 +479,12 @@ fn main() -> ExitCode {
                     force,
                 )
             });
+            let threads = sane_threads(threads);
             let total = scenario.sweep.as_ref().map_or(0, |s| {
                 (0..s.case_count()).filter(|&i| shard.owns(i)).count()
             });
-            if let Some(wall_s) = run::sweep_wall_estimate(&scenario, total, sane_threads(threads))
-                .filter(|s| *s > LONG_RUN_S)
+            if let Some((wall_s, _)) =
+                run::sweep_wall_estimate(&scenario, total, threads).filter(|(s, _)| *s > LONG_RUN_S)
             {
                 tell!(
                     "this sweep computes for about {} ({total} cases)",
@@ -504,7 +505,7 @@ fn main() -> ExitCode {
                 &scenario,
                 &SweepOptions {
                     output: OutputOptions { dir, force },
-                    threads: sane_threads(threads),
+                    threads,
                     shard,
                     case_timeseries,
                 },

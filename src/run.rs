@@ -545,13 +545,19 @@ pub fn work_estimate(scenario: &Scenario) -> Option<closed_loop::WorkEstimate> {
     Some(closed_loop::estimate_work(p, p.modes.len(), &options))
 }
 
-/// Estimated wall time of `cases` closed-loop sweep cases like the scenario's own (metrics
-/// only) on `threads` workers, s; `None` for the other studies.
-pub fn sweep_wall_estimate(scenario: &Scenario, cases: usize, threads: usize) -> Option<f64> {
+/// Estimated `(wall time, one case on one core)` of `cases` closed-loop sweep cases like
+/// the scenario's own (metrics only) on `threads` workers, s; `None` for the other studies.
+pub fn sweep_wall_estimate(
+    scenario: &Scenario,
+    cases: usize,
+    threads: usize,
+) -> Option<(f64, f64)> {
     let p = scenario.closed_loop.as_ref()?;
     let per_case =
-        closed_loop::estimate_work(p, p.modes.len(), &closed_loop::RunOptions::metrics_only());
-    Some(per_case.compute_s * cases as f64 / threads_used(threads).min(cases.max(1)) as f64)
+        closed_loop::estimate_work(p, p.modes.len(), &closed_loop::RunOptions::metrics_only())
+            .compute_s;
+    let lanes = threads_used(threads).min(cases.max(1)) as f64;
+    Some((per_case * cases as f64 / lanes, per_case))
 }
 
 /// Run the sweep declared in `scenario` (with `base` its resolved table), streaming
@@ -584,12 +590,13 @@ pub fn run_sweep(
         })?;
     }
     let owned_cases = cases.iter().filter(|c| options.shard.owns(c.index)).count();
-    if let Some(wall_s) = sweep_wall_estimate(scenario, owned_cases, options.threads) {
+    if let Some((wall_s, per_case_s)) = sweep_wall_estimate(scenario, owned_cases, options.threads)
+    {
         if wall_s > MAX_SWEEP_WALL_S {
             return Err(RunError::Unsupported(format!(
                 "the sweep would compute for about {} ({owned_cases} cases of this shard, each about {} on one core), more than the {} a sweep (or one shard of it) may take: run it in shards across machines (--shard i/n), draw fewer cases, or shorten closed_loop.duration_s",
                 crate::duration_words(wall_s),
-                crate::duration_words(wall_s * threads_used(options.threads) as f64 / owned_cases.max(1) as f64),
+                crate::duration_words(per_case_s),
                 crate::duration_words(MAX_SWEEP_WALL_S)
             )));
         }
