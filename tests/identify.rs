@@ -359,7 +359,7 @@ fn writes_report_and_model() {
     let sc = scenario(false);
     let log = synthesize(
         &sc,
-        &[(EffectName::InputPulleyRunout, 1e-3)],
+        &[(EffectName::InputPulleyRunout, 3e-4)],
         9,
         &SynthOptions::default(),
     )
@@ -435,4 +435,46 @@ fn shipped_davinci_scenario_loads_with_effects() {
     .unwrap_err()
     .to_string();
     assert!(err.contains("bearing_friction_nm"), "{err}");
+}
+
+/// The absolute gain an effect must bring (`identify.min_gain_mrad`, 0.3 mrad on real
+/// logs): a runout that is found by default is refused when its gain in mrad falls short,
+/// with that reason, and the answer becomes `unexplained` (structure remains); the
+/// threshold for `none` (`identify.none_within_floor`) moves the line between the two.
+#[test]
+fn absolute_gain_and_floor_thresholds_decide_as_set() {
+    let sc = scenario(false);
+    let log = synthesize(
+        &sc,
+        &[(EffectName::InputPulleyRunout, 3e-4)],
+        11,
+        &SynthOptions::default(),
+    )
+    .unwrap();
+    let d = diagnose(&sc, std::slice::from_ref(&log), &opts()).unwrap();
+    assert_eq!(d.cause, "input_pulley_runout", "{:?}", d.candidates);
+    let gain_mrad = d.rmse_base_mrad - d.rmse_extended_mrad;
+    let mut strict = sc.clone();
+    if let Some(i) = strict.identify.as_mut() {
+        i.min_gain_mrad = 2.0 * gain_mrad;
+    }
+    let d = diagnose(&strict, std::slice::from_ref(&log), &opts()).unwrap();
+    assert_eq!(d.cause, "unexplained", "{:?}", d.candidates);
+    assert!(
+        d.candidates
+            .iter()
+            .any(|c| c.name == "input_pulley_runout" && c.verdict.contains("min_gain_mrad")),
+        "{:?}",
+        d.candidates
+    );
+    let ratio = d.rmse_base_mrad / d.noise_floor_mrad;
+    assert!(
+        1.1 * ratio <= 10.0,
+        "the test needs a residual within 9 floors: {ratio}"
+    );
+    if let Some(i) = strict.identify.as_mut() {
+        i.none_within_floor = 1.1 * ratio;
+    }
+    let d = diagnose(&strict, std::slice::from_ref(&log), &opts()).unwrap();
+    assert_eq!(d.cause, "none", "ratio {ratio}");
 }

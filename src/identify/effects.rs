@@ -195,6 +195,16 @@ pub struct IdentifyParams {
     /// the nearest name.
     #[serde(default = "default_explained")]
     pub min_explained_fraction: f64,
+    /// Smallest absolute held-out RMSE gain, mrad, for an effect to count (0: the relative
+    /// gain alone decides; 0.3 for real logs, whose errors are tens of mrad and whose
+    /// percent gains can be large while worth nothing).
+    #[serde(default)]
+    pub min_gain_mrad: f64,
+    /// A residual within this many noise floors is `none`; above it, with no effect that
+    /// qualifies, `unexplained` (1.25 typical; 2 for real logs, whose floor from encoder
+    /// steps understates their other noise).
+    #[serde(default = "default_none_within_floor")]
+    pub none_within_floor: f64,
     /// Effects searched; empty means the whole library.
     #[serde(default)]
     pub candidates: Vec<EffectName>,
@@ -231,6 +241,9 @@ fn default_min_gain() -> f64 {
 fn default_explained() -> f64 {
     0.5
 }
+fn default_none_within_floor() -> f64 {
+    1.25
+}
 fn default_max_effects() -> usize {
     2
 }
@@ -249,6 +262,8 @@ impl Default for IdentifyParams {
             holdout_blocks: default_blocks(),
             min_gain_percent: default_min_gain(),
             min_explained_fraction: default_explained(),
+            min_gain_mrad: 0.0,
+            none_within_floor: default_none_within_floor(),
             candidates: Vec::new(),
             max_effects: default_max_effects(),
             max_rate_hz: default_rate(),
@@ -303,6 +318,24 @@ impl IdentifyParams {
             && (0.0..=1.0).contains(&self.min_explained_fraction))
         {
             return Err(("min_explained_fraction".into(), "must be in [0, 1]".into()));
+        }
+        if !(self.min_gain_mrad.is_finite() && (0.0..=100.0).contains(&self.min_gain_mrad)) {
+            return Err((
+                "min_gain_mrad".into(),
+                format!(
+                    "{} must be in [0, 100] mrad (0.3 for real logs)",
+                    self.min_gain_mrad
+                ),
+            ));
+        }
+        if !(self.none_within_floor.is_finite() && (1.0..=10.0).contains(&self.none_within_floor)) {
+            return Err((
+                "none_within_floor".into(),
+                format!(
+                    "{} must be in [1, 10] noise floors (1.25 typical, 2 for real logs)",
+                    self.none_within_floor
+                ),
+            ));
         }
         if !(1..=8).contains(&self.max_effects) {
             return Err(("max_effects".into(), "must be in 1..=8".into()));

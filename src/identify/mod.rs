@@ -348,13 +348,17 @@ pub fn diagnose(
             let k = fit.coef.len() + fit.x.len();
             let score = n_held * (rmse * rmse).max(1e-300).ln() + k as f64 * n_held.ln();
             let physical = plausible(&fit, drive0.ratio());
+            let gain_mrad = (current - rmse) * 1e3;
             let ok = gain >= ident.min_gain_percent
+                && gain_mrad >= ident.min_gain_mrad
                 && explained >= ident.min_explained_fraction
                 && physical;
             let verdict = if !physical {
                 "size outside physical bounds (stands in for something else)"
             } else if gain < ident.min_gain_percent {
                 "gain below threshold"
+            } else if gain_mrad < ident.min_gain_mrad {
+                "gain below identify.min_gain_mrad"
             } else if explained < ident.min_explained_fraction {
                 "explains too little of the structure"
             } else {
@@ -514,10 +518,10 @@ pub fn diagnose(
         }
     };
     let structure_ratio = rmse_ext / floor;
-    let unexplained_structure = structure_ratio > 1.25;
+    let unexplained_structure = structure_ratio > ident.none_within_floor;
     let cause = if let Some(c) = chosen.first() {
         c.to_string()
-    } else if rmse_base / floor > 1.25 {
+    } else if rmse_base / floor > ident.none_within_floor {
         "unexplained".to_string()
     } else {
         "none".to_string()

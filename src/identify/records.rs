@@ -172,7 +172,7 @@ pub struct Diagnosis {
     /// left).
     pub structure_ratio: f64,
     /// Whether structure above the noise remains after the extension (the decision rule:
-    /// held-out RMSE above 1.25x the noise floor).
+    /// held-out RMSE above `identify.none_within_floor`, 1.25 by default, times the floor).
     pub unexplained_structure: bool,
     /// Ljung-Box whiteness test of the extended model's residual (10 lags, thinned to about
     /// 150 samples so that sample-to-sample quantisation colour is diluted while a
