@@ -359,7 +359,7 @@ fn writes_report_and_model() {
     let sc = scenario(false);
     let log = synthesize(
         &sc,
-        &[(EffectName::InputPulleyRunout, 3e-4)],
+        &[(EffectName::InputPulleyRunout, 1e-3)],
         9,
         &SynthOptions::default(),
     )
