@@ -194,14 +194,10 @@ fn run_closed_loop(
     dir: &Path,
     warnings: &mut Vec<String>,
 ) -> Result<(String, Option<String>), RunError> {
-    let decimation = scenario
+    let options = scenario
         .closed_loop
         .as_ref()
-        .map_or(1, |c| c.timeseries_decimation());
-    let options = closed_loop::RunOptions {
-        decimation,
-        ..closed_loop::RunOptions::default()
-    };
+        .map_or_else(closed_loop::RunOptions::default, recording);
     let (result, rows) = closed_loop::run_closed_loop_then(
         scenario,
         &options,
@@ -538,11 +534,15 @@ fn threads_used(threads: usize) -> usize {
 /// time series at its rate); `None` for the other studies, which take milliseconds.
 pub fn work_estimate(scenario: &Scenario) -> Option<closed_loop::WorkEstimate> {
     let p = scenario.closed_loop.as_ref()?;
-    let options = closed_loop::RunOptions {
+    Some(closed_loop::estimate_work(p, p.modes.len(), &recording(p)))
+}
+
+/// The options of a run that records its time series at the scenario's rate.
+fn recording(p: &closed_loop::ClosedLoopParams) -> closed_loop::RunOptions {
+    closed_loop::RunOptions {
         decimation: p.timeseries_decimation(),
         ..closed_loop::RunOptions::default()
-    };
-    Some(closed_loop::estimate_work(p, p.modes.len(), &options))
+    }
 }
 
 /// Estimated `(wall time, one case on one core)` of `cases` closed-loop sweep cases like
@@ -1005,9 +1005,8 @@ pub fn run_compare(
                     .unwrap_or(&closed_loop::CompensationMode::None),
             );
             let options = closed_loop::RunOptions {
-                decimation: p.timeseries_decimation(),
                 modes: Some(vec![m]),
-                ..closed_loop::RunOptions::default()
+                ..recording(p)
             };
             let mut r = closed_loop::run_closed_loop(&d.scenario, &options)?;
             let result = r.modes.remove(0);
