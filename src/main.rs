@@ -320,11 +320,12 @@ enum Command {
         /// Closed-loop scenario file or built-in name (default: eots_tracking).
         scenario: Option<String>,
         /// Loop point: plant_input (L), output_disturbance (S), input_disturbance (PS),
-        /// reference (T_r), base_motion (line of sight over base angle).
+        /// reference (T_r), base_motion (line of sight over base angle), plant (the plant's
+        /// describing function with the loop open, and the limit cycles it predicts).
         #[arg(long)]
         point: Option<String>,
-        /// Injection amplitudes, comma-separated: A (or V) at the plant input, output mrad
-        /// elsewhere.
+        /// Injection amplitudes, comma-separated: A (or V) at the plant input and the
+        /// plant, output mrad elsewhere.
         #[arg(long, value_delimiter = ',', num_args = 1..)]
         amplitudes: Vec<f64>,
         /// Frequencies, Hz, comma-separated (instead of the log range).

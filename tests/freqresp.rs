@@ -42,6 +42,7 @@ fn linear_loop_matches_the_exact_reference_at_every_point() {
         LoopPoint::OutputDisturbance,
         LoopPoint::InputDisturbance,
         LoopPoint::Reference,
+        LoopPoint::Plant,
     ] {
         let spec = FreqRespParams {
             point,
@@ -50,7 +51,7 @@ fn linear_loop_matches_the_exact_reference_at_every_point() {
             points: 12,
             // Small enough that the derivative action stays inside the 8 A limit at 4 kHz.
             amplitudes: vec![match point {
-                LoopPoint::PlantInput | LoopPoint::InputDisturbance => 0.5,
+                LoopPoint::PlantInput | LoopPoint::InputDisturbance | LoopPoint::Plant => 0.5,
                 _ => 0.01,
             }],
             refine_iterations: 0,
@@ -251,11 +252,29 @@ fn bad_input_is_named_and_faults_are_not_numbers() {
         },
         "base motion is measured up to a tenth",
     );
-    let e = LoopPoint::parse("plant")
+    let e = LoopPoint::parse("plant_output")
         .err()
         .map(|e| e.to_string())
         .unwrap_or_default();
     assert!(e.contains("plant_input, output_disturbance"), "{e}");
+    // The plant's loop gain is formed with a single PID; a rate loop is refused.
+    let gimbal = Scenario::load("gimbal_stabilized", &[]).unwrap_or_else(|e| panic!("{e}"));
+    let e = measure(
+        gimbal.closed_loop_setup().unwrap_or_else(|e| panic!("{e}")),
+        &FreqRespParams {
+            point: LoopPoint::Plant,
+            ..FreqRespParams::default()
+        },
+        1,
+        &|| {},
+    )
+    .err()
+    .map(|e| e.to_string())
+    .unwrap_or_default();
+    assert!(
+        e.contains("closed_loop.freqresp.point") && e.contains("single PID"),
+        "{e}"
+    );
 
     let weak = scenario(&["drive.preload_n=5"]);
     let spec = FreqRespParams {
@@ -291,7 +310,7 @@ fn command_refuses_bad_input_and_writes_its_files() {
     };
     for bad in [
         &["freqresp", "--frequencies", "10000", "--out", "r"][..],
-        &["freqresp", "--point", "plant", "--out", "r"][..],
+        &["freqresp", "--point", "plants", "--out", "r"][..],
         &["freqresp", "--amplitudes", "0", "--out", "r"][..],
     ] {
         let o = go(bad);

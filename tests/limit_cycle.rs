@@ -3,7 +3,8 @@
 //! target for ever; the same loop against a brake without stiction settles. Every
 //! closed-loop run reports which.
 
-use cable_servo::closed_loop::{run_closed_loop, RunOptions};
+use cable_servo::closed_loop::freqresp::{measure, FreqRespParams, LoopPoint, PredictedCycle};
+use cable_servo::closed_loop::{run_closed_loop, ClosedLoopSource, RunOptions};
 use cable_servo::metrics::limit_cycle::LimitCycle;
 use cable_servo::scenario::Scenario;
 
@@ -64,4 +65,91 @@ fn a_tracking_run_is_not_judged() {
         .modes
         .iter()
         .all(|m| m.limit_cycle == LimitCycle::NotJudged));
+}
+
+fn hunting_loop(ki: f64, breakaway_nm: f64) -> Vec<String> {
+    [
+        "closed_loop.controller.feedback=\"output\"",
+        "closed_loop.controller.kp=40",
+        "closed_loop.controller.kd=0.5",
+        "closed_loop.reference={kind=\"step\", amplitude_rad=0.001, time_s=0.2}",
+        "closed_loop.duration_s=6",
+        "closed_loop.metrics_start_s=0.1",
+        "closed_loop.modes=[\"none\"]",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .chain([
+        format!("closed_loop.controller.ki={ki}"),
+        format!("load.brake_breakaway_nm={breakaway_nm}"),
+    ])
+    .collect()
+}
+
+fn predicted(sets: &[String]) -> Vec<PredictedCycle> {
+    let s = Scenario::load("eots_tracking", sets).unwrap_or_else(|e| panic!("{e}"));
+    let spec = FreqRespParams {
+        point: LoopPoint::Plant,
+        f_min_hz: 2.0,
+        f_max_hz: Some(20.0),
+        points: 12,
+        amplitudes: vec![1.2, 1.3, 1.4, 1.5, 1.6, 1.8, 2.0, 2.5, 3.0, 4.0, 6.0],
+        ..FreqRespParams::default()
+    };
+    let setup = s.closed_loop_setup().unwrap_or_else(|e| panic!("{e}"));
+    let r = measure(setup, &spec, 0, &|| {}).unwrap_or_else(|e| panic!("{e}"));
+    r.limit_cycles
+        .unwrap_or_else(|| panic!("the plant point predicts"))
+}
+
+fn simulated(sets: &[String]) -> LimitCycle {
+    let s = Scenario::load("eots_tracking", sets).unwrap_or_else(|e| panic!("{e}"));
+    let r = run_closed_loop(&s, &RunOptions::metrics_only()).unwrap_or_else(|e| panic!("{e}"));
+    r.modes[0].limit_cycle.clone()
+}
+
+/// Integral gain high enough that the exact linear reference is unstable (a pole at
+/// |z| = 1.0003 near 10 Hz): the brake's friction bounds the oscillation. The plant's
+/// describing function, measured open loop at each command amplitude and closed with the
+/// exact controller, crosses -1 where the simulated loop settles into its cycle; the
+/// frequency must agree within 20 %.
+#[test]
+fn describing_function_predicts_the_cycle_of_a_high_integral_gain() {
+    let sets = hunting_loop(3000.0, 1.2);
+    let LimitCycle::Detected {
+        frequency_hz,
+        amplitude_mrad,
+        ..
+    } = simulated(&sets)
+    else {
+        panic!("the loop does not cycle in simulation");
+    };
+    let cycles = predicted(&sets);
+    println!("simulated {amplitude_mrad} mrad at {frequency_hz} Hz; predicted {cycles:?}");
+    let stable: Vec<&PredictedCycle> = cycles.iter().filter(|c| c.stable).collect();
+    assert_eq!(stable.len(), 1, "{cycles:?}");
+    let c = stable[0];
+    assert!(
+        (c.frequency_hz / frequency_hz - 1.0).abs() < 0.2,
+        "predicted {} Hz, simulated {frequency_hz} Hz",
+        c.frequency_hz
+    );
+    // The output swing is the right size too, if less closely (the command is far from a
+    // sinusoid while the brake holds).
+    assert!(
+        (c.output_amplitude_mrad / amplitude_mrad - 1.0).abs() < 0.5,
+        "predicted {} mrad, simulated {amplitude_mrad} mrad",
+        c.output_amplitude_mrad
+    );
+}
+
+/// The same loop at its shipped integral gain against a brake without stiction settles,
+/// and the describing function predicts no cycle either.
+#[test]
+fn describing_function_predicts_nothing_for_a_loop_that_settles() {
+    let sets = hunting_loop(1000.0, 0.7);
+    let sim = simulated(&sets);
+    assert!(matches!(sim, LimitCycle::None { .. }), "{sim:?}");
+    let cycles = predicted(&sets);
+    assert!(cycles.is_empty(), "{cycles:?}");
 }

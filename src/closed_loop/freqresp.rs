@@ -16,6 +16,16 @@
 //! | `output_disturbance` | `d` added to the measurement | `y + d` | `S = (Y + D)/D` |
 //! | `input_disturbance` | `d` added to the command | `y` | `PS = Y/D` |
 //! | `reference` | the reference is `d` | `y` | `T_r = Y/R` |
+//! | `plant` | `d` is the whole command, the loop open | `y` | `P = Y/D`, `L = K P` |
+//!
+//! The `plant` point measures the plant's describing function: its response to a
+//! sinusoidal command of each amplitude, with the controller disconnected. Brake stiction,
+//! Coulomb friction and the capstan's hysteresis make it depend on the amplitude. The loop
+//! gain at that amplitude is the exact discrete controller `K` times it, and where that
+//! family meets the critical point as the amplitude varies the loop can sustain an
+//! oscillation: [`predict_limit_cycles`]. The command is a cosine, which drives a free
+//! inertia from rest without a mean drift, and an offset and a linear drift are fitted out
+//! of the measured window with the fundamental.
 //!
 //! `y` is the measured angle in motor rad (the motor angle, or `ic` times the output
 //! angle under output feedback). The PID differentiates the measurement, not the error,
@@ -50,16 +60,20 @@ pub enum LoopPoint {
     /// A sine of the base angle: line of sight over base angle (the stabilisation's
     /// disturbance rejection; near 1 at low frequency for a loop on the encoders).
     BaseMotion,
+    /// The whole command, the controller disconnected: the plant's describing function
+    /// `P` (loop gain `K P` with the exact controller, and the limit cycles it predicts).
+    Plant,
 }
 
 impl LoopPoint {
     /// Every name accepted in a scenario or on the command line.
-    pub const NAMES: [&'static str; 5] = [
+    pub const NAMES: [&'static str; 6] = [
         "plant_input",
         "output_disturbance",
         "input_disturbance",
         "reference",
         "base_motion",
+        "plant",
     ];
 
     /// Name as written in a scenario.
@@ -70,6 +84,7 @@ impl LoopPoint {
             LoopPoint::InputDisturbance => "input_disturbance",
             LoopPoint::Reference => "reference",
             LoopPoint::BaseMotion => "base_motion",
+            LoopPoint::Plant => "plant",
         }
     }
 
@@ -85,6 +100,7 @@ impl LoopPoint {
                     LoopPoint::InputDisturbance,
                     LoopPoint::Reference,
                     LoopPoint::BaseMotion,
+                    LoopPoint::Plant,
                 ][i]
             })
             .ok_or_else(|| FreqRespError::Invalid {
@@ -104,6 +120,7 @@ impl LoopPoint {
             LoopPoint::InputDisturbance => "PS",
             LoopPoint::Reference => "T_r",
             LoopPoint::BaseMotion => "LOS/base",
+            LoopPoint::Plant => "P",
         }
     }
 
@@ -111,15 +128,20 @@ impl LoopPoint {
     /// at the plant input, mrad of output angle elsewhere.
     pub fn amplitude_unit(self, voltage: bool) -> &'static str {
         match self {
-            LoopPoint::PlantInput | LoopPoint::InputDisturbance if voltage => "V",
-            LoopPoint::PlantInput | LoopPoint::InputDisturbance => "A",
+            LoopPoint::PlantInput | LoopPoint::InputDisturbance | LoopPoint::Plant if voltage => {
+                "V"
+            }
+            LoopPoint::PlantInput | LoopPoint::InputDisturbance | LoopPoint::Plant => "A",
             _ => "mrad",
         }
     }
 
     /// Whether the loop gain (and so the margins) follows from this point's transfer.
     pub fn gives_loop_gain(self) -> bool {
-        matches!(self, LoopPoint::PlantInput | LoopPoint::OutputDisturbance)
+        matches!(
+            self,
+            LoopPoint::PlantInput | LoopPoint::OutputDisturbance | LoopPoint::Plant
+        )
     }
 }
 
@@ -283,14 +305,21 @@ impl FreqRespParams {
             self.amplitudes.clone()
         } else if matches!(
             self.point,
-            LoopPoint::PlantInput | LoopPoint::InputDisturbance
+            LoopPoint::PlantInput | LoopPoint::InputDisturbance | LoopPoint::Plant
         ) {
             let full = if command_limit.is_finite() {
                 command_limit
             } else {
                 10.0
             };
-            vec![0.001 * full, 0.01 * full, 0.1 * full]
+            if self.point == LoopPoint::Plant {
+                // A describing function is read across amplitudes: 12 from 1 % to 60 %.
+                (0..12)
+                    .map(|i| 0.01 * full * 60f64.powf(f64::from(i) / 11.0))
+                    .collect()
+            } else {
+                vec![0.001 * full, 0.01 * full, 0.1 * full]
+            }
         } else {
             vec![0.01, 0.1, 1.0]
         };
@@ -303,7 +332,7 @@ impl FreqRespParams {
             }
             if matches!(
                 self.point,
-                LoopPoint::PlantInput | LoopPoint::InputDisturbance
+                LoopPoint::PlantInput | LoopPoint::InputDisturbance | LoopPoint::Plant
             ) && a >= command_limit
             {
                 return Err(invalid("amplitudes", format!("amplitude {a} reaches the amplifier limit {command_limit}: the loop would only saturate; use amplitudes below it")));
@@ -320,6 +349,9 @@ impl FreqRespParams {
                 if gyro_angle || !p.controller.is_plain_pid() =>
             {
                 return Err(invalid("point", format!("{}: its closed form holds for a single PID on an encoder; with a rate loop, filters, an observer or gyro-angle feedback use plant_input (the loop gain at the command) or base_motion", self.point.name())));
+            }
+            LoopPoint::Plant if gyro_angle || !p.controller.is_plain_pid() => {
+                return Err(invalid("point", "plant: the loop gain is formed with a single PID on an encoder; with a rate loop, filters, an observer or gyro-angle feedback use plant_input".into()));
             }
             LoopPoint::InputDisturbance if gyro_angle => {
                 return Err(invalid("point", "input_disturbance: the gyro angle is not recorded; use plant_input or base_motion".into()));
@@ -487,10 +519,129 @@ pub struct FreqResponse {
     pub exact_margins: Margins,
     /// The stiffness the exact reference gave its cable.
     pub reference_cable: ReferenceCable,
+    /// Limit cycles the amplitude family predicts (the `plant` point only; `None`
+    /// elsewhere, empty when none is predicted over the amplitudes measured).
+    pub limit_cycles: Option<Vec<PredictedCycle>>,
     /// Simulation runs made (one per frequency and amplitude, refinements included).
     pub runs: usize,
     /// Simulated time over all runs, s.
     pub simulated_s: f64,
+}
+
+/// An oscillation the describing function predicts: where the loop gain `K P(A)` at a
+/// phase crossover passes through `-1` between two measured amplitudes.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PredictedCycle {
+    /// Frequency of the oscillation, Hz (the phase crossover there).
+    pub frequency_hz: f64,
+    /// Amplitude of the command's fundamental in the oscillation (A, or V with a voltage
+    /// amplifier).
+    pub command_amplitude: f64,
+    /// Unit of `command_amplitude`.
+    pub unit: String,
+    /// Amplitude of the output angle's fundamental, mrad.
+    pub output_amplitude_mrad: f64,
+    /// Whether the oscillation attracts: a little larger and the loop is stable (it
+    /// shrinks back), a little smaller and it is not (it grows back). An unstable one is
+    /// a threshold: motion above it grows, below it dies out.
+    pub stable: bool,
+    /// The measured amplitudes either side, in `unit`.
+    pub between: [f64; 2],
+}
+
+/// Where a measured loop gain crosses the negative real axis between grid frequencies.
+#[derive(Clone, Copy, Debug)]
+struct PhaseCrossing {
+    frequency_hz: f64,
+    magnitude: f64,
+    output_mrad: f64,
+    /// The phase rises through -180 deg with frequency (the lower crossing of a loop with
+    /// integral action): there the loop is stable when `|L| > 1`. Where it falls, when
+    /// `|L| < 1`.
+    rising: bool,
+}
+
+impl PhaseCrossing {
+    fn stable(&self) -> bool {
+        (self.magnitude > 1.0) == self.rising
+    }
+}
+
+fn phase_crossings(points: &[FreqPoint]) -> Vec<PhaseCrossing> {
+    let grid: Vec<(f64, Complex<f64>, f64)> = points
+        .iter()
+        .filter_map(|p| Some((p.frequency_hz, p.loop_gain?, p.output_amplitude_mrad?)))
+        .filter(|(_, l, _)| l.norm() > 0.0)
+        .collect();
+    grid.windows(2)
+        .filter_map(|w| {
+            let ((f0, l0, y0), (f1, l1, y1)) = (w[0], w[1]);
+            // Phase measured from -180 deg, so the crossing is a sign change near zero.
+            let (a0, a1) = ((-l0).arg(), (-l1).arg());
+            let half = std::f64::consts::FRAC_PI_2;
+            if a0 * a1 > 0.0 || a0 == a1 || a0.abs() > half || a1.abs() > half {
+                return None;
+            }
+            let s = a0 / (a0 - a1);
+            let lerp = |u: f64, v: f64| u + s * (v - u);
+            Some(PhaseCrossing {
+                frequency_hz: lerp(f0.ln(), f1.ln()).exp(),
+                magnitude: lerp(l0.norm().ln(), l1.norm().ln()).exp(),
+                output_mrad: lerp(y0, y1),
+                rising: a1 > a0,
+            })
+        })
+        .collect()
+}
+
+/// Limit cycles predicted from a describing-function family (the `plant` point's loop
+/// gains at each amplitude): between two neighbouring amplitudes, a phase crossover of the
+/// same kind whose `|L|` passes through 1, interpolated on log amplitude. Amplitudes where
+/// nothing moved (the brake held) have no crossing and bracket nothing.
+///
+/// The describing function assumes the command is close to a sinusoid. A stick-slip
+/// cycle at a small fraction of the loop's bandwidth (integral action winding against a
+/// brake that holds most of the period) is far from one, and its frequency is missed.
+pub fn predict_limit_cycles(amplitudes: &[AmplitudeResponse]) -> Vec<PredictedCycle> {
+    let mut family: Vec<(f64, &str, Vec<PhaseCrossing>)> = amplitudes
+        .iter()
+        .map(|a| (a.amplitude, a.unit.as_str(), phase_crossings(&a.points)))
+        .collect();
+    family.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut out = Vec::new();
+    for w in family.windows(2) {
+        let ((a0, unit, c0), (a1, _, c1)) = (&w[0], &w[1]);
+        for x0 in c0 {
+            // The same crossover one amplitude up: the same kind, nearest in frequency
+            // and within an octave.
+            let Some(x1) = c1
+                .iter()
+                .filter(|x| x.rising == x0.rising)
+                .min_by(|p, q| {
+                    let d = |x: &&PhaseCrossing| (x.frequency_hz / x0.frequency_hz).ln().abs();
+                    d(p).total_cmp(&d(q))
+                })
+                .filter(|x| (x.frequency_hz / x0.frequency_hz).ln().abs() < 2f64.ln())
+            else {
+                continue;
+            };
+            let (g0, g1) = (x0.magnitude.ln(), x1.magnitude.ln());
+            if g0 * g1 > 0.0 || g0 == g1 {
+                continue;
+            }
+            let s = g0 / (g0 - g1);
+            let lerp = |u: f64, v: f64| u + s * (v - u);
+            out.push(PredictedCycle {
+                frequency_hz: lerp(x0.frequency_hz.ln(), x1.frequency_hz.ln()).exp(),
+                command_amplitude: lerp(a0.ln(), a1.ln()).exp(),
+                unit: unit.to_string(),
+                output_amplitude_mrad: lerp(x0.output_mrad, x1.output_mrad),
+                stable: x1.stable(),
+                between: [*a0, *a1],
+            });
+        }
+    }
+    out
 }
 
 /// Discrete Fourier coefficient of `x[k0..k0+n]` at `cycles` cycles over the window
@@ -505,6 +656,39 @@ fn coefficient(x: &[f64], cycles: f64) -> Complex<f64> {
         im -= v * s;
     }
     Complex::new(re, im) * (2.0 / n)
+}
+
+/// `x` less the offset and linear drift of a joint least-squares fit of offset, drift and
+/// the sinusoid of `cycles` cycles over the window. What is left keeps the fitted
+/// sinusoid, and the residual is orthogonal to it, so [`coefficient`] of the result is the
+/// fitted fundamental exactly (a plain detrend would also remove the part of the
+/// sinusoid that correlates with a ramp). A window too short to fit is returned as is.
+fn without_drift(x: &[f64], cycles: f64) -> Vec<f64> {
+    let n = x.len();
+    if n < 8 {
+        return x.to_vec();
+    }
+    let w = std::f64::consts::TAU * cycles / n as f64;
+    // The drift on [-1, 1] keeps the normal equations well conditioned.
+    let ramp = |k: usize| 2.0 * k as f64 / (n - 1) as f64 - 1.0;
+    let basis = |k: usize| {
+        let (s, c) = (w * k as f64).sin_cos();
+        nalgebra::Vector4::new(1.0, ramp(k), c, s)
+    };
+    let mut gram = nalgebra::Matrix4::<f64>::zeros();
+    let mut rhs = nalgebra::Vector4::<f64>::zeros();
+    for (k, v) in x.iter().enumerate() {
+        let b = basis(k);
+        gram += b * b.transpose();
+        rhs += b * *v;
+    }
+    let Some(fit) = gram.lu().solve(&rhs) else {
+        return x.to_vec();
+    };
+    x.iter()
+        .enumerate()
+        .map(|(k, v)| v - fit[0] - fit[1] * ramp(k))
+        .collect()
 }
 
 /// A measurement plan at one frequency: the snapped frequency and the sample counts.
@@ -538,6 +722,7 @@ pub fn exact_transfer(lin: &LinearLoop, point: LoopPoint, f: f64) -> Complex<f64
         LoopPoint::PlantInput => lin.loop_gain(f),
         LoopPoint::OutputDisturbance => lin.sensitivity(f),
         LoopPoint::InputDisturbance => lin.plant(f) * lin.sensitivity(f),
+        LoopPoint::Plant => lin.plant(f),
         LoopPoint::Reference => lin.plant(f) * lin.error_path(f) * lin.sensitivity(f),
         LoopPoint::BaseMotion => lin.base_to_los(f),
     }
@@ -571,6 +756,12 @@ impl Bench<'_> {
         p.controller.velocity_feedforward = 0.0;
         p.controller.acceleration_feedforward = 0.0;
         p.controller.load_feedforward = false;
+        if point == LoopPoint::Plant {
+            // The controller disconnected: the command is the injection alone.
+            p.controller.kp = 0.0;
+            p.controller.ki = 0.0;
+            p.controller.kd = 0.0;
+        }
         p.timeseries_rate_hz = base.controller.sample_rate_hz;
         p.base_motion = (point == LoopPoint::BaseMotion).then_some(Signal::Sine {
             amplitude_rad: amp * 1e-3,
@@ -595,11 +786,19 @@ impl Bench<'_> {
                 site: InjectionSite::Command,
                 amplitude: amp,
                 frequency_hz: w.frequency_hz,
+                phase_rad: 0.0,
+            }),
+            LoopPoint::Plant => Some(Injection {
+                site: InjectionSite::Command,
+                amplitude: amp,
+                frequency_hz: w.frequency_hz,
+                phase_rad: std::f64::consts::FRAC_PI_2,
             }),
             LoopPoint::OutputDisturbance => Some(Injection {
                 site: InjectionSite::Measurement,
                 amplitude: ic * amp * 1e-3,
                 frequency_hz: w.frequency_hz,
+                phase_rad: 0.0,
             }),
             LoopPoint::Reference | LoopPoint::BaseMotion => None,
         };
@@ -650,20 +849,32 @@ impl Bench<'_> {
             ));
             return Ok((out, simulated));
         }
-        let measured: Vec<f64> = range
-            .clone()
-            .map(|k| match (point, p.controller.feedback) {
-                (LoopPoint::BaseMotion, _) => series.output_angle_rad[k] + series.base_angle_rad[k],
-                (_, Feedback::Motor) => series.motor_angle_rad[k],
-                // Gyro-angle feedback is refused for the points that read this.
-                (_, Feedback::Output | Feedback::GyroAngle) => ic * series.output_angle_rad[k],
-            })
-            .collect();
+        let cycles = w.cycles as f64;
+        // The open plant may drift: its offset and drift are not part of its response.
+        let open = |x: Vec<f64>| {
+            if point == LoopPoint::Plant {
+                without_drift(&x, cycles)
+            } else {
+                x
+            }
+        };
+        let measured: Vec<f64> = open(
+            range
+                .clone()
+                .map(|k| match (point, p.controller.feedback) {
+                    (LoopPoint::BaseMotion, _) => {
+                        series.output_angle_rad[k] + series.base_angle_rad[k]
+                    }
+                    (_, Feedback::Motor) => series.motor_angle_rad[k],
+                    // Gyro-angle feedback is refused for the points that read this.
+                    (_, Feedback::Output | Feedback::GyroAngle) => ic * series.output_angle_rad[k],
+                })
+                .collect(),
+        );
         let injected: Vec<f64> = range
             .clone()
             .map(|k| injection.map_or(0.0, |i| i.at(series.t_s[k])))
             .collect();
-        let cycles = w.cycles as f64;
         let c = |x: &[f64]| coefficient(x, cycles);
         let (response, observed): (Complex<f64>, Vec<f64>) = match point {
             LoopPoint::PlantInput => {
@@ -675,7 +886,9 @@ impl Bench<'_> {
                 let y_d: Vec<f64> = measured.iter().zip(&injected).map(|(y, d)| y + d).collect();
                 (c(&y_d) / c(&injected), y_d)
             }
-            LoopPoint::InputDisturbance => (c(&measured) / c(&injected), measured),
+            LoopPoint::InputDisturbance | LoopPoint::Plant => {
+                (c(&measured) / c(&injected), measured)
+            }
             LoopPoint::Reference => {
                 let r: Vec<f64> = series.reference_rad[range.clone()]
                     .iter()
@@ -709,15 +922,16 @@ impl Bench<'_> {
             .filter(|&hc| hc < nyquist_cycles)
             .map(|hc| coefficient(&observed, hc).norm_sqr())
             .sum();
-        let theta_o = &series.output_angle_rad[range];
+        let theta_o = open(series.output_angle_rad[range].to_vec());
         out.response = Some(response);
         out.loop_gain = match point {
             LoopPoint::PlantInput => Some(response),
+            LoopPoint::Plant => Some(self.lin.controller(w.frequency_hz) * response),
             LoopPoint::OutputDisturbance => Some(response.inv() - Complex::from(1.0)),
             _ => None,
         };
         out.distortion_percent = Some(100.0 * harmonics.sqrt() / fundamental);
-        out.output_amplitude_mrad = Some(c(theta_o).norm() * 1e3);
+        out.output_amplitude_mrad = Some(c(&theta_o).norm() * 1e3);
         Ok((out, simulated))
     }
 }
@@ -1047,9 +1261,11 @@ pub fn measure(
         simulated_s += s;
         amplitudes.push(a);
     }
+    let limit_cycles = (spec.point == LoopPoint::Plant).then(|| predict_limit_cycles(&amplitudes));
     Ok(FreqResponse {
         point: spec.point,
         transfer: spec.point.transfer().to_string(),
+        limit_cycles,
         amplitudes,
         exact_margins: bench.lin.margins(4000),
         reference_cable,

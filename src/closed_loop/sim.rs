@@ -46,7 +46,7 @@ pub enum InjectionSite {
     Measurement,
 }
 
-/// `amplitude * sin(2 pi f t_k)` added at `site` at every sample `t_k`.
+/// `amplitude * sin(2 pi f t_k + phase)` added at `site` at every sample `t_k`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Injection {
     /// Where it enters.
@@ -55,12 +55,15 @@ pub struct Injection {
     pub amplitude: f64,
     /// Frequency, Hz (below Nyquist).
     pub frequency_hz: f64,
+    /// Phase at `t = 0`, rad (0: a sine from rest; pi/2: a cosine, which drives a free
+    /// inertia from rest without a mean drift).
+    pub phase_rad: f64,
 }
 
 impl Injection {
     /// The injected value at `t_s`.
     pub fn at(&self, t_s: f64) -> f64 {
-        self.amplitude * (std::f64::consts::TAU * self.frequency_hz * t_s).sin()
+        self.amplitude * (std::f64::consts::TAU * self.frequency_hz * t_s + self.phase_rad).sin()
     }
 }
 

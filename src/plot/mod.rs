@@ -159,9 +159,43 @@ pub struct Series {
     /// Palette slot (0 to 9) that fixes the colour, so one quantity (a compensation mode)
     /// keeps its colour in every figure; `None` = the series' position in the chart.
     pub palette_slot: Option<usize>,
+    /// A colour of its own (red, green, blue), ahead of the palette: black for a
+    /// reference, [`family_colour`] for a family ordered by a parameter.
+    pub rgb: Option<[u8; 3]>,
+}
+
+/// Colour of a reference curve drawn among measured ones.
+pub const REFERENCE_RGB: [u8; 3] = [0, 0, 0];
+
+/// Colour of member `i` of `n` in a family ordered by a parameter (an amplitude): from
+/// dark blue through teal to yellow-green, so neighbours look alike and the order reads
+/// off the figure however many members there are (a viridis-like ramp).
+pub fn family_colour(i: usize, n: usize) -> [u8; 3] {
+    const RAMP: [[f64; 3]; 5] = [
+        [68.0, 1.0, 84.0],
+        [59.0, 82.0, 139.0],
+        [33.0, 145.0, 140.0],
+        [94.0, 201.0, 98.0],
+        [200.0, 210.0, 30.0],
+    ];
+    let t = if n > 1 {
+        i as f64 / (n - 1) as f64
+    } else {
+        0.0
+    };
+    let x = t.clamp(0.0, 1.0) * (RAMP.len() - 1) as f64;
+    let k = (x.floor() as usize).min(RAMP.len() - 2);
+    let f = x - k as f64;
+    std::array::from_fn(|c| (RAMP[k][c] + f * (RAMP[k + 1][c] - RAMP[k][c])).round() as u8)
 }
 
 impl Series {
+    /// The same series in its own colour.
+    pub fn in_rgb(mut self, rgb: [u8; 3]) -> Self {
+        self.rgb = Some(rgb);
+        self
+    }
+
     /// The same series in palette slot `slot` (0 to 9, wrapping).
     pub fn in_slot(mut self, slot: usize) -> Self {
         self.palette_slot = Some(slot);
@@ -176,6 +210,7 @@ impl Series {
             y,
             style: SeriesStyle::Line,
             palette_slot: None,
+            rgb: None,
         }
     }
 
@@ -187,6 +222,7 @@ impl Series {
             y,
             style: SeriesStyle::Points,
             palette_slot: None,
+            rgb: None,
         }
     }
 
@@ -198,6 +234,7 @@ impl Series {
             y,
             style: SeriesStyle::Step,
             palette_slot: None,
+            rgb: None,
         }
     }
 }

@@ -334,7 +334,10 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
         }
         series.push(PreparedSeries {
             label: s.label.clone(),
-            color: PALETTE[s.palette_slot.unwrap_or(idx) % PALETTE.len()],
+            color: match s.rgb {
+                Some([r, g, b]) => RGBColor(r, g, b),
+                None => PALETTE[s.palette_slot.unwrap_or(idx) % PALETTE.len()],
+            },
             style: s.style,
             lines,
             dots,

@@ -6,9 +6,11 @@ use std::path::{Path, PathBuf};
 use nalgebra::Complex;
 
 use super::{csv_writer, write_json, write_summary, ReportError};
-use crate::closed_loop::freqresp::{exact_transfer, AmplitudeResponse, FreqPoint, FreqResponse};
+use crate::closed_loop::freqresp::{
+    exact_transfer, AmplitudeResponse, FreqPoint, FreqResponse, PredictedCycle,
+};
 use crate::closed_loop::linear::LinearLoop;
-use crate::plot::{save_chart, save_panels, Chart, Series};
+use crate::plot::{family_colour, save_chart, save_panels, Chart, Series, REFERENCE_RGB};
 use crate::scenario::Scenario;
 
 const COLUMNS: [&str; 19] = [
@@ -120,6 +122,7 @@ pub fn write_outputs(dir: &Path, scenario: &Scenario, r: &FreqResponse) -> Resul
                 "amplitudes": amplitudes,
                 "exact_linear_reference": r.exact_margins,
                 "reference_cable": r.reference_cable,
+                "limit_cycles": r.limit_cycles,
                 "runs": r.runs,
                 "simulated_s": r.simulated_s,
             }
@@ -185,31 +188,55 @@ pub fn plot(dir: &Path, r: &FreqResponse, lin: &LinearLoop) -> Result<Vec<PathBu
         log_x: true,
         ..Chart::default()
     };
-    for a in &r.amplitudes {
+    // Amplitudes in ascending order along one colour ramp, so the trend with amplitude
+    // reads off the figure; the exact reference in black.
+    let mut order: Vec<usize> = (0..r.amplitudes.len()).collect();
+    order.sort_by(|&i, &j| {
+        r.amplitudes[i]
+            .amplitude
+            .total_cmp(&r.amplitudes[j].amplitude)
+    });
+    let colour = |k: usize| {
+        let rank = order.iter().position(|&i| i == k).unwrap_or(k);
+        family_colour(rank, r.amplitudes.len())
+    };
+    for (k, a) in r.amplitudes.iter().enumerate() {
         let pts = ok(a);
         let label = format!("{} {}", a.amplitude, a.unit);
         let f: Vec<f64> = pts.iter().map(|p| p.0).collect();
-        mag.series.push(Series::line(
-            label.clone(),
-            f.clone(),
-            pts.iter().map(|p| db(p.1)).collect(),
-        ));
-        phase.series.push(Series::line(
-            label,
-            f,
-            unwrapped(pts.iter().map(|p| p.1.arg().to_degrees())),
-        ));
+        mag.series.push(
+            Series::line(
+                label.clone(),
+                f.clone(),
+                pts.iter().map(|p| db(p.1)).collect(),
+            )
+            .in_rgb(colour(k)),
+        );
+        phase.series.push(
+            Series::line(
+                label,
+                f,
+                unwrapped(pts.iter().map(|p| p.1.arg().to_degrees())),
+            )
+            .in_rgb(colour(k)),
+        );
     }
-    mag.series.push(Series::line(
-        "exact linear reference",
-        dense.clone(),
-        exact.iter().map(|c| db(*c)).collect(),
-    ));
-    phase.series.push(Series::line(
-        "exact linear reference",
-        dense.clone(),
-        unwrapped(exact.iter().map(|c| c.arg().to_degrees())),
-    ));
+    mag.series.push(
+        Series::line(
+            "exact linear reference",
+            dense.clone(),
+            exact.iter().map(|c| db(*c)).collect(),
+        )
+        .in_rgb(REFERENCE_RGB),
+    );
+    phase.series.push(
+        Series::line(
+            "exact linear reference",
+            dense.clone(),
+            unwrapped(exact.iter().map(|c| c.arg().to_degrees())),
+        )
+        .in_rgb(REFERENCE_RGB),
+    );
     let title = format!(
         "{} at {}, {} amplitude(s) simulated",
         r.transfer,
@@ -226,22 +253,28 @@ pub fn plot(dir: &Path, r: &FreqResponse, lin: &LinearLoop) -> Result<Vec<PathBu
             y_range: Some((-2.0, 2.0)),
             ..Chart::default()
         };
-        for a in &r.amplitudes {
+        for (k, a) in r.amplitudes.iter().enumerate() {
             let l: Vec<Complex<f64>> = ok(a).iter().filter_map(|p| p.2).collect();
-            ny.series.push(Series::line(
-                format!("{} {}", a.amplitude, a.unit),
-                l.iter().map(|c| c.re).collect(),
-                l.iter().map(|c| c.im).collect(),
-            ));
+            ny.series.push(
+                Series::line(
+                    format!("{} {}", a.amplitude, a.unit),
+                    l.iter().map(|c| c.re).collect(),
+                    l.iter().map(|c| c.im).collect(),
+                )
+                .in_rgb(colour(k)),
+            );
         }
         let exact_l: Vec<Complex<f64>> = dense.iter().map(|&f| lin.loop_gain(f)).collect();
-        ny.series.push(Series::line(
-            "exact linear reference",
-            exact_l.iter().map(|c| c.re).collect(),
-            exact_l.iter().map(|c| c.im).collect(),
-        ));
+        ny.series.push(
+            Series::line(
+                "exact linear reference",
+                exact_l.iter().map(|c| c.re).collect(),
+                exact_l.iter().map(|c| c.im).collect(),
+            )
+            .in_rgb(REFERENCE_RGB),
+        );
         ny.series
-            .push(Series::points("critical point -1", vec![-1.0], vec![0.0]));
+            .push(Series::points("critical point -1", vec![-1.0], vec![0.0]).in_rgb([214, 39, 40]));
         written.extend(save_chart(&ny, &dir.join("nyquist"))?);
     }
     Ok(written)
@@ -323,5 +356,52 @@ pub fn format_table(r: &FreqResponse) -> String {
             t.push_str(&format!("{} {}: {s}\n", a.amplitude, a.unit));
         }
     }
+    if let Some(cycles) = &r.limit_cycles {
+        t.push_str(&limit_cycle_lines(r, cycles));
+    }
     t
+}
+
+/// What the describing-function family predicts, one line per crossing of -1.
+fn limit_cycle_lines(r: &FreqResponse, cycles: &[PredictedCycle]) -> String {
+    let sig = |v: f64| crate::significant(v, 3);
+    let span = r
+        .amplitudes
+        .iter()
+        .map(|a| a.amplitude)
+        .fold((f64::INFINITY, 0.0_f64), |(lo, hi), a| {
+            (lo.min(a), hi.max(a))
+        });
+    let unit = r.amplitudes.first().map_or("", |a| a.unit.as_str());
+    if cycles.is_empty() {
+        return format!(
+            "describing function: no limit cycle predicted between {} and {} {unit} (a stick-slip cycle far slower than the loop's bandwidth is not sinusoidal enough to be predicted; `run` detects one)\n",
+            sig(span.0),
+            sig(span.1)
+        );
+    }
+    cycles
+        .iter()
+        .map(|c| {
+            format!(
+                "describing function: {} at {} Hz, command {} {} (between {} and {}), output {} mrad{}\n",
+                if c.stable {
+                    "limit cycle predicted"
+                } else {
+                    "threshold"
+                },
+                sig(c.frequency_hz),
+                sig(c.command_amplitude),
+                c.unit,
+                sig(c.between[0]),
+                sig(c.between[1]),
+                sig(c.output_amplitude_mrad),
+                if c.stable {
+                    ": the loop is stable just above it and not just below, so motion settles onto it"
+                } else {
+                    ": motion larger than this grows, smaller shrinks"
+                }
+            )
+        })
+        .collect()
 }
