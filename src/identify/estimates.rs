@@ -54,6 +54,13 @@ pub(crate) fn parameters(
                 eff.cable_transport_rad = Some(v);
                 ("cable_transport", "rad (input travel)")
             }
+            NlParam::Effect(EffectName::DistributedFrictionMemory) => {
+                eff.friction_memory_load_exponent = Some(v);
+                (
+                    "friction_memory_load_exponent",
+                    "1 (lag growth as |torque|^p)",
+                )
+            }
             NlParam::Effect(_) => continue,
         };
         out.push(ParamEstimate {

@@ -107,19 +107,31 @@ pub fn memory_columns(theta_in: &[f64], thresholds: &[f64]) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// Load-scaled columns of the distributed friction memory: `|M| (P_r(theta_in) - theta_in)`.
-/// Friction at a contact grows with the cable tension pressing on it, so the lag grows with
-/// the transmitted torque `M` (N m); weights are output rad per input rad per N m, >= 0.
+/// Load-scaled columns of the distributed friction memory:
+/// `|M|^p (P_r(theta_in) - theta_in)`. Friction at a contact grows with the cable tension
+/// pressing on it, so the lag grows with the transmitted torque `M` (N m); `p` (the
+/// `load_exponent`, 1 for friction proportional to tension) lets it grow faster, as when
+/// the contacts' stiffness also falls with load. Weights are output rad per input rad per
+/// (N m)^p, >= 0.
 pub fn memory_load_columns(
     theta_in: &[f64],
     torque_nm: &[f64],
     thresholds: &[f64],
+    load_exponent: f64,
 ) -> Vec<Vec<f64>> {
     memory_columns(theta_in, thresholds)
         .into_iter()
-        .map(|c| c.iter().zip(torque_nm).map(|(v, m)| v * m.abs()).collect())
+        .map(|c| {
+            c.iter()
+                .zip(torque_nm)
+                .map(|(v, m)| v * m.abs().powf(load_exponent))
+                .collect()
+        })
         .collect()
 }
+
+/// Bounds and start of the friction memory's load exponent `p` in a calibration.
+pub const MEMORY_LOAD_EXPONENT: (f64, f64, f64) = (0.5, 8.0, 1.0);
 
 /// Lag of the memory after a long travel past a reversal, rad of output: `sum w_j r_j`.
 pub fn memory_amplitude(w: &[f64], thresholds: &[f64]) -> f64 {
@@ -182,8 +194,9 @@ pub(crate) struct Basis<'a> {
     pub stroke: (f64, f64),
     /// Friction-memory thresholds, rad of input.
     pub thresholds: &'a [f64],
-    /// Mean transmitted torque magnitude, N m (where the memory's size is read).
-    pub mean_abs_torque_nm: f64,
+    /// Mean of `|M|^p` over the logs, (N m)^p, with `p` the fitted load exponent (where
+    /// the memory's size is read).
+    pub mean_load_factor: f64,
 }
 
 /// Parameter rows and stored effects of the extended effects in a fit; `cov` is laid out
@@ -200,7 +213,7 @@ pub(crate) fn parameters(
     let Basis {
         stroke,
         thresholds,
-        mean_abs_torque_nm,
+        mean_load_factor,
     } = *basis;
     use super::effects::EffectName;
     use super::model::LinParam;
@@ -267,13 +280,13 @@ pub(crate) fn parameters(
                 mem[nt..]
                     .iter()
                     .zip(thresholds)
-                    .map(|(a, r)| (a.0, *r * mean_abs_torque_nm)),
+                    .map(|(a, r)| (a.0, *r * mean_load_factor)),
             )
             .collect();
         out.push(super::ParamEstimate {
             name: EffectName::DistributedFrictionMemory.to_string(),
             value: memory_amplitude(&w, thresholds)
-                + mean_abs_torque_nm * memory_amplitude(&v, thresholds),
+                + mean_load_factor * memory_amplitude(&v, thresholds),
             std: std_of(&grad),
             unit: EffectName::DistributedFrictionMemory.unit().into(),
         });
@@ -287,7 +300,7 @@ pub(crate) fn parameters(
                 name: "distributed_friction_memory_growth".into(),
                 value: memory_amplitude(&v, thresholds),
                 std: std_of(&grad),
-                unit: "rad/(N m) (lag growth with transmitted torque)".into(),
+                unit: "rad/(N m)^p (lag growth with transmitted torque)".into(),
             });
         }
         for ((i, v), r) in mem[..nt].iter().zip(thresholds) {
@@ -303,7 +316,7 @@ pub(crate) fn parameters(
                 name: format!("friction_memory_load_weight[r={r:.4} rad]"),
                 value: *v,
                 std: std_of(&[(*i, 1.0)]),
-                unit: "rad/rad/(N m)".into(),
+                unit: "rad/rad/(N m)^p".into(),
             });
         }
         eff.friction_memory_load_weights_per_nm = (!v.is_empty()).then_some(v);
@@ -312,10 +325,14 @@ pub(crate) fn parameters(
     }
 }
 
-/// Mean magnitude of the transmitted torque over logs, N m.
-pub fn mean_abs_torque<'a>(torques: impl Iterator<Item = &'a [f64]>) -> f64 {
+/// Mean of `|M|^p` of the transmitted torque over logs, (N m)^p (`p` = 1: the mean
+/// magnitude, N m).
+pub fn mean_load_factor<'a>(torques: impl Iterator<Item = &'a [f64]>, p: f64) -> f64 {
     let (s, n) = torques.fold((0.0, 0usize), |(s, n), t| {
-        (s + t.iter().map(|m| m.abs()).sum::<f64>(), n + t.len())
+        (
+            s + t.iter().map(|m| m.abs().powf(p)).sum::<f64>(),
+            n + t.len(),
+        )
     });
     s / n.max(1) as f64
 }

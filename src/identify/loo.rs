@@ -348,8 +348,9 @@ pub fn leave_one_out(
         &extra_effects::Basis {
             stroke,
             thresholds: &thresholds,
-            mean_abs_torque_nm: extra_effects::mean_abs_torque(
+            mean_load_factor: extra_effects::mean_load_factor(
                 prepared.iter().map(|l| l.torque.as_slice()),
+                super::model::memory_load_exponent(&nl, &f.x),
             ),
         },
         &mut shared,

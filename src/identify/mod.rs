@@ -21,7 +21,7 @@ pub use crate::measurement::{BenchLog, Sample};
 pub use effects::{EffectName, EffectsParams, IdentifyParams};
 pub use estimates::effect_value;
 pub use records::*;
-pub use synth::{parse_effect_arg, synthesize, Ringing, SynthOptions};
+pub use synth::{parse_effect_arg, synthesize, MemoryLoad, Ringing, SynthOptions};
 
 use crate::physics::DriveParams;
 use crate::physics::LoadParams;
@@ -475,8 +475,9 @@ pub fn diagnose(
         &extra_effects::Basis {
             stroke,
             thresholds: &thresholds,
-            mean_abs_torque_nm: extra_effects::mean_abs_torque(
+            mean_load_factor: extra_effects::mean_load_factor(
                 prepared.iter().map(|l| l.torque.as_slice()),
+                model::memory_load_exponent(&nl_final, &ext_fit.x),
             ),
         },
         &mut params,

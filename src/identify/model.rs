@@ -205,6 +205,15 @@ pub fn is_linear(e: EffectName) -> bool {
     )
 }
 
+/// The friction memory's load exponent in a fit's nonlinear parameters `x` (layout `nl`),
+/// 1 when the memory is not in the model.
+pub fn memory_load_exponent(nl: &[(NlParam, f64, f64, f64)], x: &[f64]) -> f64 {
+    nl.iter()
+        .position(|n| n.0 == NlParam::Effect(EffectName::DistributedFrictionMemory))
+        .and_then(|i| x.get(i).copied())
+        .unwrap_or(1.0)
+}
+
 /// A model: the base drive (reference values), what is calibrated and which effects.
 #[derive(Clone, Debug)]
 pub struct Spec {
@@ -267,6 +276,9 @@ pub struct Design {
     pub cols: Vec<Vec<f64>>,
     /// Their names.
     pub names: Vec<LinParam>,
+    /// Largest `|M|^p` over the logs (p the friction memory's load exponent; 1 without
+    /// the memory), (N m)^p: where the load-scaled memory weights are bounded.
+    pub max_load_factor: f64,
 }
 
 impl<'a> Evaluator<'a> {
@@ -330,6 +342,10 @@ impl<'a> Evaluator<'a> {
                     v.push((NlParam::Effect(*e), 0.0, 0.4 * cap, 0.02 * cap))
                 }
                 EffectName::CableTransport => v.push((NlParam::Effect(*e), 1e-4, 3.0, 0.05)),
+                EffectName::DistributedFrictionMemory => {
+                    let (lo, hi, start) = super::extra_effects::MEMORY_LOAD_EXPONENT;
+                    v.push((NlParam::Effect(*e), lo, hi, start))
+                }
                 _ => {}
             }
         }
@@ -437,6 +453,9 @@ impl<'a> Evaluator<'a> {
         let mut fixed = Vec::with_capacity(n);
         let mut target = Vec::with_capacity(n);
         let (stroke, thresholds) = self.stroke_and_thresholds();
+        let load_exponent = self
+            .value(x, NlParam::Effect(EffectName::DistributedFrictionMemory))
+            .unwrap_or(1.0);
         for (li, l) in self.logs.iter().enumerate() {
             // Columns of the extended effects, which need a whole log (memory) or the stroke.
             let shape = self
@@ -454,6 +473,7 @@ impl<'a> Evaluator<'a> {
                         &l.th_in,
                         &l.torque,
                         &thresholds,
+                        load_exponent,
                     ));
                     c
                 });
@@ -494,11 +514,18 @@ impl<'a> Evaluator<'a> {
                 }
             }
         }
+        let max_load_factor = self
+            .logs
+            .iter()
+            .flat_map(|l| l.torque.iter())
+            .fold(0.0_f64, |m, t| m.max(t.abs()))
+            .powf(load_exponent);
         Ok(Design {
             target,
             fixed,
             cols,
             names,
+            max_load_factor,
         })
     }
 
@@ -513,11 +540,18 @@ impl<'a> Evaluator<'a> {
     }
 
     /// Bounds of the linear coefficients that have physical limits.
-    fn lin_bounds(&self, name: LinParam) -> Option<(f64, f64)> {
+    fn lin_bounds(&self, name: LinParam, d: &Design) -> Option<(f64, f64)> {
         let id = &self.spec.ident;
         match name {
             // Compliance and friction lag only ever make the output give way or lag.
             LinParam::Effect(EffectName::LoadCompliance, _) => Some((0.0, 100.0)),
+            // A contact's weight at most 10 rad/rad; a load-scaled one at the logs' largest
+            // torque.
+            LinParam::Effect(EffectName::DistributedFrictionMemory, j)
+                if j >= super::extra_effects::MEMORY_THRESHOLDS =>
+            {
+                Some((0.0, 10.0 / d.max_load_factor.max(1e-12)))
+            }
             LinParam::Effect(EffectName::DistributedFrictionMemory, _) => Some((0.0, 10.0)),
             LinParam::ModulusScale => Some((
                 1.0 / id.modulus_factor_bounds[1],
@@ -563,7 +597,7 @@ impl<'a> Evaluator<'a> {
             }
             let mut again = false;
             for j in free {
-                if let Some((lo, hi)) = self.lin_bounds(d.names[j]) {
+                if let Some((lo, hi)) = self.lin_bounds(d.names[j], d) {
                     if coef[j] < lo || coef[j] > hi {
                         pinned[j] = Some(coef[j].clamp(lo, hi));
                         again = true;

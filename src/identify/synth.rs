@@ -38,6 +38,19 @@ pub struct SynthOptions {
     pub load_noise_nm: f64,
     /// Unmodelled resonance, for `unexplained` tests.
     pub ringing: Option<Ringing>,
+    /// A friction-memory contact whose lag grows with the transmitted torque, for
+    /// calibrations across loads.
+    pub memory_load: Option<MemoryLoad>,
+}
+
+/// One friction-memory contact (the middle threshold of the identification grid) whose lag
+/// after a long travel is `lag_rad_per_nm_p * |M|^exponent` at transmitted torque `M`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MemoryLoad {
+    /// Lag at 1 N m, rad (1e-4 typical for a gimbal drive).
+    pub lag_rad_per_nm_p: f64,
+    /// How fast the lag grows with the torque (1: proportional).
+    pub exponent: f64,
 }
 
 impl Default for SynthOptions {
@@ -50,6 +63,7 @@ impl Default for SynthOptions {
             angle_noise_rad: 1e-6,
             load_noise_nm: 0.002,
             ringing: None,
+            memory_load: None,
         }
     }
 }
@@ -168,6 +182,15 @@ pub fn synthesize(
         let (wi, wj) = (v * f / r[i], v * (1.0 - f) / r[j]);
         for k in 0..n {
             out[k] += wi * cols[0][k] + wj * cols[1][k];
+        }
+    }
+    if let Some(m) = options.memory_load {
+        let st = super::extra_effects::stroke(std::iter::once(th_in.as_slice()));
+        let r = super::extra_effects::memory_thresholds_rad(st.1 - st.0)
+            [super::extra_effects::MEMORY_THRESHOLDS / 2];
+        let col = &super::extra_effects::memory_columns(&th_in, &[r])[0];
+        for k in 0..n {
+            out[k] += m.lag_rad_per_nm_p / r * torque[k].abs().powf(m.exponent) * col[k];
         }
     }
     if let Some(r) = options.ringing {

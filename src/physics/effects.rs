@@ -55,10 +55,15 @@ pub struct EffectsParams {
     /// Their weights, output rad per input rad (non-negative).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction_memory_weights: Option<Vec<f64>>,
-    /// Growth of the weights with the transmitted torque's magnitude, per N m
-    /// (non-negative; friction at a contact grows with the tension pressing on it).
+    /// Growth of the weights with the transmitted torque's magnitude `|M|^p`, per (N m)^p
+    /// with `p` = `friction_memory_load_exponent` (non-negative; friction at a contact
+    /// grows with the tension pressing on it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction_memory_load_weights_per_nm: Option<Vec<f64>>,
+    /// Exponent `p` of that growth: the load-scaled weights multiply `|M|^p` (absent: 1,
+    /// growth proportional to the torque).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction_memory_load_exponent: Option<f64>,
 }
 
 impl EffectsParams {
@@ -141,15 +146,23 @@ impl EffectsParams {
                 ))
             }
         }
+        check(
+            "friction_memory_load_exponent",
+            self.friction_memory_load_exponent,
+            0.5,
+            8.0,
+        )?;
         if let Some(v) = &self.friction_memory_load_weights_per_nm {
             let n = self
                 .friction_memory_thresholds_rad
                 .as_ref()
                 .map_or(0, |r| r.len());
-            if v.len() != n || v.iter().any(|x| !(x.is_finite() && *x >= 0.0 && *x <= 1e3)) {
+            // Per (N m)^p: a steep growth (large p) on jaw torques well below 1 N m needs
+            // weights in the thousands.
+            if v.len() != n || v.iter().any(|x| !(x.is_finite() && *x >= 0.0 && *x <= 1e9)) {
                 return Err((
                     "friction_memory_load_weights_per_nm".into(),
-                    format!("needs one weight (0 to 1000 per N m) per threshold ({n})"),
+                    format!("needs one weight (0 to 1e9 per (N m)^p) per threshold ({n})"),
                 ));
             }
         }
