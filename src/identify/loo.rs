@@ -133,6 +133,8 @@ pub struct LooTable {
     /// Shared parameters the logs do not pin down (relative std above
     /// [`NOT_PINNED_REL_STD`]), with why.
     pub not_pinned: Vec<String>,
+    /// Shared nonlinear parameters of the joint calibration that ended on a bound.
+    pub on_bound: Vec<String>,
     /// What was cut from each log's start.
     pub start_cuts: Vec<StartCut>,
     /// How far input-pulley runout can be told from a ratio shape over the stroke (0..1).
@@ -372,6 +374,7 @@ pub fn leave_one_out(
             )
         })
         .collect();
+    let on_bound = super::model::on_bounds(&nl, &f.x);
     let all_in: Vec<f64> = prepared.iter().flat_map(|p| p.th_in.clone()).collect();
     let sep = extra_effects::runout_separability(&all_in, stroke);
     let mut notes = Vec::new();
@@ -404,6 +407,7 @@ pub fn leave_one_out(
         rows,
         shared,
         not_pinned,
+        on_bound,
         start_cuts,
         runout_separability: sep,
         notes,
@@ -469,6 +473,9 @@ pub fn loo_text(t: &LooTable) -> String {
     }
     for n in &t.not_pinned {
         let _ = writeln!(s, "  NOT PINNED: {n}");
+    }
+    for n in &t.on_bound {
+        let _ = writeln!(s, "  ON A BOUND: {n}");
     }
     for n in &t.notes {
         let _ = writeln!(s, "Limit: {n}");

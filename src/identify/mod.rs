@@ -612,6 +612,7 @@ pub fn diagnose(
         drive: drive_out,
         effects: effects_out,
         traces,
+        params_on_bound: model::on_bounds(&nl_final, &ext_fit.x),
         fits_on_limit: [
             ("base calibration", &base_fit),
             ("extended calibration", &ext_fit),

@@ -214,6 +214,39 @@ pub fn memory_load_exponent(nl: &[(NlParam, f64, f64, f64)], x: &[f64]) -> f64 {
         .unwrap_or(1.0)
 }
 
+/// The nonlinear parameters of a fit that ended on a bound (layout `nl`, values `x`), each
+/// as a sentence: the logs push them past what the model allows, so the value is a limit,
+/// not an estimate.
+pub fn on_bounds(nl: &[(NlParam, f64, f64, f64)], x: &[f64]) -> Vec<String> {
+    nl.iter()
+        .zip(x)
+        .filter_map(|(n, v)| {
+            let near = |b: f64| (v - b).abs() <= 1e-9 * b.abs().max(1e-12);
+            let side = if near(n.1) {
+                "lower"
+            } else if near(n.2) {
+                "upper"
+            } else {
+                return None;
+            };
+            let name = match n.0 {
+                NlParam::Mu => "friction_coefficient".to_string(),
+                NlParam::Preload => "preload_n".to_string(),
+                NlParam::Effect(EffectName::DistributedFrictionMemory) => {
+                    "friction_memory_load_exponent".to_string()
+                }
+                NlParam::Effect(e) => e.to_string(),
+            };
+            Some(format!(
+                "{name} = {} is on its {side} bound (allowed {} to {}): the logs push it further, so read it as a limit, not an estimate",
+                crate::compact(*v),
+                crate::compact(n.1),
+                crate::compact(n.2)
+            ))
+        })
+        .collect()
+}
+
 /// A model: the base drive (reference values), what is calibrated and which effects.
 #[derive(Clone, Debug)]
 pub struct Spec {
@@ -783,5 +816,29 @@ impl<'a> Evaluator<'a> {
             .pseudo_inverse(tol)
             .map_err(|e| IdentifyError::Fit(e.to_string()))?;
         Ok(inv * s2)
+    }
+}
+
+#[cfg(test)]
+mod bound_tests {
+    use super::*;
+
+    #[test]
+    fn parameters_on_a_bound_are_named_and_interior_ones_are_not() {
+        let nl = [
+            (NlParam::Mu, 0.02, 0.5, 0.1),
+            (NlParam::Preload, 10.0, 1000.0, 100.0),
+            (
+                NlParam::Effect(EffectName::DistributedFrictionMemory),
+                0.5,
+                8.0,
+                1.0,
+            ),
+        ];
+        let said = on_bounds(&nl, &[0.02, 123.0, 8.0]);
+        assert_eq!(said.len(), 2, "{said:?}");
+        assert!(said[0].starts_with("friction_coefficient = 0.02 is on its lower bound"));
+        assert!(said[1].starts_with("friction_memory_load_exponent = 8 is on its upper bound"));
+        assert!(on_bounds(&nl, &[0.1, 123.0, 2.5]).is_empty());
     }
 }

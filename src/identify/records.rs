@@ -200,6 +200,9 @@ pub struct Diagnosis {
     /// Empty when every calibration converged.
     #[serde(default)]
     pub fits_on_limit: Vec<String>,
+    /// Parameters of the extended calibration that ended on a bound, each a sentence.
+    #[serde(default)]
+    pub params_on_bound: Vec<String>,
     /// The extended model's residual along each logged variable, strongest first: which
     /// variable the structure that remains follows (the residual plot to look at).
     #[serde(default)]

@@ -40,6 +40,9 @@ pub fn summary_text(d: &Diagnosis) -> String {
             "Not converged: {f}; its parameters are the best it reached"
         );
     }
+    for b in &d.params_on_bound {
+        let _ = writeln!(s, "On a bound: {b}");
+    }
     let verdict = match d.cause.as_str() {
         "none" => "nothing beyond sensor noise: the calibrated base model explains the data".to_string(),
         "unexplained" => "structure remains that no effect in the library explains (look at the residual plots: resonance, sensor fault, load not logged?)".to_string(),
