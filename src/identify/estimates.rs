@@ -39,32 +39,29 @@ pub(crate) fn parameters(
     for (k, n) in nl.iter().enumerate() {
         let v = fit.x[k];
         let s = std_of(cov, &[(k, 1.0)]);
-        let (name, unit) = match n.0 {
-            NlParam::Mu => ("friction_coefficient", "1"),
-            NlParam::Preload => ("preload_n", "N"),
+        let unit = match n.0 {
+            NlParam::Mu => "1",
+            NlParam::Preload => "N",
             NlParam::Effect(EffectName::BearingFriction) => {
                 eff.bearing_friction_nm = Some(v);
-                ("bearing_friction", "N m")
+                "N m"
             }
             NlParam::Effect(EffectName::PreloadRelaxation) => {
                 eff.preload_relaxation_per_s = Some(v);
-                ("preload_relaxation", "1/s")
+                "1/s"
             }
             NlParam::Effect(EffectName::CableTransport) => {
                 eff.cable_transport_rad = Some(v);
-                ("cable_transport", "rad (input travel)")
+                "rad (input travel)"
             }
             NlParam::Effect(EffectName::DistributedFrictionMemory) => {
                 eff.friction_memory_load_exponent = Some(v);
-                (
-                    "friction_memory_load_exponent",
-                    "1 (lag growth as |torque|^p)",
-                )
+                "1 (lag growth as |torque|^p)"
             }
             NlParam::Effect(_) => continue,
         };
         out.push(ParamEstimate {
-            name: name.into(),
+            name: n.0.name().into(),
             value: v,
             std: s,
             unit: unit.into(),

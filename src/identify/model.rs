@@ -184,6 +184,21 @@ pub enum NlParam {
     Effect(EffectName),
 }
 
+impl NlParam {
+    /// Name in reports and saved models: the drive key, the effect's name, or for the
+    /// friction memory its load exponent.
+    pub fn name(self) -> &'static str {
+        match self {
+            NlParam::Mu => "friction_coefficient",
+            NlParam::Preload => "preload_n",
+            NlParam::Effect(EffectName::DistributedFrictionMemory) => {
+                "friction_memory_load_exponent"
+            }
+            NlParam::Effect(e) => e.as_str(),
+        }
+    }
+}
+
 /// A coefficient fitted linearly.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LinParam {
@@ -229,16 +244,9 @@ pub fn on_bounds(nl: &[(NlParam, f64, f64, f64)], x: &[f64]) -> Vec<String> {
             } else {
                 return None;
             };
-            let name = match n.0 {
-                NlParam::Mu => "friction_coefficient".to_string(),
-                NlParam::Preload => "preload_n".to_string(),
-                NlParam::Effect(EffectName::DistributedFrictionMemory) => {
-                    "friction_memory_load_exponent".to_string()
-                }
-                NlParam::Effect(e) => e.to_string(),
-            };
             Some(format!(
-                "{name} = {} is on its {side} bound (allowed {} to {}): the logs push it further, so read it as a limit, not an estimate",
+                "{} = {} is on its {side} bound (allowed {} to {}): the logs push it further, so read it as a limit, not an estimate",
+                n.0.name(),
                 crate::compact(*v),
                 crate::compact(n.1),
                 crate::compact(n.2)
