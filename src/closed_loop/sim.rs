@@ -18,7 +18,9 @@ use super::plant::{
 use crate::metrics::limit_cycle::{LimitCycle, LimitCycleDetector};
 use crate::metrics::los::{error_spectrum, los_metrics, ErrorSpectrum, LosMetrics};
 use crate::metrics::{Metrics, MetricsAccumulator, MetricsConfig, Sample, StepEvent};
-use crate::physics::{DriveFault, DriveParams, EffectsParams, Half, LoadParams, LoadTerm};
+use crate::physics::{
+    ContactMemory, DriveFault, DriveParams, EffectsParams, Half, LoadParams, LoadTerm,
+};
 use crate::signal::Signal;
 
 /// What to keep from a run.
@@ -748,6 +750,44 @@ fn piece_of(
     }
 }
 
+/// Motor angle `theta` (rad) that puts the output on its reference when the effects add
+/// `f(theta) = (error, slope)` (rad, rad/rad) to what the motor angle `theta0 = ic (r -
+/// e_known)` already accounts for: the root of `theta - theta0 + ic f(theta)`. Newton's
+/// steps, kept inside the bracket the signs have found: the friction memory makes `f`
+/// piecewise linear, with kinks a plain Newton step can circle around.
+fn solve_input_angle(theta0: f64, ic: f64, f: impl Fn(f64) -> (f64, f64)) -> f64 {
+    let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+    let mut theta = theta0;
+    for _ in 0..40 {
+        let (value, slope) = f(theta);
+        let g = theta - theta0 + ic * value;
+        if g == 0.0 {
+            break;
+        }
+        if g > 0.0 {
+            hi = hi.min(theta);
+        } else {
+            lo = lo.max(theta);
+        }
+        let d = 1.0 + ic * slope;
+        let mut next = if d > 0.05 { theta - g / d } else { theta - g };
+        // A step that lands on the bracket's end is the root to rounding; one beyond it
+        // gives way to bisection.
+        if !(next >= lo && next <= hi) {
+            next = if lo.is_finite() && hi.is_finite() {
+                0.5 * (lo + hi)
+            } else {
+                theta - g
+            };
+        }
+        if (next - theta).abs() <= 1e-14 * (1.0 + theta.abs()) {
+            return next;
+        }
+        theta = next;
+    }
+    theta
+}
+
 fn run_mode(
     scenario: &ClosedLoopSetup<'_>,
     mode: CompensationMode,
@@ -782,6 +822,13 @@ fn run_mode(
         .filter(|_| comp.is_some());
     let comp_kinematic = comp_fx.filter(|fx| fx.has_kinematic());
     let comp_bearing = comp_fx.map_or(0.0, |fx| fx.bearing_friction());
+    let comp_compliance = comp_fx.map_or(0.0, EffectsParams::load_compliance);
+    let mut comp_contacts = comp_fx.and_then(|fx| ContactMemory::new(fx, 0.0));
+    // The jaw link between the drum and the output sensor, massless: it gives way under the
+    // load it carries and lags by its contacts' friction memory, without changing the
+    // forces on the drum.
+    let link_compliance = scenario.effects.map_or(0.0, EffectsParams::load_compliance);
+    let mut link_contacts = scenario.effects.and_then(|fx| ContactMemory::new(fx, 0.0));
     let comp_ic = p.compensator_params(drive).ratio();
     // The brake is a declared model; should it ever be treated as unknown, the
     // feedforward must not see it.
@@ -867,10 +914,16 @@ fn run_mode(
         };
         let (tu, tl) = (forces.tension_upper_n, forces.tension_lower_n);
         last_torque = forces.cable_torque_nm;
+        let link_torque = -load_torque(&coeff, brake, &forces);
+        let output = x[THETA_O]
+            + link_compliance * link_torque
+            + link_contacts
+                .as_mut()
+                .map_or(0.0, |m| m.commit(x[THETA_M], link_torque));
 
         // Controller at t_k.
         let ym = sensors.motor.read(x[THETA_M], &mut sensors.rng);
-        let yo = sensors.output.read(x[THETA_O], &mut sensors.rng);
+        let yo = sensors.output.read(output, &mut sensors.rng);
         let r = p.reference.at(t);
         let delta = if r.rate != 0.0 {
             r.rate
@@ -881,25 +934,35 @@ fn run_mode(
         let m_brake = brake_pred.update(delta);
         // The compensator is given only the declared load models (unbalance, brake), from
         // the reference: constant, sine and CSV torques reach it only through the sensors.
-        let m_smooth = if load.unbalance_nm != 0.0 {
-            load.known_torque_nm(r.value)
+        let m_smooth = if load.unbalance_nm != 0.0 || load.constant_declared {
+            load.known_torque_nm(t, r.value)
         } else {
             0.0
         };
-        let m_pred = m_brake - m_smooth + coeff.jo * r.accel + coeff.bo * r.rate;
+        let m_link = m_brake - m_smooth;
+        let m_pred = m_link + coeff.jo * r.accel + coeff.bo * r.rate;
         let e_cable = comp.as_mut().map_or(0.0, |cp| cp.predict(m_pred));
-        let e_pred = match comp_kinematic {
-            // The effect error depends on the motor angle it shifts: two fixed-point
-            // passes from the cable-only reference (each shrinks the error by about eps).
-            Some(fx) => {
-                let mut e_fx = 0.0;
-                for _ in 0..2 {
-                    let theta_in = ic * (r.value - e_cable - e_fx);
-                    e_fx = fx.kinematic_error_rad(theta_in, r.value, t, comp_ic);
-                }
-                e_cable + e_fx
-            }
-            None => e_cable,
+        let e_known = e_cable + comp_compliance * m_link;
+        // The contacts have moved with the motor, which the encoder reads: the
+        // compensator's copy of their memory follows the measured angle, not the one it
+        // asked for.
+        if let Some(m) = comp_contacts.as_mut() {
+            m.commit(ym, m_link);
+        }
+        let e_pred = if comp_kinematic.is_some() || comp_contacts.is_some() {
+            // The effects' error depends on the motor angle it shifts.
+            let theta_in = solve_input_angle(ic * (r.value - e_known), ic, |th| {
+                let k = comp_kinematic
+                    .map(|fx| fx.kinematic_error(th, r.value, t, comp_ic))
+                    .unwrap_or_default();
+                let (lag, lag_slope) = comp_contacts
+                    .as_ref()
+                    .map_or((0.0, 0.0), |m| m.lag_and_slope(th, m_link));
+                (k.value_rad + lag, k.d_theta_in + lag_slope)
+            });
+            r.value - theta_in / ic
+        } else {
+            e_known
         };
         let r_m = ic * (r.value - e_pred);
         let shift_rate = if k > 0 {
@@ -963,13 +1026,13 @@ fn run_mode(
             };
         }
 
-        // The line of sight: the drum's angle on the moving base.
-        let los = x[THETA_O] + base_now.value;
+        // The line of sight: the output's angle on the moving base.
+        let los = output + base_now.value;
         let sample = Sample {
             t_s: t,
             reference_rad: r.value,
             output_rad: los,
-            transmission_error_rad: Some(x[THETA_O] - x[THETA_M] / ic),
+            transmission_error_rad: Some(output - x[THETA_M] / ic),
             command: Some(u),
             current_a: Some(x[CURRENT]),
         };
@@ -984,10 +1047,10 @@ fn run_mode(
             s.t_s.push(t);
             s.reference_rad.push(r.value);
             s.motor_angle_rad.push(x[THETA_M]);
-            s.output_angle_rad.push(x[THETA_O]);
+            s.output_angle_rad.push(output);
             s.pointing_error_mrad.push((los - r.value) * 1e3);
             s.transmission_error_mrad
-                .push((x[THETA_O] - x[THETA_M] / ic) * 1e3);
+                .push((output - x[THETA_M] / ic) * 1e3);
             s.tension_upper_n.push(tu);
             s.tension_lower_n.push(tl);
             s.motor_command.push(u);
@@ -1095,5 +1158,32 @@ fn run_mode(
         simulated_s: reached,
         series,
         limit_cycle: hunting.finish(),
+    }
+}
+
+#[cfg(test)]
+mod solve_tests {
+    use super::solve_input_angle;
+
+    /// Piecewise-linear effects with slopes down to -0.85 rad/rad (sticking contacts) and a
+    /// smooth term: the root found leaves no residual, from either side.
+    #[test]
+    fn the_motor_angle_puts_the_output_on_its_reference() {
+        let ic = 1.09;
+        let f = |th: f64| {
+            let stick = (th - 0.3).clamp(-0.02, 0.02);
+            let kink = if th > 0.5 { -0.6 * (th - 0.5) } else { 0.0 };
+            let value = -0.85 * stick + kink + 1e-3 * (3.0 * th).sin();
+            let slope = if (th - 0.3).abs() < 0.02 { -0.85 } else { 0.0 }
+                + if th > 0.5 { -0.6 } else { 0.0 }
+                + 3e-3 * (3.0 * th).cos();
+            (value, slope)
+        };
+        for k in 0..200 {
+            let theta0 = -0.2 + k as f64 * 0.005;
+            let th = solve_input_angle(theta0, ic, f);
+            let g = th - theta0 + ic * f(th).0;
+            assert!(g.abs() < 1e-14, "theta0 {theta0}: residual {g} at {th}");
+        }
     }
 }

@@ -218,6 +218,10 @@ fn check_params(p: &PlantParams) -> Result<(), String> {
     if let Some(fx) = &p.effects {
         fx.validate()
             .map_err(|(k, m)| format!("effects.{k} (from the scenario): {m}"))?;
+        // Its angle output is the drum's: a jaw link behind the drum has no place in it.
+        if fx.load_compliance() != 0.0 || fx.has_friction_memory() {
+            return Err("effects.load_compliance and effects.friction_memory_* (from the scenario) describe the jaw link behind the drum, which the co-simulation plant does not carry; remove them from the exported scenario or run the closed loop with `run`".into());
+        }
     }
     let modes = p.closed_loop.plant_modes(&p.drive);
     // Written so a NaN rate fails the check too.

@@ -535,3 +535,18 @@ fn memoryless_cable_runs_and_reports_slip() {
     assert_eq!(f.get_int(VR_REGIME), 1);
     assert!(f.get(VR_TORQUE) > 0.1, "{}", f.get(VR_TORQUE));
 }
+
+/// The co-simulation plant's output is the drum: a scenario whose `[effects]` put a jaw
+/// link behind it is refused before export, naming the keys.
+#[test]
+fn a_jaw_link_behind_the_drum_is_refused_by_name() {
+    let text = crate::scenario::builtin("davinci_tool4_loop").unwrap_or_default();
+    let s = Scenario::from_toml(text, "davinci_tool4_loop", "davinci_tool4_loop", &[])
+        .unwrap_or_else(|e| panic!("{e}"));
+    let instance = super::instance::Instance::new(&s).unwrap_or_else(|e| panic!("{e}"));
+    let m = instance.check_defaults().unwrap_err();
+    assert!(
+        m.contains("effects.load_compliance") && m.contains("friction_memory"),
+        "{m}"
+    );
+}

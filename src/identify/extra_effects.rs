@@ -42,23 +42,7 @@ pub fn stroke<'a>(angles: impl Iterator<Item = &'a [f64]>) -> (f64, f64) {
     }
 }
 
-/// Legendre polynomial `P_k(u)` for k = 0..=5.
-pub fn legendre(k: usize, u: f64) -> f64 {
-    let u2 = u * u;
-    match k {
-        0 => 1.0,
-        1 => u,
-        2 => 0.5 * (3.0 * u2 - 1.0),
-        3 => 0.5 * u * (5.0 * u2 - 3.0),
-        4 => (35.0 * u2 * u2 - 30.0 * u2 + 3.0) / 8.0,
-        _ => u * (63.0 * u2 * u2 - 70.0 * u2 + 15.0) / 8.0,
-    }
-}
-
-/// Input angle scaled to [-1, 1] over the stroke `(lo, hi)`.
-pub fn scaled(theta_in: f64, stroke: (f64, f64)) -> f64 {
-    2.0 * (theta_in - stroke.0) / (stroke.1 - stroke.0) - 1.0
-}
+pub use crate::physics::effects::{legendre, scaled};
 
 /// Columns of the ratio shape: `P_(2+j)(u)` for j in 0..SHAPE_TERMS, rad per unit coefficient.
 pub fn shape_columns(theta_in: &[f64], stroke: (f64, f64)) -> Vec<Vec<f64>> {

@@ -1,6 +1,8 @@
 //! Physical effects beyond the base capstan model that a plant can carry and a compensator
-//! can predict: pulley and drum runout, thermal drift, bearing friction. One formula serves
-//! the closed-loop plant, its compensator and the diagnosis of bench logs.
+//! can predict: pulley and drum runout, thermal drift, bearing friction, and the effects of
+//! a multi-wrap instrument drive (ratio shape over the stroke, load compliance, friction
+//! memory spread over many contacts). One formula serves the closed-loop plant, its
+//! compensator and the diagnosis of bench logs.
 
 use serde::{Deserialize, Serialize};
 
@@ -186,12 +188,38 @@ pub struct KinematicError {
 
 impl EffectsParams {
     /// Whether any effect that moves the output relative to the input (runouts, thermal
-    /// drift) is present with a nonzero size.
+    /// drift, ratio shape) is present with a nonzero size.
     pub fn has_kinematic(&self) -> bool {
         let nz = |v: Option<f64>| v.is_some_and(|x| x != 0.0);
         nz(self.input_pulley_runout)
             || nz(self.output_drum_runout)
             || nz(self.thermal_drift_rad_per_s)
+            || self.ratio_shape().is_some()
+    }
+
+    /// Ratio shape as `(Legendre coefficients of P_2.., stroke)` when present and nonzero.
+    fn ratio_shape(&self) -> Option<(&[f64], (f64, f64))> {
+        match (
+            &self.angle_dependent_ratio_coefs,
+            self.angle_dependent_ratio_stroke_rad,
+        ) {
+            (Some(c), Some([lo, hi])) if c.iter().any(|v| *v != 0.0) && hi > lo => {
+                Some((c.as_slice(), (lo, hi)))
+            }
+            _ => None,
+        }
+    }
+
+    /// Output deflection per transmitted torque of the jaw link, rad/(N m) (0 when absent).
+    pub fn load_compliance(&self) -> f64 {
+        self.load_compliance_rad_per_nm.unwrap_or(0.0)
+    }
+
+    /// Whether the friction memory of many contacts is present with a nonzero weight.
+    pub fn has_friction_memory(&self) -> bool {
+        let nz = |v: &Option<Vec<f64>>| v.as_ref().is_some_and(|w| w.iter().any(|x| *x != 0.0));
+        self.friction_memory_thresholds_rad.is_some()
+            && (nz(&self.friction_memory_weights) || nz(&self.friction_memory_load_weights_per_nm))
     }
 
     /// Unmeasured Coulomb torque at the drum, N m (0 when absent).
@@ -207,9 +235,14 @@ impl EffectsParams {
     /// e = (eps_i/ic)*(sin(theta_in + phi_i) - sin(phi_i))      input pulley runout
     ///   + eps_o*(sin(theta_out + phi_o) - sin(phi_o))           output drum runout
     ///   + drift*t                                               thermal drift
+    ///   + sum_k c_k P_(k+2)(u),  u = 2 (theta_in - lo)/(hi - lo) - 1   ratio shape
     /// ```
     ///
-    /// Absent effects contribute nothing; absent phases are 0.
+    /// Absent effects contribute nothing; absent phases are 0. The ratio shape is known only
+    /// over the calibrated stroke `[lo, hi]`: outside it the ratio keeps its value at the
+    /// nearer end (the error continues along its end slope) rather than following a
+    /// polynomial nobody measured; the slope stays continuous, so the cable's lever arm
+    /// does not jump at the ends.
     pub fn kinematic_error(
         &self,
         theta_in: f64,
@@ -233,6 +266,25 @@ impl EffectsParams {
             k.value_rad += rate * t_s;
             k.d_t += rate;
         }
+        if let Some((c, stroke)) = self.ratio_shape() {
+            let u = scaled(theta_in, stroke);
+            if (-1.0..=1.0).contains(&u) {
+                let du = 2.0 / (stroke.1 - stroke.0);
+                for (j, cj) in c.iter().enumerate() {
+                    k.value_rad += cj * legendre(j + 2, u);
+                    k.d_theta_in += cj * legendre_slope(j + 2, u) * du;
+                }
+            } else {
+                let end = u.clamp(-1.0, 1.0);
+                let du = 2.0 / (stroke.1 - stroke.0);
+                let past = (u - end) / du;
+                for (j, cj) in c.iter().enumerate() {
+                    let slope = cj * legendre_slope(j + 2, end) * du;
+                    k.value_rad += cj * legendre(j + 2, end) + slope * past;
+                    k.d_theta_in += slope;
+                }
+            }
+        }
         k
     }
 
@@ -240,6 +292,115 @@ impl EffectsParams {
     pub fn kinematic_error_rad(&self, theta_in: f64, theta_out: f64, t_s: f64, ratio: f64) -> f64 {
         self.kinematic_error(theta_in, theta_out, t_s, ratio)
             .value_rad
+    }
+}
+
+/// Legendre polynomial `P_k(u)` for k = 0..=5 (higher orders give `P_5`).
+pub fn legendre(k: usize, u: f64) -> f64 {
+    let u2 = u * u;
+    match k {
+        0 => 1.0,
+        1 => u,
+        2 => 0.5 * (3.0 * u2 - 1.0),
+        3 => 0.5 * u * (5.0 * u2 - 3.0),
+        4 => (35.0 * u2 * u2 - 30.0 * u2 + 3.0) / 8.0,
+        _ => u * (63.0 * u2 * u2 - 70.0 * u2 + 15.0) / 8.0,
+    }
+}
+
+/// Derivative `dP_k/du` of [`legendre`].
+pub fn legendre_slope(k: usize, u: f64) -> f64 {
+    let u2 = u * u;
+    match k {
+        0 => 0.0,
+        1 => 1.0,
+        2 => 3.0 * u,
+        3 => 0.5 * (15.0 * u2 - 3.0),
+        4 => (140.0 * u2 * u - 60.0 * u) / 8.0,
+        _ => (315.0 * u2 * u2 - 210.0 * u2 + 15.0) / 8.0,
+    }
+}
+
+/// Input angle `theta_in` (rad) scaled to [-1, 1] over the stroke `(lo, hi)` (rad).
+pub fn scaled(theta_in: f64, stroke: (f64, f64)) -> f64 {
+    2.0 * (theta_in - stroke.0) / (stroke.1 - stroke.0) - 1.0
+}
+
+/// Friction memory spread over many contacts (a Prandtl-Ishlinskii sum of play operators on
+/// the input angle), with its play states. Each contact sticks until the input has moved its
+/// threshold `r_j` past a reversal; its lag `P_r(theta_in) - theta_in` weighs
+/// `w_j + wl_j |M|^p` output rad per input rad, `M` the transmitted torque (N m).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ContactMemory {
+    thresholds: Vec<f64>,
+    weights: Vec<f64>,
+    load_weights: Vec<f64>,
+    load_exponent: f64,
+    /// Play outputs, rad of input.
+    state: Vec<f64>,
+}
+
+impl ContactMemory {
+    /// From `[effects]` (`None` without a friction memory), every play centred on the
+    /// input angle `theta_in` (rad): no lag at the start, as in the calibration.
+    pub fn new(fx: &EffectsParams, theta_in: f64) -> Option<Self> {
+        if !fx.has_friction_memory() {
+            return None;
+        }
+        let thresholds = fx.friction_memory_thresholds_rad.clone()?;
+        let n = thresholds.len();
+        let weights = fx
+            .friction_memory_weights
+            .clone()
+            .unwrap_or_else(|| vec![0.0; n]);
+        let load_weights = fx
+            .friction_memory_load_weights_per_nm
+            .clone()
+            .unwrap_or_else(|| vec![0.0; n]);
+        Some(ContactMemory {
+            state: vec![theta_in; n],
+            thresholds,
+            weights,
+            load_weights,
+            load_exponent: fx.friction_memory_load_exponent.unwrap_or(1.0),
+        })
+    }
+
+    /// Output lag (rad, negative behind the input's direction of travel) at input angle
+    /// `theta_in` (rad) under transmitted torque `m_nm`, on the committed play states.
+    pub fn lag_rad(&self, theta_in: f64, m_nm: f64) -> f64 {
+        self.lag_and_slope(theta_in, m_nm).0
+    }
+
+    /// [`ContactMemory::lag_rad`] and its slope with respect to `theta_in` (rad/rad): a
+    /// sticking contact (its play not at either edge) lags by `-w` per input rad, a
+    /// sliding one no further.
+    pub fn lag_and_slope(&self, theta_in: f64, m_nm: f64) -> (f64, f64) {
+        let f = m_nm.abs().powf(self.load_exponent);
+        let mut lag = 0.0;
+        let mut slope = 0.0;
+        for ((r, y), (w, wl)) in self
+            .thresholds
+            .iter()
+            .zip(&self.state)
+            .zip(self.weights.iter().zip(&self.load_weights))
+        {
+            let weight = w + wl * f;
+            let p = y.clamp(theta_in - r, theta_in + r);
+            lag += weight * (p - theta_in);
+            if (y - theta_in).abs() < *r {
+                slope -= weight;
+            }
+        }
+        (lag, slope)
+    }
+
+    /// Move every play to input angle `theta_in` (rad) and return the lag there.
+    pub fn commit(&mut self, theta_in: f64, m_nm: f64) -> f64 {
+        for (y, r) in self.state.iter_mut().zip(&self.thresholds) {
+            *y = y.clamp(theta_in - r, theta_in + r);
+        }
+        self.lag_rad(theta_in, m_nm)
     }
 }
 
@@ -278,5 +439,112 @@ mod kinematic_tests {
             EffectsParams::default().kinematic_error_rad(ti, to, t, ic),
             0.0
         );
+    }
+
+    fn shaped() -> EffectsParams {
+        EffectsParams {
+            angle_dependent_ratio_coefs: Some(vec![2e-3, -5e-3, 1e-3]),
+            angle_dependent_ratio_stroke_rad: Some([0.2, 1.2]),
+            ..EffectsParams::default()
+        }
+    }
+
+    #[test]
+    fn ratio_shape_is_its_legendre_terms_inside_the_stroke_and_a_constant_ratio_outside() {
+        let fx = shaped();
+        assert!(fx.has_kinematic());
+        let closed = |th: f64| {
+            let u = 2.0 * (th - 0.2) / 1.0 - 1.0;
+            2e-3 * 0.5 * (3.0 * u * u - 1.0) - 5e-3 * 0.5 * u * (5.0 * u * u - 3.0)
+                + 1e-3 * (35.0 * u.powi(4) - 30.0 * u * u + 3.0) / 8.0
+        };
+        let e = |th: f64| fx.kinematic_error(th, 0.0, 0.0, 3.0);
+        for th in [0.2, 0.35, 0.7, 1.01, 1.2] {
+            assert!((e(th).value_rad - closed(th)).abs() < 1e-15, "{th}");
+        }
+        // Slopes against central differences, inside and outside.
+        for th in [0.31, 0.7, 1.13, -0.5, 0.1, 1.5, 3.0] {
+            let h = 1e-6;
+            let num = (e(th + h).value_rad - e(th - h).value_rad) / (2.0 * h);
+            assert!((e(th).d_theta_in - num).abs() < 1e-8, "{th}");
+        }
+        // Outside the stroke the error continues along its end slope: value and slope
+        // are continuous at both ends, so the cable's lever arm never jumps.
+        for end in [0.2, 1.2] {
+            let (a, b) = (e(end - 1e-9), e(end + 1e-9));
+            assert!((a.value_rad - b.value_rad).abs() < 1e-9);
+            assert!((a.d_theta_in - b.d_theta_in).abs() < 1e-6);
+            let far = e(end + if end > 1.0 { 0.5 } else { -0.5 });
+            assert!((far.d_theta_in - e(end).d_theta_in).abs() < 1e-12);
+        }
+        // A zero shape is no shape.
+        let zero = EffectsParams {
+            angle_dependent_ratio_coefs: Some(vec![0.0; 3]),
+            ..shaped()
+        };
+        assert!(!zero.has_kinematic());
+    }
+
+    /// An independent play operator: the output follows the input only once it is `r` away.
+    fn play_path(x: &[f64], r: f64) -> Vec<f64> {
+        let mut y = x[0];
+        x.iter()
+            .map(|v| {
+                if *v > y + r {
+                    y = v - r;
+                } else if *v < y - r {
+                    y = v + r;
+                }
+                y
+            })
+            .collect()
+    }
+
+    #[test]
+    fn contact_memory_is_the_weighted_sum_of_plays_and_its_slope_is_exact() {
+        let fx = EffectsParams {
+            friction_memory_thresholds_rad: Some(vec![0.01, 0.04, 0.1]),
+            friction_memory_weights: Some(vec![0.2, 0.0, 0.3]),
+            friction_memory_load_weights_per_nm: Some(vec![0.0, 50.0, 0.0]),
+            friction_memory_load_exponent: Some(2.0),
+            ..EffectsParams::default()
+        };
+        assert!(fx.has_friction_memory());
+        let m_nm = -0.1;
+        let x: Vec<f64> = (0..2000)
+            .map(|k| {
+                let t = k as f64 * 0.01;
+                0.5 * (1.3 * t).sin() + 0.03 * (7.1 * t).sin()
+            })
+            .collect();
+        let mut memory = ContactMemory::new(&fx, x[0]).unwrap();
+        let plays: Vec<Vec<f64>> = [0.01, 0.04, 0.1]
+            .iter()
+            .map(|r| play_path(&x, *r))
+            .collect();
+        let w = [0.2, 50.0 * 0.01, 0.3];
+        for (i, xi) in x.iter().enumerate() {
+            // The lag ahead of a commit is the lag after it.
+            let ahead = memory.lag_rad(*xi, m_nm);
+            let lag = memory.commit(*xi, m_nm);
+            assert!((ahead - lag).abs() < 1e-15);
+            let want: f64 = (0..3).map(|j| w[j] * (plays[j][i] - xi)).sum();
+            assert!((lag - want).abs() < 1e-12, "{i}: {lag} vs {want}");
+            if i % 97 == 0 {
+                let h = 1e-7;
+                let (_, slope) = memory.lag_and_slope(*xi + 3.0 * h, m_nm);
+                let num = (memory.lag_rad(*xi + 4.0 * h, m_nm)
+                    - memory.lag_rad(*xi + 2.0 * h, m_nm))
+                    / (2.0 * h);
+                assert!((slope - num).abs() < 1e-6, "{i}: {slope} vs {num}");
+            }
+        }
+        // No memory without weights.
+        let none = EffectsParams {
+            friction_memory_weights: Some(vec![0.0; 3]),
+            friction_memory_load_weights_per_nm: Some(vec![0.0; 3]),
+            ..fx
+        };
+        assert!(ContactMemory::new(&none, 0.0).is_none());
     }
 }

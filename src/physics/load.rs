@@ -6,6 +6,10 @@
 
 use serde::{Deserialize, Serialize};
 
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
 /// Largest load torque accepted, N m.
 pub const MAX_TORQUE_NM: f64 = 1e6;
 
@@ -30,6 +34,15 @@ pub struct LoadParams {
     /// Constant external torque, N m.
     #[serde(default)]
     pub constant_nm: f64,
+    /// Whether the constant torque is a declared model the compensator is given (a set
+    /// bench torque, a grasp the controller commands); by default it is a disturbance that
+    /// reaches the controller only through its sensors.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub constant_declared: bool,
+    /// Time over which the constant torque rises linearly from zero, s (0: a step at
+    /// t = 0; 0.5 for a grasp that closes over half a second).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub constant_ramp_s: f64,
     /// Amplitude of a sinusoidal disturbance torque, N m.
     #[serde(default)]
     pub sine_nm: f64,
@@ -55,8 +68,8 @@ impl LoadParams {
     /// Load torque on the drum without the brake, `Ml` in N m, at time `t_s` and output
     /// angle `theta_out_rad`.
     pub fn smooth_torque_nm(&self, t_s: f64, theta_out_rad: f64) -> f64 {
-        let mut m =
-            self.constant_nm - self.unbalance_nm * (theta_out_rad + self.unbalance_phase_rad).sin();
+        let mut m = self.constant_at(t_s)
+            - self.unbalance_nm * (theta_out_rad + self.unbalance_phase_rad).sin();
         if self.sine_nm != 0.0 {
             m += self.sine_nm * (std::f64::consts::TAU * self.sine_frequency_hz * t_s).sin();
         }
@@ -70,19 +83,36 @@ impl LoadParams {
     /// `LoadTerm::known_to_compensator` is true (the unbalance, a declared model of the
     /// payload). Constant, sine and CSV torques are disturbances a real controller meets
     /// only when they act, so they are left out; the result depends on the angle alone.
-    pub fn known_torque_nm(&self, theta_out_rad: f64) -> f64 {
-        if LoadTerm::Unbalance.known_to_compensator() {
-            -self.unbalance_nm * (theta_out_rad + self.unbalance_phase_rad).sin()
-        } else {
-            0.0
+    pub fn known_torque_nm(&self, t_s: f64, theta_out_rad: f64) -> f64 {
+        let mut m = 0.0;
+        if self.is_known(LoadTerm::Unbalance) {
+            m -= self.unbalance_nm * (theta_out_rad + self.unbalance_phase_rad).sin();
         }
+        if self.is_known(LoadTerm::Constant) {
+            m += self.constant_at(t_s);
+        }
+        m
+    }
+
+    /// The constant torque at time `t_s` (s), N m, on its ramp.
+    pub fn constant_at(&self, t_s: f64) -> f64 {
+        if self.constant_ramp_s > 0.0 && t_s < self.constant_ramp_s {
+            self.constant_nm * (t_s / self.constant_ramp_s).max(0.0)
+        } else {
+            self.constant_nm
+        }
+    }
+
+    /// Whether the compensator is given load term `term` of this load in advance.
+    pub fn is_known(&self, term: LoadTerm) -> bool {
+        term.known_to_compensator() || (term == LoadTerm::Constant && self.constant_declared)
     }
 
     /// Load terms present in this load whose torque the compensator is given in advance.
     pub fn known_terms(&self) -> Vec<LoadTerm> {
         self.present_terms()
             .into_iter()
-            .filter(|t| t.known_to_compensator())
+            .filter(|t| self.is_known(*t))
             .collect()
     }
 
@@ -90,7 +120,7 @@ impl LoadParams {
     pub fn unknown_terms(&self) -> Vec<LoadTerm> {
         self.present_terms()
             .into_iter()
-            .filter(|t| !t.known_to_compensator())
+            .filter(|t| !self.is_known(*t))
             .collect()
     }
 
@@ -170,6 +200,15 @@ impl LoadParams {
         nonneg("unbalance_nm", self.unbalance_nm)?;
         finite("unbalance_phase_rad", self.unbalance_phase_rad)?;
         finite("constant_nm", self.constant_nm)?;
+        if !(self.constant_ramp_s.is_finite() && (0.0..=1e5).contains(&self.constant_ramp_s)) {
+            return Err((
+                "constant_ramp_s",
+                format!(
+                    "{} must be a time in s from 0 (a step) to 1e5",
+                    crate::number(self.constant_ramp_s)
+                ),
+            ));
+        }
         finite("sine_nm", self.sine_nm)?;
         nonneg("sine_frequency_hz", self.sine_frequency_hz)?;
         torque("brake_nm", self.brake_nm)?;
@@ -210,7 +249,8 @@ pub enum LoadTerm {
 impl LoadTerm {
     /// Whether the feedforward may use this term: true for modelled loads that follow
     /// from the reference (brake, unbalance), false for time-driven disturbances, which a
-    /// real controller cannot know before they act.
+    /// real controller cannot know before they act (a constant torque is known only when
+    /// declared, [`LoadParams::is_known`]).
     pub fn known_to_compensator(self) -> bool {
         matches!(self, LoadTerm::Brake | LoadTerm::Unbalance)
     }
@@ -258,9 +298,12 @@ mod tests {
         for k in 0..50 {
             let t = 0.02 * k as f64;
             let th = 0.01 * k as f64 - 0.2;
-            assert_eq!(base.known_torque_nm(th), disturbed.known_torque_nm(th));
+            assert_eq!(
+                base.known_torque_nm(0.0, th),
+                disturbed.known_torque_nm(0.0, th)
+            );
             let want = -0.3 * (th + 0.4_f64).sin();
-            assert!((disturbed.known_torque_nm(th) - want).abs() < 1e-15);
+            assert!((disturbed.known_torque_nm(0.0, th) - want).abs() < 1e-15);
             assert_ne!(
                 base.smooth_torque_nm(t, th),
                 disturbed.smooth_torque_nm(t, th)
@@ -274,5 +317,25 @@ mod tests {
             disturbed.known_terms(),
             vec![LoadTerm::Brake, LoadTerm::Unbalance]
         );
+    }
+
+    #[test]
+    fn a_declared_constant_torque_is_known_and_ramps_in() {
+        let mut l = LoadParams {
+            constant_nm: 0.08,
+            constant_ramp_s: 0.5,
+            ..LoadParams::default()
+        };
+        assert_eq!(l.known_torque_nm(1.0, 0.3), 0.0);
+        assert_eq!(l.unknown_terms(), vec![LoadTerm::Constant]);
+        l.constant_declared = true;
+        assert_eq!(l.known_terms(), vec![LoadTerm::Constant]);
+        assert!(l.unknown_terms().is_empty());
+        for (t, want) in [(0.0, 0.0), (0.25, 0.04), (0.5, 0.08), (3.0, 0.08)] {
+            assert!((l.smooth_torque_nm(t, 0.3) - want).abs() < 1e-15, "{t}");
+            assert!((l.known_torque_nm(t, 0.3) - want).abs() < 1e-15, "{t}");
+        }
+        l.constant_ramp_s = -1.0;
+        assert_eq!(l.validate().unwrap_err().0, "constant_ramp_s");
     }
 }

@@ -9,5 +9,5 @@ pub mod newton;
 pub mod wrap;
 
 pub use drive::{CableDrive, DriveFault, DriveParams, DriveState, Half, HysteresisModel, Routing};
-pub use effects::{EffectsParams, KinematicError};
+pub use effects::{ContactMemory, EffectsParams, KinematicError};
 pub use load::{LoadParams, LoadTerm};

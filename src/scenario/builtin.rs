@@ -32,6 +32,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
         include_str!("../../scenarios/davinci_tool4.toml"),
     ),
     (
+        "davinci_tool4_loop",
+        include_str!("../../scenarios/davinci_tool4_loop.toml"),
+    ),
+    (
         "paper_bench",
         include_str!("../../scenarios/paper_bench.toml"),
     ),
