@@ -72,6 +72,14 @@ if [ -d "$real" ]; then
   keep "$work/davinci_tool4-diagnosis" diagnosis.json report.txt error.png residual_base.png residual_extended.png
 fi
 
+# The calibrated instrument in its spindle-encoder loop, compensated by the base model and
+# by the extended one.
+$bin run davinci_tool4_loop --out "$work/davinci_tool4_loop" >/dev/null
+keep "$work/davinci_tool4_loop" pointing_error.png summary.json
+$bin run davinci_tool4_loop --set closed_loop.compensate_effects=true \
+  --out "$work/davinci_tool4_loop-extended" >/dev/null
+keep "$work/davinci_tool4_loop-extended" pointing_error.png summary.json
+
 rm -rf "$ref"
 mv "$ref.new" "$ref"
 du -sh "$ref"

@@ -48,7 +48,9 @@ pub struct EffectsParams {
     /// Input stroke `[low, high]` the ratio shape is defined over, rad.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub angle_dependent_ratio_stroke_rad: Option<[f64; 2]>,
-    /// Output deflection per transmitted torque beyond the spans, rad/(N m).
+    /// Output deflection per transmitted torque `M` beyond the spans, rad/(N m): `+c M`
+    /// on the output angle (3.7 for the da Vinci jaw). The closed loop puts it, with the
+    /// friction memory, in a massless link between the drum and the output sensor.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub load_compliance_rad_per_nm: Option<f64>,
     /// Play thresholds of the distributed friction memory, rad of input.
