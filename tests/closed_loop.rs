@@ -734,3 +734,33 @@ fn extended_compensation_wins_on_a_plant_that_carries_the_calibrated_model() {
         "extended {extended:?} against none {none:?}"
     );
 }
+
+/// A motor too weak for the load it must hold: with the jaw torque needing 3.3 A of a 3 A
+/// amplifier, the loop (stable on its linear reference) sits at the limit while the axis
+/// runs away. That is a stop, named, not a tracking figure.
+#[test]
+fn a_command_stuck_at_the_amplifier_limit_stops_the_run() {
+    let mut s = davinci_loop(4.0, false);
+    let p = params(&mut s);
+    p.motor.torque_constant_nm_per_a = 0.02;
+    // The same loop gain with the weaker motor.
+    p.controller.kp *= 2.5;
+    p.controller.ki *= 2.5;
+    p.controller.kd *= 2.5;
+    let r = run_closed_loop(&s, &RunOptions::metrics_only()).unwrap();
+    for m in &r.modes {
+        match &m.completion {
+            Completion::Incomplete { fault, kind, .. } => {
+                assert_eq!(*kind, StopKind::Saturated, "{fault}");
+                assert!(fault.contains("amplifier limit 3"), "{fault}");
+            }
+            other => panic!("{:?}: {other:?}", m.mode),
+        }
+        assert!(m.saturation.longest_s >= cable_servo::closed_loop::sim::SATURATION_STOP_S);
+    }
+    assert!(!r.complete);
+    // The motor of the scenario holds it, and its command never sits at the limit.
+    let ok = run_closed_loop(&davinci_loop(4.0, false), &RunOptions::metrics_only()).unwrap();
+    assert!(ok.complete);
+    assert!(ok.modes.iter().all(|m| m.saturation.longest_s < 0.1));
+}

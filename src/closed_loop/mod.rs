@@ -27,6 +27,6 @@ pub use params::{
 };
 pub use sim::{
     estimate_work, run_closed_loop, run_closed_loop_metrics, run_closed_loop_then, ClosedLoopError,
-    ClosedLoopResult, ClosedLoopSetup, ClosedLoopSource, Completion, Injection, InjectionSite,
-    ModeResult, RunOptions, SolverStats, StopKind, TimeSeries, WorkEstimate,
+    ClosedLoopResult, ClosedLoopSetup, ClosedLoopSource, CommandSaturation, Completion, Injection,
+    InjectionSite, ModeResult, RunOptions, SolverStats, StopKind, TimeSeries, WorkEstimate,
 };

@@ -238,18 +238,22 @@ pub enum StopKind {
     GrossSlip,
     /// The loop diverged (the plant state stopped being finite).
     Unstable,
+    /// The command sat at the amplifier's limit for [`SATURATION_STOP_S`] without a
+    /// break: the motor had lost the axis.
+    Saturated,
     /// Anything else.
     #[default]
     Stopped,
 }
 
 impl StopKind {
-    /// The status name (`slack`, `gross_slip`, `unstable`, `stopped`).
+    /// The status name (`slack`, `gross_slip`, `unstable`, `saturated`, `stopped`).
     pub fn name(self) -> &'static str {
         match self {
             StopKind::Slack => "slack",
             StopKind::GrossSlip => "gross_slip",
             StopKind::Unstable => "unstable",
+            StopKind::Saturated => "saturated",
             StopKind::Stopped => "stopped",
         }
     }
@@ -393,6 +397,26 @@ pub struct ModeResult {
     /// (recorded runs only; written as its own CSV, not in the summary).
     #[serde(skip)]
     pub spectrum: Option<ErrorSpectrum>,
+    /// Whether the compensator also predicted the `[effects]` error (the extended model,
+    /// `closed_loop.compensate_effects`); false for the uncompensated mode.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub effects_compensated: bool,
+    /// Time the command spent at the amplifier's limit over the run: a loop whose command
+    /// sits there is not controlling the axis.
+    #[serde(default)]
+    pub saturation: CommandSaturation,
+}
+
+impl ModeResult {
+    /// The mode's name as figures label it: `memory + effects` when the extended model
+    /// compensated.
+    pub fn label(&self) -> String {
+        if self.effects_compensated {
+            format!("{} + effects", self.mode.name())
+        } else {
+            self.mode.name().to_string()
+        }
+    }
 }
 
 /// Most samples of the line-of-sight error kept for jitter and spectra (2^22: 210 s at
@@ -854,6 +878,7 @@ fn run_mode(
         steps: step_events(&p.reference, p.duration_s),
     });
     let mut hunting = LimitCycleDetector::default();
+    let mut saturation = Saturation::default();
     let window_samples = ((p.duration_s - p.metrics_start_s) * p.controller.sample_rate_hz)
         .max(0.0)
         .ceil() as usize
@@ -1017,6 +1042,18 @@ fn run_mode(
             };
             break;
         }
+        if saturation.push(u.abs() >= command_limit, ts) >= SATURATION_STOP_S {
+            completion = Completion::Incomplete {
+                fault: format!(
+                    "the command sat at the amplifier limit {} for {SATURATION_STOP_S} s without a break up to t = {t:.4} s (mode {}): the motor cannot deliver what the loop asks (the load it must hold, a torque constant or limit too small)",
+                    crate::number(command_limit),
+                    mode.name()
+                ),
+                time_s: t,
+                kind: StopKind::Saturated,
+            };
+            break;
+        }
         let held = delay.push(u);
         if !voltage_mode {
             x[CURRENT] = if held.split > 0.0 {
@@ -1158,6 +1195,57 @@ fn run_mode(
         simulated_s: reached,
         series,
         limit_cycle: hunting.finish(),
+        effects_compensated: comp_fx.is_some(),
+        saturation: saturation.finish(),
+    }
+}
+
+/// Longest unbroken stretch at the amplifier's limit after which a run stops, s: a
+/// servo's transients saturate for milliseconds; a whole second means the motor lost the
+/// axis, and what follows is not the design's answer.
+pub const SATURATION_STOP_S: f64 = 1.0;
+
+/// How long the command sat at the amplifier's limit over the run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct CommandSaturation {
+    /// Fraction of the run's control samples at the limit, 0 to 1.
+    pub fraction: f64,
+    /// Longest unbroken stretch at the limit, s.
+    pub longest_s: f64,
+}
+
+/// Counts samples at the limit and the longest run of them.
+#[derive(Default)]
+struct Saturation {
+    samples: u64,
+    at_limit: u64,
+    run_s: f64,
+    longest_s: f64,
+}
+
+impl Saturation {
+    /// Count one sample; returns the current unbroken stretch at the limit, s.
+    fn push(&mut self, at_limit: bool, ts: f64) -> f64 {
+        self.samples += 1;
+        if at_limit {
+            self.at_limit += 1;
+            self.run_s += ts;
+            self.longest_s = self.longest_s.max(self.run_s);
+        } else {
+            self.run_s = 0.0;
+        }
+        self.run_s
+    }
+
+    fn finish(&self) -> CommandSaturation {
+        CommandSaturation {
+            fraction: if self.samples > 0 {
+                self.at_limit as f64 / self.samples as f64
+            } else {
+                0.0
+            },
+            longest_s: self.longest_s,
+        }
     }
 }
 

@@ -51,6 +51,10 @@ struct ModeSummary<'a> {
     limit_cycle: &'a crate::metrics::limit_cycle::LimitCycle,
     /// Line-of-sight statistics (RMS, peak, jitter per exposure).
     los: Option<&'a crate::metrics::los::LosMetrics>,
+    /// Whether the feedforward also predicted the `[effects]` error (the extended model).
+    effects_compensated: bool,
+    /// Time the command spent at the amplifier's limit.
+    command_saturation: crate::closed_loop::CommandSaturation,
 }
 
 #[derive(Serialize)]
@@ -90,6 +94,8 @@ fn mode_summary(m: &ModeResult) -> ModeSummary<'_> {
         simulated_s: m.simulated_s,
         limit_cycle: &m.limit_cycle,
         los: m.los.as_ref(),
+        effects_compensated: m.effects_compensated,
+        command_saturation: m.saturation,
     }
 }
 
@@ -303,6 +309,24 @@ pub fn format_table(result: &ClosedLoopResult) -> String {
         ));
     }
     for m in &result.modes {
+        let sat = m.saturation;
+        // A sample or two at the limit is a transient; a tenth of a percent is worth a
+        // line (a whole second at it stops the run).
+        if sat.fraction >= 1e-3 && m.completion == Completion::Complete {
+            out.push_str(&format!(
+                "{}: command at the amplifier limit for {:.1} % of the run (longest {:.3} s without a break)\n",
+                m.mode.name(),
+                100.0 * sat.fraction,
+                sat.longest_s
+            ));
+        }
+    }
+    if result.modes.iter().any(|m| m.effects_compensated) {
+        out.push_str(
+            "the compensated modes also predict the [effects] error (closed_loop.compensate_effects = true: the extended model)\n",
+        );
+    }
+    for m in &result.modes {
         if let crate::metrics::limit_cycle::LimitCycle::Detected {
             amplitude_mrad,
             frequency_hz,
@@ -406,10 +430,10 @@ pub fn mode_slot(mode: CompensationMode) -> usize {
 /// command; one colour per mode throughout. Built from recorded series only (empty when
 /// nothing was recorded, and then no figure is written).
 pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(String, Figure)> {
-    let recorded: Vec<(CompensationMode, &TimeSeries)> = result
+    let recorded: Vec<(CompensationMode, &TimeSeries, String)> = result
         .modes
         .iter()
-        .filter_map(|m| m.series.as_ref().map(|s| (m.mode, s)))
+        .filter_map(|m| m.series.as_ref().map(|s| (m.mode, s, m.label())))
         .collect();
     if recorded.is_empty() {
         return Vec::new();
@@ -424,10 +448,10 @@ pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(S
     let curves = |f: &Columns, only_compensated: bool| -> Vec<Series> {
         recorded
             .iter()
-            .filter(|(mode, _)| !only_compensated || *mode != CompensationMode::None)
-            .map(|(mode, s)| {
+            .filter(|(mode, _, _)| !only_compensated || *mode != CompensationMode::None)
+            .map(|(mode, s, label)| {
                 let (x, y) = f(s);
-                Series::line(mode.name(), x, y).in_slot(mode_slot(*mode))
+                Series::line(label.as_str(), x, y).in_slot(mode_slot(*mode))
             })
             .collect()
     };
@@ -447,8 +471,12 @@ pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(S
         curves(&error, false),
         band(),
     );
-    let compensated = recorded.iter().any(|(m, _)| *m != CompensationMode::None);
-    let has_none = recorded.iter().any(|(m, _)| *m == CompensationMode::None);
+    let compensated = recorded
+        .iter()
+        .any(|(m, _, _)| *m != CompensationMode::None);
+    let has_none = recorded
+        .iter()
+        .any(|(m, _, _)| *m == CompensationMode::None);
     let pointing = if compensated && has_none {
         // The uncompensated error sets the first panel's scale; the second is fitted to
         // the compensated modes (and the band) so they can be told apart.
@@ -463,8 +491,8 @@ pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(S
             });
         let largest = recorded
             .iter()
-            .filter(|(m, _)| *m != CompensationMode::None)
-            .flat_map(|(_, s)| {
+            .filter(|(m, _, _)| *m != CompensationMode::None)
+            .flat_map(|(_, s, _)| {
                 s.t_s
                     .iter()
                     .zip(&s.pointing_error_mrad)
@@ -509,8 +537,8 @@ pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(S
     // Commands are held between samples: drawn as staircases.
     let commands = recorded
         .iter()
-        .map(|(mode, s)| {
-            Series::step(mode.name(), s.t_s.clone(), s.motor_command.clone())
+        .map(|(mode, s, label)| {
+            Series::step(label.as_str(), s.t_s.clone(), s.motor_command.clone())
                 .in_slot(mode_slot(*mode))
         })
         .collect();
@@ -595,7 +623,7 @@ fn spectrum_figure(result: &ClosedLoopResult, target_mrad: f64) -> Option<Figure
         .filter_map(|m| {
             m.spectrum
                 .as_ref()
-                .map(|s| (m.mode.name().to_string(), mode_slot(m.mode), s))
+                .map(|s| (m.label(), mode_slot(m.mode), s))
         })
         .collect();
     (!spectra.is_empty()).then(|| Figure::Panels {
