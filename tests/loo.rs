@@ -170,3 +170,59 @@ fn memory_load_exponent_is_recovered_across_loads() {
         assert_eq!(t.wins_over_base, 3, "{text}");
     }
 }
+
+/// One log that disagrees with the rest (its contacts lag four times as much, as if taken
+/// on another day or another instrument) is named as pulling the shared model; the logs
+/// that agree are not, and without the odd one nothing is named.
+#[test]
+fn a_log_that_disagrees_with_the_others_is_named() {
+    let make = |brake: f64, seed: u64, lag: f64| {
+        let sc = gimbal(&[
+            "quasi_static.duration_s=10",
+            &format!("load.brake_nm={brake}"),
+        ]);
+        log(
+            &sc,
+            &[],
+            seed,
+            SynthOptions {
+                memory_load: Some(MemoryLoad {
+                    lag_rad_per_nm_p: lag,
+                    exponent: 1.0,
+                }),
+                ..SynthOptions::default()
+            },
+        )
+    };
+    let agreeing: Vec<BenchLog> = [0.4, 0.7, 1.0, 1.3]
+        .iter()
+        .enumerate()
+        .map(|(i, b)| make(*b, 40 + i as u64, 3e-4))
+        .collect();
+    let mut with_odd = agreeing.clone();
+    with_odd.insert(1, make(0.55, 50, 1.2e-3));
+    let sc = gimbal(&["quasi_static.duration_s=10"]);
+    let ident = sc.identify.clone().unwrap_or_default();
+    let run = |logs: &[BenchLog]| {
+        leave_one_out(
+            &sc.drive,
+            &ident,
+            logs,
+            &[EffectName::DistributedFrictionMemory],
+            StartMode::Detect,
+        )
+        .expect("leave-one-out")
+    };
+    let t = run(&with_odd);
+    let text = loo_text(&t);
+    println!("{text}");
+    assert_eq!(t.disagreeing.len(), 1, "{text}");
+    assert!(t.disagreeing[0].starts_with("synthetic-50"), "{text}");
+    assert!(
+        text.contains("DISAGREES with the other logs: synthetic-50"),
+        "{text}"
+    );
+    let t = run(&agreeing);
+    println!("{}", loo_text(&t));
+    assert!(t.disagreeing.is_empty(), "{}", loo_text(&t));
+}

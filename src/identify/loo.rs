@@ -38,6 +38,10 @@ pub struct LooRow {
     /// twice the floor it is noise; otherwise the signal (input angle, transmitted load,
     /// input velocity) whose binned residual means are largest, when above the floor.
     pub residual: String,
+    /// How much this log pulls the shared model from the others: the others' mean
+    /// in-sample RMS with it in the joint calibration less without it, over the former,
+    /// % (a few % for a log that agrees with the rest).
+    pub pull_percent: f64,
 }
 
 /// Bins for the residual structure check (equal counts).
@@ -141,6 +145,9 @@ pub struct LooTable {
     pub runout_separability: f64,
     /// Limits and warnings in words.
     pub notes: Vec<String>,
+    /// Logs that pull the shared model away from the others (pull above
+    /// [`PULL_FLAG_PERCENT`]), each with what its exclusion does.
+    pub disagreeing: Vec<String>,
     /// Logs where the extended model beats the base model.
     pub wins_over_base: usize,
     /// Logs where the extended model beats the play operator fitted to the log.
@@ -150,6 +157,10 @@ pub struct LooTable {
     /// Effects of the joint calibration, as stored in a scenario.
     pub effects_params: super::effects::EffectsParams,
 }
+
+/// A log whose exclusion lowers the others' error by more than this (%) is named in the
+/// report: it disagrees with the shared model the others agree on.
+pub const PULL_FLAG_PERCENT: f64 = 5.0;
 
 fn rms(v: &[f64]) -> f64 {
     if v.is_empty() {
@@ -278,22 +289,25 @@ pub fn leave_one_out(
         })
         .collect();
 
-    let fold = |k: usize| -> Result<LooRow, IdentifyError> {
+    let fold = |k: usize| -> Result<(LooRow, Vec<f64>), IdentifyError> {
         let train: Vec<bool> = (0..n).map(|i| !ranges[k].contains(&i)).collect();
         // The extension starts from the base calibration when it adds no nonlinear
         // parameter (the layouts agree), which saves most of its iterations.
+        // Returns the held-out RMS and residual, the nonlinear parameters and every log's
+        // RMS (in-sample for the others).
         let score = |effs: &[EffectName],
                      x0: Option<&[f64]>|
-         -> Result<(f64, Vec<f64>, Vec<f64>), IdentifyError> {
+         -> Result<(f64, Vec<f64>, Vec<f64>, Vec<f64>), IdentifyError> {
             let mut ev = Evaluator::new(spec(drive, ident, effs), &prepared);
             let x0 = x0.filter(|x| x.len() == ev.nonlinear().len());
             let f = ev.fit(&train, x0, 30)?;
             let (r, _) = ev.residual(&f, &train)?;
             let held: Vec<f64> = r[ranges[k].clone()].to_vec();
-            Ok((rms(&held), held, f.x))
+            let per_log = ranges.iter().map(|g| rms(&r[g.clone()])).collect();
+            Ok((rms(&held), held, f.x, per_log))
         };
-        let (base, _, xb) = score(&[], None)?;
-        let (ext, ext_resid, _) = score(effects, Some(&xb))?;
+        let (base, _, xb, _) = score(&[], None)?;
+        let (ext, ext_resid, _, others) = score(effects, Some(&xb))?;
         let one = std::slice::from_ref(&prepared[k]);
         let all = vec![true; prepared[k].t.len()];
         let folds = super::block_folds(one, ident.holdout_blocks, &all);
@@ -308,18 +322,22 @@ pub fn leave_one_out(
         // The floor from encoder resolution; the residual-difference estimate is reported
         // by the diagnosis, here the encoders decide.
         let floor = if q > 0.0 { q } else { floor };
-        Ok(LooRow {
-            log: prepared[k].source.clone(),
-            rows: prepared[k].t.len(),
-            base_mrad: base * 1e3,
-            extended_mrad: ext * 1e3,
-            play_mrad: play,
-            floor_mrad: floor * 1e3,
-            residual: residual_verdict(&prepared[k], &ext_resid, ext, floor),
-        })
+        Ok((
+            LooRow {
+                log: prepared[k].source.clone(),
+                rows: prepared[k].t.len(),
+                base_mrad: base * 1e3,
+                extended_mrad: ext * 1e3,
+                play_mrad: play,
+                floor_mrad: floor * 1e3,
+                residual: residual_verdict(&prepared[k], &ext_resid, ext, floor),
+                pull_percent: 0.0,
+            },
+            others,
+        ))
     };
     use rayon::prelude::*;
-    let rows: Vec<LooRow> = (0..prepared.len())
+    let folds: Vec<(LooRow, Vec<f64>)> = (0..prepared.len())
         .into_par_iter()
         .map(fold)
         .collect::<Result<_, _>>()?;
@@ -374,6 +392,37 @@ pub fn leave_one_out(
             )
         })
         .collect();
+    // How much each log pulls the shared model away from the others: their in-sample
+    // error with it in the calibration against without it.
+    let (joint_resid, _) = ev.residual(&f, &all)?;
+    let joint: Vec<f64> = ranges
+        .iter()
+        .map(|g| rms(&joint_resid[g.clone()]))
+        .collect();
+    let mut rows = Vec::with_capacity(folds.len());
+    let mut pulling = Vec::new();
+    for (k, (mut row, without)) in folds.into_iter().enumerate() {
+        let others = |v: &[f64]| -> f64 {
+            let o: Vec<f64> = (0..v.len()).filter(|j| *j != k).map(|j| v[j]).collect();
+            o.iter().sum::<f64>() / o.len().max(1) as f64
+        };
+        let (with_k, without_k) = (others(&joint), others(&without));
+        row.pull_percent = if with_k > 0.0 {
+            100.0 * (with_k - without_k) / with_k
+        } else {
+            0.0
+        };
+        if row.pull_percent > PULL_FLAG_PERCENT {
+            pulling.push(format!(
+                "{}: calibrated without it, the other logs' error falls by {:.0} % ({:.2} to {:.2} mrad RMS on average); a shared model cannot serve it and them together, and it weighs on every fold that keeps it",
+                row.log,
+                row.pull_percent,
+                with_k * 1e3,
+                without_k * 1e3
+            ));
+        }
+        rows.push(row);
+    }
     let on_bound = super::model::on_bounds(&nl, &f.x);
     let all_in: Vec<f64> = prepared.iter().flat_map(|p| p.th_in.clone()).collect();
     let sep = extra_effects::runout_separability(&all_in, stroke);
@@ -411,6 +460,7 @@ pub fn leave_one_out(
         start_cuts,
         runout_separability: sep,
         notes,
+        disagreeing: pulling,
         wins_over_base,
         wins_over_play,
         drive: joint_drive,
@@ -433,9 +483,9 @@ pub fn loo_text(t: &LooTable) -> String {
     );
     let _ = writeln!(
         s,
-        "| log left out | base (mrad) | extended (mrad) | play operator fitted to the log (mrad) | noise floor (mrad) | extended residual |"
+        "| log left out | base (mrad) | extended (mrad) | play operator fitted to the log (mrad) | noise floor (mrad) | pull on the others (%) | extended residual |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|");
     for r in &t.rows {
         let name = std::path::Path::new(&r.log)
             .file_name()
@@ -445,8 +495,8 @@ pub fn loo_text(t: &LooTable) -> String {
             .map_or("fit failed".to_string(), |p| format!("{p:.2}"));
         let _ = writeln!(
             s,
-            "| {name} | {:.2} | {:.2} | {play} | {:.2} | {} |",
-            r.base_mrad, r.extended_mrad, r.floor_mrad, r.residual
+            "| {name} | {:.2} | {:.2} | {play} | {:.2} | {:.1} | {} |",
+            r.base_mrad, r.extended_mrad, r.floor_mrad, r.pull_percent, r.residual
         );
     }
     let _ = writeln!(
@@ -476,6 +526,9 @@ pub fn loo_text(t: &LooTable) -> String {
     }
     for n in &t.on_bound {
         let _ = writeln!(s, "  ON A BOUND: {n}");
+    }
+    for n in &t.disagreeing {
+        let _ = writeln!(s, "DISAGREES with the other logs: {n}");
     }
     for n in &t.notes {
         let _ = writeln!(s, "Limit: {n}");
