@@ -957,8 +957,9 @@ fn run_mode(
         };
         prev_ref = r.value;
         let m_brake = brake_pred.update(delta);
-        // The compensator is given only the declared load models (unbalance, brake), from
-        // the reference: constant, sine and CSV torques reach it only through the sensors.
+        // The compensator is given only the declared load models (unbalance, brake, a
+        // declared constant), from the reference and the clock: other constant, sine and
+        // CSV torques reach it only through the sensors.
         let m_smooth = if load.unbalance_nm != 0.0 || load.constant_declared {
             load.known_torque_nm(t, r.value)
         } else {

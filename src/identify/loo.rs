@@ -158,6 +158,18 @@ pub struct LooTable {
     pub effects_params: super::effects::EffectsParams,
 }
 
+/// One model calibrated with a log left out.
+struct Fold {
+    /// RMS on the log left out, rad.
+    held_rms: f64,
+    /// Residual on the log left out, rad.
+    held: Vec<f64>,
+    /// Nonlinear parameters.
+    x: Vec<f64>,
+    /// Every log's RMS, rad (in-sample for the others).
+    per_log_rms: Vec<f64>,
+}
+
 /// A log whose exclusion lowers the others' error by more than this (%) is named in the
 /// report: it disagrees with the shared model the others agree on.
 pub const PULL_FLAG_PERCENT: f64 = 5.0;
@@ -293,21 +305,27 @@ pub fn leave_one_out(
         let train: Vec<bool> = (0..n).map(|i| !ranges[k].contains(&i)).collect();
         // The extension starts from the base calibration when it adds no nonlinear
         // parameter (the layouts agree), which saves most of its iterations.
-        // Returns the held-out RMS and residual, the nonlinear parameters and every log's
-        // RMS (in-sample for the others).
-        let score = |effs: &[EffectName],
-                     x0: Option<&[f64]>|
-         -> Result<(f64, Vec<f64>, Vec<f64>, Vec<f64>), IdentifyError> {
+        let score = |effs: &[EffectName], x0: Option<&[f64]>| -> Result<Fold, IdentifyError> {
             let mut ev = Evaluator::new(spec(drive, ident, effs), &prepared);
             let x0 = x0.filter(|x| x.len() == ev.nonlinear().len());
             let f = ev.fit(&train, x0, 30)?;
             let (r, _) = ev.residual(&f, &train)?;
             let held: Vec<f64> = r[ranges[k].clone()].to_vec();
-            let per_log = ranges.iter().map(|g| rms(&r[g.clone()])).collect();
-            Ok((rms(&held), held, f.x, per_log))
+            Ok(Fold {
+                held_rms: rms(&held),
+                held,
+                x: f.x,
+                per_log_rms: ranges.iter().map(|g| rms(&r[g.clone()])).collect(),
+            })
         };
-        let (base, _, xb, _) = score(&[], None)?;
-        let (ext, ext_resid, _, others) = score(effects, Some(&xb))?;
+        let base_fold = score(&[], None)?;
+        let (base, xb) = (base_fold.held_rms, base_fold.x);
+        let Fold {
+            held_rms: ext,
+            held: ext_resid,
+            per_log_rms: others,
+            ..
+        } = score(effects, Some(&xb))?;
         let one = std::slice::from_ref(&prepared[k]);
         let all = vec![true; prepared[k].t.len()];
         let folds = super::block_folds(one, ident.holdout_blocks, &all);

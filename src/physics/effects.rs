@@ -49,7 +49,7 @@ pub struct EffectsParams {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub angle_dependent_ratio_stroke_rad: Option<[f64; 2]>,
     /// Output deflection per transmitted torque `M` beyond the spans, rad/(N m): `+c M`
-    /// on the output angle (3.7 for the da Vinci jaw). The closed loop puts it, with the
+    /// on the output angle (3.1 for the da Vinci jaw). The closed loop puts it, with the
     /// friction memory, in a massless link between the drum and the output sensor.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub load_compliance_rad_per_nm: Option<f64>,
@@ -270,21 +270,15 @@ impl EffectsParams {
         }
         if let Some((c, stroke)) = self.ratio_shape() {
             let u = scaled(theta_in, stroke);
-            if (-1.0..=1.0).contains(&u) {
-                let du = 2.0 / (stroke.1 - stroke.0);
-                for (j, cj) in c.iter().enumerate() {
-                    k.value_rad += cj * legendre(j + 2, u);
-                    k.d_theta_in += cj * legendre_slope(j + 2, u) * du;
-                }
-            } else {
-                let end = u.clamp(-1.0, 1.0);
-                let du = 2.0 / (stroke.1 - stroke.0);
-                let past = (u - end) / du;
-                for (j, cj) in c.iter().enumerate() {
-                    let slope = cj * legendre_slope(j + 2, end) * du;
-                    k.value_rad += cj * legendre(j + 2, end) + slope * past;
-                    k.d_theta_in += slope;
-                }
+            let du = 2.0 / (stroke.1 - stroke.0);
+            // Inside the stroke `past` is 0; outside, the end's value continues along the
+            // end's slope.
+            let end = u.clamp(-1.0, 1.0);
+            let past = (u - end) / du;
+            for (j, cj) in c.iter().enumerate() {
+                let slope = cj * legendre_slope(j + 2, end) * du;
+                k.value_rad += cj * legendre(j + 2, end) + slope * past;
+                k.d_theta_in += slope;
             }
         }
         k
