@@ -867,6 +867,8 @@ fn run_mode(
         p.controller.brake_transition_s,
         ts,
     );
+    // Whether any declared load besides the brake acts (saves a sine per sample when none).
+    let known_smooth_load = load.known_terms().iter().any(|t| *t != LoadTerm::Brake);
     let voltage_mode = p.motor.amplifier == Amplifier::Voltage;
     let c = &p.controller;
 
@@ -960,7 +962,7 @@ fn run_mode(
         // The compensator is given only the declared load models (unbalance, brake, a
         // declared constant), from the reference and the clock: other constant, sine and
         // CSV torques reach it only through the sensors.
-        let m_smooth = if load.unbalance_nm != 0.0 || load.constant_declared {
+        let m_smooth = if known_smooth_load {
             load.known_torque_nm(t, r.value)
         } else {
             0.0

@@ -421,8 +421,13 @@ pub fn leave_one_out(
     let mut pulling = Vec::new();
     for (k, (mut row, without)) in folds.into_iter().enumerate() {
         let others = |v: &[f64]| -> f64 {
-            let o: Vec<f64> = (0..v.len()).filter(|j| *j != k).map(|j| v[j]).collect();
-            o.iter().sum::<f64>() / o.len().max(1) as f64
+            let sum: f64 = v
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != k)
+                .map(|(_, x)| x)
+                .sum();
+            sum / (v.len() - 1).max(1) as f64
         };
         let (with_k, without_k) = (others(&joint), others(&without));
         row.pull_percent = if with_k > 0.0 {
