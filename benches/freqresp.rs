@@ -2,7 +2,7 @@
 //! from 1 Hz to 0.4 x Nyquist at 3 amplitudes at the plant input, margins refined, on
 //! all cores. See benches/README.md.
 
-use cable_servo::closed_loop::freqresp::{measure, FreqRespParams};
+use cable_servo::analysis::freqresp::{measure, FreqRespParams};
 use cable_servo::closed_loop::ClosedLoopSource;
 use cable_servo::scenario::Scenario;
 use criterion::{criterion_group, criterion_main, Criterion};

@@ -8,9 +8,10 @@
 //! |---|---|---|
 //! | top | [`run`], [`design`], the `cable-servo` binary | orchestration and the command line |
 //! | edge | [`scenario`], [`io`], [`plot`], [`report`] | scenario files, logs and tables, figures, result files |
-//! | computation | [`closed_loop`], [`study`], [`identify`], [`sweep`] | parameter structs in, result records out |
+//! | computation | [`closed_loop`], [`analysis`], [`study`], [`identify`], [`sweep`] | parameter structs in, result records out |
 //! | bottom | [`physics`], [`signal`], [`metrics`], [`measurement`] | the drive's physics, signals, metrics, data in memory |
 
+pub mod analysis;
 pub mod closed_loop;
 pub mod design;
 pub mod fmu;

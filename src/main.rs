@@ -759,7 +759,7 @@ fn main() -> ExitCode {
                 tell!("error: {name} is not a closed-loop scenario (study = \"closed_loop\")");
                 return ExitCode::from(exit::INPUT);
             };
-            use cable_servo::closed_loop::linear::{tangent_half_stiffness, LinearLoop};
+            use cable_servo::analysis::linear::{tangent_half_stiffness, LinearLoop};
             let free = cable_servo::closed_loop::params::ClosedLoopParams::half_stiffness_n_per_m(
                 &scenario.drive,
             );
@@ -812,7 +812,7 @@ fn main() -> ExitCode {
             );
             say!("Ms, Mt            {:.3}, {:.3}", m.ms, m.mt);
             say!("bandwidth (-3 dB of T) {} Hz", opt(m.bandwidth_hz, 1));
-            match cable_servo::closed_loop::linear::margins_signable(&m) {
+            match cable_servo::analysis::linear::margins_signable(&m) {
                 Ok(()) => {
                     say!("signable: yes (PM >= 35 deg, GM >= 6 dB)");
                     ExitCode::SUCCESS
@@ -847,7 +847,7 @@ fn main() -> ExitCode {
                 .and_then(|c| c.freqresp.clone())
                 .unwrap_or_default();
             if let Some(point) = point {
-                match cable_servo::closed_loop::freqresp::LoopPoint::parse(&point) {
+                match cable_servo::analysis::freqresp::LoopPoint::parse(&point) {
                     Ok(p) => spec.point = p,
                     Err(e) => {
                         tell!("error: --point: {e}");

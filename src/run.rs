@@ -46,7 +46,7 @@ pub enum RunError {
     Log(#[from] crate::io::benchlog::LogError),
     /// A frequency response cannot be measured with these settings.
     #[error(transparent)]
-    FreqResp(#[from] crate::closed_loop::freqresp::FreqRespError),
+    FreqResp(#[from] crate::analysis::freqresp::FreqRespError),
 }
 
 /// What a run produced.
@@ -239,7 +239,7 @@ fn run_closed_loop(
         .is_some_and(|c| c.error_budget)
     {
         let setup = closed_loop::ClosedLoopSource::closed_loop_setup(scenario)?;
-        let budget = closed_loop::budget::error_budget(&setup)?;
+        let budget = crate::analysis::budget::error_budget(&setup)?;
         report::closed_loop::write_budget(dir, &budget)?;
         table.push_str(&report::closed_loop::format_budget(&budget));
     }
@@ -900,7 +900,7 @@ pub struct FreqRespReport {
 /// the scenario and the command line), write its files, then its plots.
 pub fn run_freqresp(
     scenario: &Scenario,
-    spec: &closed_loop::freqresp::FreqRespParams,
+    spec: &crate::analysis::freqresp::FreqRespParams,
     threads: usize,
     out: &OutputOptions,
     progress: &(dyn Fn() + Sync),
@@ -916,10 +916,10 @@ pub fn run_freqresp(
     let setup = closed_loop::ClosedLoopSource::closed_loop_setup(scenario)?;
     let staged = StagedDir::create(&out.dir, out.force)?;
     let dir = staged.path().to_path_buf();
-    let r = closed_loop::freqresp::measure(setup, spec, threads, progress)?;
+    let r = crate::analysis::freqresp::measure(setup, spec, threads, progress)?;
     report::freqresp::write_outputs(&dir, scenario, &r)?;
     let mut warnings = scenario.warnings();
-    let lin = closed_loop::linear::LinearLoop::new(p, &scenario.drive);
+    let lin = crate::analysis::linear::LinearLoop::new(p, &scenario.drive);
     plots(report::freqresp::plot(&dir, &r, &lin), &mut warnings);
     let dir = staged.commit()?;
     Ok(FreqRespReport {
@@ -1016,7 +1016,8 @@ pub fn run_compare(
                 scenario: d.scenario.clone(),
                 mode: m,
                 result,
-                margins: closed_loop::linear::LinearLoop::new(p, &d.scenario.drive).margins(2000),
+                margins: crate::analysis::linear::LinearLoop::new(p, &d.scenario.drive)
+                    .margins(2000),
                 target_mrad: p.target_mrad,
             })
         })

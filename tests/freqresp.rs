@@ -2,8 +2,8 @@
 //! exact linear reference (computed, not simulated) and against the physics of the
 //! hysteretic cable.
 
-use cable_servo::closed_loop::freqresp::{measure, FreqRespParams, FreqResponse, LoopPoint};
-use cable_servo::closed_loop::linear::{tangent_half_stiffness, LinearLoop};
+use cable_servo::analysis::freqresp::{measure, FreqRespParams, FreqResponse, LoopPoint};
+use cable_servo::analysis::linear::{tangent_half_stiffness, LinearLoop};
 use cable_servo::closed_loop::params::ClosedLoopParams;
 use cable_servo::closed_loop::ClosedLoopSource;
 use cable_servo::scenario::Scenario;

@@ -2,9 +2,9 @@
 //! line-of-sight metrics, the error budget and `compare`, checked against the exact
 //! sampled linear reference (computed, not simulated) and against their definitions.
 
-use cable_servo::closed_loop::budget::{error_budget, BudgetEffect};
-use cable_servo::closed_loop::freqresp::{measure, FreqRespParams, FreqResponse, LoopPoint};
-use cable_servo::closed_loop::linear::LinearLoop;
+use cable_servo::analysis::budget::{error_budget, BudgetEffect};
+use cable_servo::analysis::freqresp::{measure, FreqRespParams, FreqResponse, LoopPoint};
+use cable_servo::analysis::linear::LinearLoop;
 use cable_servo::closed_loop::{
     run_closed_loop, ClosedLoopSource, Completion, RunOptions, StopKind,
 };

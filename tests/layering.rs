@@ -24,7 +24,7 @@ const LAYERS: &[(&str, &[&str])] = &[
     // Computation over parameter structs, returning result records.
     (
         "computation",
-        &["closed_loop", "study", "identify", "sweep"],
+        &["closed_loop", "analysis", "study", "identify", "sweep"],
     ),
     // Scenario files, logs and tables, figures, result files.
     ("edge", &["scenario", "io", "plot", "report"]),
@@ -38,6 +38,7 @@ const SAME_LAYER: &[(&str, &str)] = &[
     ("physics", "number"),
     ("signal", "number"),
     ("metrics", "number"),
+    ("analysis", "closed_loop"),
     ("identify", "study"),
     ("sweep", "study"),
     ("io", "scenario"),

@@ -3,7 +3,7 @@
 //! target for ever; the same loop against a brake without stiction settles. Every
 //! closed-loop run reports which.
 
-use cable_servo::closed_loop::freqresp::{measure, FreqRespParams, LoopPoint, PredictedCycle};
+use cable_servo::analysis::freqresp::{measure, FreqRespParams, LoopPoint, PredictedCycle};
 use cable_servo::closed_loop::{run_closed_loop, ClosedLoopSource, RunOptions};
 use cable_servo::metrics::limit_cycle::LimitCycle;
 use cable_servo::scenario::Scenario;

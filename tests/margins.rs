@@ -2,7 +2,7 @@
 //! computation delay, on the exact linear reference: phase margin >= 35 deg, gain margin
 //! >= 6 dB (upward and, for these conditionally stable PID loops, downward).
 
-use cable_servo::closed_loop::linear::{margins_signable, LinearLoop};
+use cable_servo::analysis::linear::{margins_signable, LinearLoop};
 use cable_servo::scenario::{Scenario, Study, BUILTIN};
 
 #[test]

@@ -9,15 +9,14 @@
 //! written at the edge, by `report::closed_loop`.
 
 pub mod base;
-pub mod budget;
 pub mod controller;
 pub mod filters;
-pub mod freqresp;
 pub mod law;
-pub mod linear;
 pub mod params;
 pub mod period;
 pub mod plant;
+pub mod probe;
+pub mod requirements;
 pub mod sim;
 
 pub use params::{
@@ -25,8 +24,10 @@ pub use params::{
     DisturbanceObserverParams, DriveOverride, Feedback, GyroParams, MotorParams, OutputParams,
     RateLoopParams, RateSource, SensorParams, StartState,
 };
+pub use requirements::Requirements;
 pub use sim::{
     estimate_work, run_closed_loop, run_closed_loop_metrics, run_closed_loop_then, ClosedLoopError,
     ClosedLoopResult, ClosedLoopSetup, ClosedLoopSource, CommandSaturation, Completion, Injection,
-    InjectionSite, ModeResult, RunOptions, SolverStats, StopKind, TimeSeries, WorkEstimate,
+    InjectionSite, Instability, ModeResult, RunOptions, SolverStats, StopKind, TimeSeries,
+    WorkEstimate,
 };

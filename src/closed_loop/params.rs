@@ -558,6 +558,11 @@ pub struct ClosedLoopParams {
     /// Compensation modes to simulate side by side.
     #[serde(default = "default_modes")]
     pub modes: Vec<CompensationMode>,
+    /// What the design must meet besides `target_mrad` (`[closed_loop.requirements]`):
+    /// margins over the operating range, and optional RMS, jitter, settling and base-motion
+    /// rejection. Every command judges the design by these.
+    #[serde(default)]
+    pub requirements: super::requirements::Requirements,
     /// Desired output (drum) angle `r_out` against time, rad.
     pub reference: Signal,
     /// Cable law of the plant.
@@ -621,9 +626,9 @@ pub struct ClosedLoopParams {
     #[serde(default)]
     pub error_budget: bool,
     /// How `cable-servo freqresp` measures this loop (`[closed_loop.freqresp]`): loop
-    /// point, frequencies, amplitudes and the requirements the margins are judged by.
+    /// point, frequencies and amplitudes (the margins are judged by `requirements`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub freqresp: Option<super::freqresp::FreqRespParams>,
+    pub freqresp: Option<super::probe::FreqRespParams>,
 }
 
 fn default_metrics_start() -> f64 {
@@ -665,6 +670,15 @@ pub struct PlantModes {
 }
 
 impl ClosedLoopParams {
+    /// The compensation mode whose pointing error the verdict judges:
+    /// `requirements.mode`, else the last mode listed.
+    pub fn judged_mode(&self) -> CompensationMode {
+        self.requirements
+            .mode
+            .or_else(|| self.modes.last().copied())
+            .unwrap_or(CompensationMode::None)
+    }
+
     /// Small-signal stiffness of one half of the preloaded drive, N/m: the inverse of
     /// `d elong / d T` at the preload (a virgin wrap adds nothing there, so this is `G/Lf`).
     pub fn half_stiffness_n_per_m(drive: &DriveParams) -> f64 {
@@ -822,6 +836,20 @@ impl ClosedLoopParams {
         for (i, m) in self.modes.iter().enumerate() {
             if self.modes[..i].contains(m) {
                 return Err((key("modes"), format!("\"{}\" is listed twice", m.name())));
+            }
+        }
+        self.requirements
+            .validate(self.controller.sample_rate_hz)
+            .map_err(|(k, m)| (key(&k), m))?;
+        if let Some(m) = self.requirements.mode {
+            if !self.modes.contains(&m) {
+                return Err((
+                    key("requirements.mode"),
+                    format!(
+                        "\"{}\" is not simulated: list it in closed_loop.modes",
+                        m.name()
+                    ),
+                ));
             }
         }
         check_reference(&self.reference).map_err(|m| (key("reference"), m))?;

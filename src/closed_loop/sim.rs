@@ -435,6 +435,18 @@ pub struct ClosedLoopResult {
     pub complete: bool,
 }
 
+/// An unstable sampled closed loop's fastest-growing mode, as its exact linear reference
+/// (`crate::analysis::linear`) finds it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Instability {
+    /// Largest pole magnitude `|z|` (above 1).
+    pub pole_magnitude: f64,
+    /// Growth rate of that mode, 1/s (`ln|z|` per period).
+    pub growth_per_s: f64,
+    /// Its frequency, Hz (0 for a real pole).
+    pub frequency_hz: f64,
+}
+
 /// Everything a closed-loop run reads: the drive, the loads on its drum, the effects the
 /// plant carries and the loop itself.
 #[derive(Clone, Copy, Debug)]
@@ -447,6 +459,10 @@ pub struct ClosedLoopSetup<'a> {
     pub effects: Option<&'a EffectsParams>,
     /// Motor, controller, sensors, compensation, reference and timing.
     pub params: &'a ClosedLoopParams,
+    /// The loop's instability on its exact linear reference, when it has one: an unstable
+    /// loop ends in slack or slip, and a stop is named by its cause. Filled by whoever
+    /// builds the setup (the simulation does not analyse its own loop).
+    pub instability: Option<Instability>,
 }
 
 /// Anything a closed-loop setup can be read from: a setup itself, or a scenario (which
@@ -610,8 +626,7 @@ pub fn run_closed_loop_then<T: Send>(
             ),
         });
     }
-    // An unstable loop ends in slack or slip; the linear reference names the cause.
-    let instability = super::linear::LinearLoop::new(p, setup.drive).instability();
+    let instability = setup.instability;
     // Modes are independent runs, side by side on the cores (results in mode order).
     // Inside a pool (a sweep's cases) the pool shares the cores out; alone, one thread
     // per mode: three modes on two cores then finish together in 1.5 mode-times, where
@@ -721,7 +736,7 @@ fn stop(
     fault: String,
     time_s: f64,
     kind: StopKind,
-    instability: Option<super::linear::Instability>,
+    instability: Option<Instability>,
     controller: &super::params::ControllerParams,
 ) -> Completion {
     match instability {
@@ -816,7 +831,7 @@ fn run_mode(
     scenario: &ClosedLoopSetup<'_>,
     mode: CompensationMode,
     options: &RunOptions,
-    instability: Option<super::linear::Instability>,
+    instability: Option<Instability>,
 ) -> ModeResult {
     let wall = Instant::now();
     let p = scenario.params;

@@ -703,7 +703,7 @@ pub fn plot_closed_loop(
 /// a spreadsheet can group by mode.
 pub fn write_budget(
     dir: &Path,
-    budget: &crate::closed_loop::budget::ErrorBudget,
+    budget: &crate::analysis::budget::ErrorBudget,
 ) -> Result<PathBuf, ReportError> {
     let path = dir.join("error_budget.csv");
     let csv_err = |e| ReportError::csv(&path, e);
@@ -746,7 +746,7 @@ pub fn write_budget(
 
 /// The budget as a console table: per mode, each effect's contribution and share of the
 /// mean square, the rest, the RSS against the total.
-pub fn format_budget(budget: &crate::closed_loop::budget::ErrorBudget) -> String {
+pub fn format_budget(budget: &crate::analysis::budget::ErrorBudget) -> String {
     let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.5}"));
     let mut out = String::from(
         "error budget (RMS line-of-sight error; contribution = sqrt(total^2 - without^2))\n",

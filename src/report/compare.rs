@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::closed_loop::linear::Margins;
+use crate::analysis::linear::Margins;
 use crate::closed_loop::{CompensationMode, Completion, ModeResult};
 use crate::plot::{save_panels, Chart, HBand, PlotError, Series};
 use crate::report::ReportError;
@@ -39,7 +39,7 @@ impl DesignOutcome {
 
     /// Whether its margins are ones an engineer signs (PM >= 35 deg, GM >= 6 dB, stable).
     pub fn margins_signable(&self) -> bool {
-        crate::closed_loop::linear::margins_signable(&self.margins).is_ok()
+        crate::analysis::linear::margins_signable(&self.margins).is_ok()
     }
 }
 

@@ -6,10 +6,10 @@ use std::path::{Path, PathBuf};
 use nalgebra::Complex;
 
 use super::{csv_writer, write_json, write_summary, ReportError};
-use crate::closed_loop::freqresp::{
+use crate::analysis::freqresp::{
     exact_transfer, AmplitudeResponse, FreqPoint, FreqResponse, PredictedCycle,
 };
-use crate::closed_loop::linear::LinearLoop;
+use crate::analysis::linear::LinearLoop;
 use crate::plot::{family_colour, save_chart, save_panels, Chart, Series, REFERENCE_RGB};
 use crate::scenario::Scenario;
 

@@ -358,6 +358,8 @@ impl crate::closed_loop::ClosedLoopSource for Scenario {
                 load: &self.load,
                 effects: self.effects.as_ref(),
                 params,
+                instability: crate::analysis::linear::LinearLoop::new(params, &self.drive)
+                    .instability(),
             }),
             (study, _) => Err(crate::closed_loop::ClosedLoopError::NotClosedLoop {
                 study: format!("\"{}\"", study.as_str()),

@@ -26,8 +26,9 @@
 use nalgebra::{Complex, DMatrix, DVector};
 use serde::Serialize;
 
-use super::filters::{Biquad, FilterSpec};
-use super::params::{Amplifier, ClosedLoopParams, Feedback, RateSource};
+use crate::closed_loop::filters::{Biquad, FilterSpec};
+use crate::closed_loop::params::{Amplifier, ClosedLoopParams, Feedback, RateSource};
+pub use crate::closed_loop::sim::Instability;
 use crate::physics::DriveParams;
 
 /// The linear sampled loop of a closed-loop setup.
@@ -94,17 +95,6 @@ struct RateModel {
     measurement_filters: Vec<Biquad>,
 }
 
-/// An unstable sampled closed loop's fastest-growing mode.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Instability {
-    /// Largest pole magnitude `|z|` (above 1).
-    pub pole_magnitude: f64,
-    /// Growth rate of that mode, 1/s (`ln|z|` per period).
-    pub growth_per_s: f64,
-    /// Its frequency, Hz (0 for a real pole).
-    pub frequency_hz: f64,
-}
-
 /// Margins, peaks and bandwidth of a loop.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Margins {
@@ -153,8 +143,8 @@ fn augmented_exp(a: &DMatrix<f64>, b: &DVector<f64>, tau: f64) -> (DMatrix<f64>,
 /// stick again, and with them the free-span stiffness. A load the drive cannot carry on
 /// first loading (a slack span or gross slip) is an error that says which.
 pub fn tangent_half_stiffness(drive: &DriveParams, load_nm: f64) -> Result<f64, String> {
-    use super::params::CableModel;
-    use super::plant::PlantCable;
+    use crate::closed_loop::params::CableModel;
+    use crate::closed_loop::plant::PlantCable;
     let free = ClosedLoopParams::half_stiffness_n_per_m(drive);
     if !load_nm.is_finite() {
         return Err(format!("load {load_nm} N m is not a finite torque"));
@@ -329,11 +319,11 @@ impl LinearLoop {
                 measurement_filters: chain(&ctl.rate_measurement_filters),
             }),
             command_filters: chain(&ctl.command_filters),
-            observer: super::law::observer_filters(p, ic).map(|(inv, q)| {
+            observer: crate::closed_loop::law::observer_filters(p, ic).map(|(inv, q)| {
                 (
                     Biquad::design(&inv, fs),
                     Biquad::design(&q, fs),
-                    super::law::observer_delay(p),
+                    crate::closed_loop::law::observer_delay(p),
                 )
             }),
             fs,

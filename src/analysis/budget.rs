@@ -16,8 +16,10 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::params::{CableModel, ClosedLoopParams, CompensationMode};
-use super::sim::{run_closed_loop, ClosedLoopError, ClosedLoopSetup, Completion, RunOptions};
+use crate::closed_loop::params::{CableModel, ClosedLoopParams, CompensationMode};
+use crate::closed_loop::sim::{
+    run_closed_loop, ClosedLoopError, ClosedLoopSetup, Completion, RunOptions,
+};
 use crate::physics::{DriveParams, EffectsParams, LoadParams};
 
 /// An effect the budget can switch off.
@@ -157,6 +159,7 @@ impl Variant {
             load: &self.load,
             effects: self.effects.as_ref(),
             params: &self.params,
+            instability: super::linear::LinearLoop::new(&self.params, &self.drive).instability(),
         }
     }
 }
@@ -219,7 +222,7 @@ pub fn error_budget(setup: &ClosedLoopSetup<'_>) -> Result<ErrorBudget, ClosedLo
         .par_iter()
         .map(|v| run_closed_loop(&v.setup(), &RunOptions::metrics_only()))
         .collect::<Result<Vec<_>, _>>()?;
-    let rms = |r: &super::sim::ClosedLoopResult, i: usize| -> (Option<f64>, String) {
+    let rms = |r: &crate::closed_loop::sim::ClosedLoopResult, i: usize| -> (Option<f64>, String) {
         let m = &r.modes[i];
         match &m.completion {
             Completion::Complete => (Some(m.metrics.rms_mrad), "ok".into()),

@@ -34,184 +34,16 @@
 
 use nalgebra::Complex;
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
 use super::linear::{LinearLoop, Margins};
-use super::params::{ClosedLoopParams, CompensationMode, Feedback};
-use super::sim::{
+use crate::closed_loop::params::{ClosedLoopParams, CompensationMode, Feedback};
+pub use crate::closed_loop::probe::{FreqRespParams, LoopPoint};
+use crate::closed_loop::sim::{
     run_closed_loop, ClosedLoopError, ClosedLoopSetup, Completion, Injection, InjectionSite,
     RunOptions,
 };
 use crate::signal::Signal;
-
-/// Where the sinusoid enters the loop.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum LoopPoint {
-    /// Added to the controller's command: the loop gain `L` (margins).
-    #[default]
-    PlantInput,
-    /// Added to the measurement: the sensitivity `S` (margins through `L = 1/S - 1`).
-    OutputDisturbance,
-    /// Added to the command, the measurement observed: `P S`.
-    InputDisturbance,
-    /// The reference itself: reference to measured output, `T_r`.
-    Reference,
-    /// A sine of the base angle: line of sight over base angle (the stabilisation's
-    /// disturbance rejection; near 1 at low frequency for a loop on the encoders).
-    BaseMotion,
-    /// The whole command, the controller disconnected: the plant's describing function
-    /// `P` (loop gain `K P` with the exact controller, and the limit cycles it predicts).
-    Plant,
-}
-
-impl LoopPoint {
-    /// Every name accepted in a scenario or on the command line.
-    pub const NAMES: [&'static str; 6] = [
-        "plant_input",
-        "output_disturbance",
-        "input_disturbance",
-        "reference",
-        "base_motion",
-        "plant",
-    ];
-
-    /// Name as written in a scenario.
-    pub fn name(self) -> &'static str {
-        match self {
-            LoopPoint::PlantInput => "plant_input",
-            LoopPoint::OutputDisturbance => "output_disturbance",
-            LoopPoint::InputDisturbance => "input_disturbance",
-            LoopPoint::Reference => "reference",
-            LoopPoint::BaseMotion => "base_motion",
-            LoopPoint::Plant => "plant",
-        }
-    }
-
-    /// The point by name.
-    pub fn parse(name: &str) -> Result<Self, FreqRespError> {
-        Self::NAMES
-            .iter()
-            .position(|n| *n == name)
-            .map(|i| {
-                [
-                    LoopPoint::PlantInput,
-                    LoopPoint::OutputDisturbance,
-                    LoopPoint::InputDisturbance,
-                    LoopPoint::Reference,
-                    LoopPoint::BaseMotion,
-                    LoopPoint::Plant,
-                ][i]
-            })
-            .ok_or_else(|| FreqRespError::Invalid {
-                key: "closed_loop.freqresp.point".into(),
-                message: format!(
-                    "unknown loop point {name:?}; allowed: {}",
-                    Self::NAMES.join(", ")
-                ),
-            })
-    }
-
-    /// Symbol of the measured transfer.
-    pub fn transfer(self) -> &'static str {
-        match self {
-            LoopPoint::PlantInput => "L",
-            LoopPoint::OutputDisturbance => "S",
-            LoopPoint::InputDisturbance => "PS",
-            LoopPoint::Reference => "T_r",
-            LoopPoint::BaseMotion => "LOS/base",
-            LoopPoint::Plant => "P",
-        }
-    }
-
-    /// Unit of the injection amplitude: the command's (A, or V with a voltage amplifier)
-    /// at the plant input, mrad of output angle elsewhere.
-    pub fn amplitude_unit(self, voltage: bool) -> &'static str {
-        match self {
-            LoopPoint::PlantInput | LoopPoint::InputDisturbance | LoopPoint::Plant if voltage => {
-                "V"
-            }
-            LoopPoint::PlantInput | LoopPoint::InputDisturbance | LoopPoint::Plant => "A",
-            _ => "mrad",
-        }
-    }
-
-    /// Whether the loop gain (and so the margins) follows from this point's transfer.
-    pub fn gives_loop_gain(self) -> bool {
-        matches!(
-            self,
-            LoopPoint::PlantInput | LoopPoint::OutputDisturbance | LoopPoint::Plant
-        )
-    }
-}
-
-/// Settings of a frequency-response measurement (`[closed_loop.freqresp]`, every key
-/// optional).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct FreqRespParams {
-    /// Loop point (`plant_input`).
-    pub point: LoopPoint,
-    /// Frequencies, Hz; empty = `points` log-spaced from `f_min_hz` to `f_max_hz`.
-    pub frequencies_hz: Vec<f64>,
-    /// Lowest frequency of the log range, Hz (1).
-    pub f_min_hz: f64,
-    /// Highest frequency of the log range, Hz; `None` = 0.4 x Nyquist.
-    pub f_max_hz: Option<f64>,
-    /// Frequencies in the log range (20).
-    pub points: usize,
-    /// Injection amplitudes in the point's unit (A or V at the plant input, output mrad
-    /// elsewhere); empty = 0.1 %, 1 % and 10 % of the amplifier limit at the plant input,
-    /// 0.01, 0.1 and 1 mrad elsewhere.
-    pub amplitudes: Vec<f64>,
-    /// Periods left to settle before measuring (3), at least `settle_min_s`.
-    pub settle_periods: f64,
-    /// Shortest settling time, s (0.2: the integral action's transient).
-    pub settle_min_s: f64,
-    /// Whole periods measured (4), more at high frequency to reach `min_samples`.
-    pub measure_periods: u32,
-    /// Fewest samples measured (2000): bounds the frequency snap to 1/2000.
-    pub min_samples: u32,
-    /// Harmonics (2nd to this) in the distortion figure (5).
-    pub harmonics: u32,
-    /// Extra measurements per margin, peak and bandwidth to refine them between grid
-    /// frequencies (6; 0 = interpolate only).
-    pub refine_iterations: u32,
-    /// Requirement: phase margin at least this, deg (35).
-    pub min_phase_margin_deg: f64,
-    /// Requirement: gain margin (upward and downward) at least this, dB (6).
-    pub min_gain_margin_db: f64,
-    /// Requirement: sensitivity peak at most this (2).
-    pub max_ms: f64,
-    /// Transmitted torque, N m, at whose tangent stiffness (first loading from the
-    /// preload) the exact linear reference takes its cable; `None` (the default) takes the
-    /// free-span stiffness, the small-amplitude limit. The two bracket the drive: small
-    /// motions see the free span, large monotone ones the tangent.
-    pub reference_load_nm: Option<f64>,
-}
-
-impl Default for FreqRespParams {
-    fn default() -> Self {
-        FreqRespParams {
-            point: LoopPoint::PlantInput,
-            frequencies_hz: Vec::new(),
-            f_min_hz: 1.0,
-            f_max_hz: None,
-            points: 20,
-            amplitudes: Vec::new(),
-            settle_periods: 3.0,
-            settle_min_s: 0.2,
-            measure_periods: 4,
-            min_samples: 2000,
-            harmonics: 5,
-            refine_iterations: 6,
-            min_phase_margin_deg: 35.0,
-            min_gain_margin_db: 6.0,
-            max_ms: 2.0,
-            reference_load_nm: None,
-        }
-    }
-}
 
 /// Why a frequency response cannot be measured.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -391,14 +223,6 @@ impl FreqRespParams {
             return Err(invalid(
                 "refine_iterations",
                 format!("{}: allowed 0 to 50", self.refine_iterations),
-            ));
-        }
-        positive("min_phase_margin_deg", self.min_phase_margin_deg, 180.0)?;
-        positive("min_gain_margin_db", self.min_gain_margin_db, 100.0)?;
-        if !(self.max_ms.is_finite() && self.max_ms >= 1.0) {
-            return Err(invalid(
-                "max_ms",
-                format!("{}: must be at least 1", self.max_ms),
             ));
         }
         Ok(())
@@ -1211,7 +1035,7 @@ pub fn measure(
         simulated_s += s;
         per_amp[a].push(pt);
     }
-    let voltage = p.motor.amplifier == super::params::Amplifier::Voltage;
+    let voltage = p.motor.amplifier == crate::closed_loop::params::Amplifier::Voltage;
     let unit = spec.point.amplitude_unit(voltage).to_string();
     let refined: Vec<Result<(AmplitudeResponse, usize, f64), FreqRespError>> = pool.install(|| {
         per_amp
@@ -1239,7 +1063,7 @@ pub fn measure(
                 if let Some(e) = error {
                     return Err(e);
                 }
-                let shortfalls = shortfalls(spec, &points, margins.as_ref());
+                let shortfalls = shortfalls(&p.requirements, &points, margins.as_ref());
                 Ok((
                     AmplitudeResponse {
                         amplitude: amp,
@@ -1275,7 +1099,7 @@ pub fn measure(
 }
 
 fn shortfalls(
-    spec: &FreqRespParams,
+    req: &crate::closed_loop::Requirements,
     points: &[FreqPoint],
     margins: Option<&EstimatedMargins>,
 ) -> Vec<String> {
@@ -1294,10 +1118,10 @@ fn shortfalls(
         return out;
     };
     match m.phase_margin_deg {
-        Some(pm) if pm >= spec.min_phase_margin_deg => {}
+        Some(pm) if pm >= req.min_phase_margin_deg => {}
         Some(pm) => out.push(format!(
             "phase margin {pm:.1} deg < {} deg",
-            spec.min_phase_margin_deg
+            req.min_phase_margin_deg
         )),
         None => {
             out.push("no gain crossover inside the measured frequencies: no phase margin".into())
@@ -1308,17 +1132,14 @@ fn shortfalls(
         ("downward gain margin", m.lower_gain_margin_db),
     ] {
         if let Some(gm) = gm {
-            if gm < spec.min_gain_margin_db {
-                out.push(format!(
-                    "{name} {gm:.2} dB < {} dB",
-                    spec.min_gain_margin_db
-                ));
+            if gm < req.min_gain_margin_db {
+                out.push(format!("{name} {gm:.2} dB < {} dB", req.min_gain_margin_db));
             }
         }
     }
     if let Some(ms) = m.ms {
-        if ms > spec.max_ms {
-            out.push(format!("sensitivity peak Ms {ms:.3} > {}", spec.max_ms));
+        if ms > req.max_ms {
+            out.push(format!("sensitivity peak Ms {ms:.3} > {}", req.max_ms));
         }
     }
     out
