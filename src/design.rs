@@ -6,7 +6,7 @@
 
 use serde::Serialize;
 
-use crate::closed_loop::{self, CompensationMode, RunOptions};
+use crate::closed_loop::{self, CompensationMode};
 use crate::scenario::Scenario;
 use crate::signal::Signal;
 use crate::study::answers::largest_passing;
@@ -83,16 +83,15 @@ fn meets(scenario: &Scenario, mode: CompensationMode) -> bool {
     if scenario.validate("design probe").is_err() {
         return false;
     }
-    let options = RunOptions {
-        modes: Some(vec![mode]),
-        ..RunOptions::metrics_only()
-    };
-    match closed_loop::run_closed_loop(scenario, &options) {
-        Ok(r) => r.modes.iter().all(|m| {
-            m.metrics.passes_target && matches!(m.completion, closed_loop::Completion::Complete)
-        }),
-        Err(_) => false,
+    // The probe is judged as every command judges a design: every requirement, in `mode`.
+    let mut probe = scenario.clone();
+    if let Some(cl) = probe.closed_loop.as_mut() {
+        cl.requirements.mode = Some(mode);
     }
+    let Ok(setup) = closed_loop::ClosedLoopSource::closed_loop_setup(&probe) else {
+        return false;
+    };
+    crate::analysis::verdict::evaluate(&setup).is_ok_and(|v| v.passes)
 }
 
 /// Largest brake load or fastest scan in `range` that meets the pointing target with
@@ -148,9 +147,9 @@ pub fn largest_meeting_target(
         runs: search.probes,
         note: search.note(tolerance),
         definition: format!(
-            "largest {what} at which the {} mode keeps the peak pointing error within {} mrad over the metrics window of a complete run; bisection, assuming the loop passes below the answer and fails above",
+            "largest {what} at which the design meets every requirement with the {} mode judged: pointing error within {} mrad over the metrics window of a complete run, and the margins of closed_loop.requirements over the operating range at that load; bisection, assuming the design passes below the answer and fails above",
             mode.name(),
-            cl.target_mrad
+            crate::compact(cl.target_mrad)
         ),
     })
 }

@@ -751,6 +751,11 @@ fn main() -> ExitCode {
             load_nm,
         } => {
             let name = scenario.as_deref().unwrap_or(DEFAULT_SCENARIO);
+            let mut set = set;
+            if let Some(m) = load_nm {
+                // The same as declaring the operating load: every command then agrees.
+                set.push(format!("closed_loop.requirements.operating_load_nm={m}"));
+            }
             let scenario = match load(name, &set) {
                 Ok(s) => s,
                 Err(code) => return code,
@@ -759,69 +764,13 @@ fn main() -> ExitCode {
                 tell!("error: {name} is not a closed-loop scenario (study = \"closed_loop\")");
                 return ExitCode::from(exit::INPUT);
             };
-            use cable_servo::analysis::linear::{tangent_half_stiffness, LinearLoop};
-            let free = cable_servo::closed_loop::params::ClosedLoopParams::half_stiffness_n_per_m(
-                &scenario.drive,
-            );
-            let k = match load_nm.map(|m| tangent_half_stiffness(&scenario.drive, m)) {
-                None => free,
-                Some(Ok(k)) => k,
-                Some(Err(e)) => {
-                    tell!("error: --load-nm: {e}");
-                    return ExitCode::from(exit::INPUT);
-                }
-            };
-            let m = LinearLoop::with_half_stiffness(p, &scenario.drive, k).margins(4000);
-            let opt = |v: Option<f64>, digits: usize| {
-                v.map_or_else(|| "none".to_string(), |v| format!("{v:.digits$}"))
-            };
             say!(
                 "{}: computation delay {} sample(s) at {} Hz",
                 scenario.name(),
-                p.controller.computation_delay_samples,
-                p.controller.sample_rate_hz
+                cable_servo::compact(p.controller.computation_delay_samples),
+                cable_servo::compact(p.controller.sample_rate_hz)
             );
-            match load_nm {
-                None => say!(
-                    "cable             each half {k:.4e} N/m: the free span (small motion)"
-                ),
-                Some(m) => say!(
-                    "cable             each half {k:.4e} N/m: the tangent on first loading to {} N m ({:.1} % of the free span)",
-                    cable_servo::compact(m),
-                    100.0 * k / free
-                ),
-            }
-            say!(
-                "stable            {} (largest pole |z| = {:.8})",
-                m.stable,
-                m.spectral_radius
-            );
-            say!(
-                "phase margin      {} deg at {} Hz",
-                opt(m.phase_margin_deg, 1),
-                opt(m.crossover_hz, 1)
-            );
-            say!(
-                "gain margin       {} dB at {} Hz (upward)",
-                opt(m.gain_margin_db, 2),
-                opt(m.phase_crossover_hz, 1)
-            );
-            say!(
-                "lower gain margin {} dB (downward)",
-                opt(m.lower_gain_margin_db, 2)
-            );
-            say!("Ms, Mt            {:.3}, {:.3}", m.ms, m.mt);
-            say!("bandwidth (-3 dB of T) {} Hz", opt(m.bandwidth_hz, 1));
-            match cable_servo::analysis::linear::margins_signable(&m) {
-                Ok(()) => {
-                    say!("signable: yes (PM >= 35 deg, GM >= 6 dB)");
-                    ExitCode::SUCCESS
-                }
-                Err(why) => {
-                    say!("signable: no: {why}");
-                    ExitCode::from(exit::PHYSICAL)
-                }
-            }
+            verdict_exit(&scenario, None, true)
         }
         Command::Freqresp {
             scenario,
@@ -919,12 +868,15 @@ fn main() -> ExitCode {
                     );
                     say_raw!("{}", r.table);
                     say!("results: {}", r.dir.display());
-                    if r.passes {
-                        ExitCode::SUCCESS
-                    } else {
-                        tell!("requirements not met (see above; failed frequencies are listed in freqresp.csv with their reason)");
-                        ExitCode::from(exit::PHYSICAL)
+                    if !r.passes {
+                        say!("measured: a requirement is not met at some amplitude (see the table above); the design's verdict below is judged on the exact linear reference over the operating range and the simulated pointing error");
                     }
+                    let code = verdict_exit(&scenario, Some("design verdict:"), false);
+                    if !r.complete {
+                        tell!("frequency response INCOMPLETE: some frequencies failed (listed in freqresp.csv with their reason)");
+                        return ExitCode::from(exit::PHYSICAL);
+                    }
+                    code
                 }
                 Err(e) => report(Err(e)),
             }
@@ -1012,10 +964,14 @@ fn closed_loop_answer(
             return ExitCode::from(exit::USAGE);
         }
     };
-    let scenario = match load(name, set) {
+    let mut set = set.clone();
+    // The design is judged in the mode asked about, as every command would with this --set.
+    set.push(format!("closed_loop.requirements.mode={}", mode.name()));
+    let scenario = match load(name, &set) {
         Ok(s) => s,
         Err(code) => return code,
     };
+    let verdict = verdict_exit(&scenario, Some("the design as given:"), false);
     match cable_servo::design::largest_meeting_target(&scenario, question, mode, (min, max), tol) {
         Ok(a) => {
             match a.value {
@@ -1037,10 +993,10 @@ fn closed_loop_answer(
                 say!("  note: {note}");
             }
             say!("  definition: {}", a.definition);
-            if a.value.is_some() {
-                ExitCode::SUCCESS
-            } else {
+            if a.value.is_none() {
                 ExitCode::from(exit::PHYSICAL)
+            } else {
+                verdict
             }
         }
         Err(e) => {
@@ -1050,7 +1006,45 @@ fn closed_loop_answer(
     }
 }
 
-/// Load a scenario and fill its tables; prints the error and returns the exit code.
+/// Judge a closed-loop design (simulating its judged mode), print the operating range's
+/// crossings when asked and the verdict table; the exit code every command shares: 0 when
+/// every requirement is met, 4 when one is not, 3 when the design cannot be judged.
+fn verdict_exit(scenario: &Scenario, heading: Option<&str>, crossings: bool) -> ExitCode {
+    use cable_servo::closed_loop::ClosedLoopSource;
+    let setup = match scenario.closed_loop_setup() {
+        Ok(s) => s,
+        Err(e) => {
+            tell!("error: {e}");
+            return ExitCode::from(exit::INPUT);
+        }
+    };
+    match cable_servo::analysis::verdict::evaluate(&setup) {
+        Ok(v) => {
+            if let Some(h) = heading {
+                say!("{h}");
+            }
+            if crossings {
+                say_raw!("{}", v.range_table());
+            }
+            say_raw!("{}", v.table());
+            verdict_code(v.passes)
+        }
+        Err(e) => {
+            tell!("error: {e}");
+            ExitCode::from(exit::INPUT)
+        }
+    }
+}
+
+/// 0 when every requirement is met, 4 when one is not.
+fn verdict_code(passes: bool) -> ExitCode {
+    if passes {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(exit::PHYSICAL)
+    }
+}
+
 /// Worker threads as asked, at most four per core: more only queue for the same cores,
 /// and an absurd count would exhaust the process before any work starts.
 fn sane_threads(asked: usize) -> usize {
@@ -1158,11 +1152,11 @@ fn compare(
             let total = c.designs;
             let code = report(Ok(c.run));
             if passing == total {
-                say!("every design meets its pointing target ({total} of {total})");
+                say!("every design meets every requirement ({total} of {total})");
                 code
             } else {
                 tell!(
-                    "{} of {total} designs miss their pointing target (a design that stopped counts as missing it)",
+                    "{} of {total} designs miss a requirement (a design that stopped counts as missing it)",
                     total - passing
                 );
                 if code == ExitCode::SUCCESS {
@@ -1205,12 +1199,13 @@ fn report(result: Result<RunReport, RunError>) -> ExitCode {
                 tell!("results kept, marked INCOMPLETE: {}", r.dir.display());
                 return ExitCode::from(cable_servo::io::signals::exit_code(sig));
             }
-            match &r.failure {
-                None => ExitCode::SUCCESS,
-                Some(f) => {
+            match (&r.failure, r.requirements_met) {
+                (Some(f), _) => {
                     tell!("error: run incomplete (results kept, marked INCOMPLETE): {f}");
                     ExitCode::from(exit::PHYSICAL)
                 }
+                (None, Some(false)) => ExitCode::from(exit::PHYSICAL),
+                (None, _) => ExitCode::SUCCESS,
             }
         }
         Err(e) => {

@@ -64,6 +64,9 @@ pub struct RunReport {
     pub warnings: Vec<String>,
     /// The signal (SIGINT 2, SIGTERM 15) that interrupted the run, if one did.
     pub signal: Option<i32>,
+    /// Whether the design(s) meet every requirement (closed-loop runs, comparisons,
+    /// sweeps); `None` where nothing is judged (quasi-static studies, diagnoses).
+    pub requirements_met: Option<bool>,
 }
 
 /// Where and how to write results.
@@ -97,12 +100,15 @@ pub fn run_scenario(scenario: &Scenario, out: &OutputOptions) -> Result<RunRepor
     let mut warnings = scenario.warnings();
     let staged = StagedDir::create(&out.dir, out.force)?;
     let dir = staged.path().to_path_buf();
+    let mut met = None;
     let (table, failure) = match scenario.study {
         Study::QuasiStatic => run_quasi_static(scenario, &dir, &mut warnings)?,
         Study::Backlash => run_backlash(scenario, &dir, &warnings)?,
-        Study::ClosedLoop => run_closed_loop(scenario, &dir, &mut warnings)?,
+        Study::ClosedLoop => run_closed_loop(scenario, &dir, &mut warnings, &mut met)?,
     };
-    finish(staged, table, failure, warnings)
+    let mut report = finish(staged, table, failure, warnings)?;
+    report.requirements_met = met;
+    Ok(report)
 }
 
 fn finish(
@@ -122,6 +128,7 @@ fn finish(
         failure,
         warnings,
         signal: None,
+        requirements_met: None,
     })
 }
 
@@ -193,6 +200,7 @@ fn run_closed_loop(
     scenario: &Scenario,
     dir: &Path,
     warnings: &mut Vec<String>,
+    requirements_met: &mut Option<bool>,
 ) -> Result<(String, Option<String>), RunError> {
     let options = scenario
         .closed_loop
@@ -204,6 +212,10 @@ fn run_closed_loop(
         report::closed_loop::timeseries_rows,
     )?;
     let target = scenario.closed_loop.as_ref().map_or(0.1, |c| c.target_mrad);
+    let setup = closed_loop::ClosedLoopSource::closed_loop_setup(scenario)?;
+    let verdict = crate::analysis::verdict::judged_result(setup.params, &result.modes)
+        .map(|judged| crate::analysis::verdict::judge(&setup, judged));
+    *requirements_met = Some(verdict.as_ref().is_some_and(|v| v.passes));
     // The figures are drawn from the result in memory while the data files are written:
     // neither waits for the other, and a figure that fails, even by a panic in the
     // drawing library, becomes a warning and never touches the data.
@@ -213,8 +225,13 @@ fn run_closed_loop(
                 report::closed_loop::plot_closed_loop(dir, &result, target)
             }))
         });
-        let written =
-            report::closed_loop::write_closed_loop_outputs_with_rows(dir, scenario, &result, rows);
+        let written = report::closed_loop::write_closed_loop_outputs_with_rows(
+            dir,
+            scenario,
+            &result,
+            rows,
+            verdict.as_ref(),
+        );
         (written, figures.join())
     });
     written?;
@@ -242,6 +259,9 @@ fn run_closed_loop(
         let budget = crate::analysis::budget::error_budget(&setup)?;
         report::closed_loop::write_budget(dir, &budget)?;
         table.push_str(&report::closed_loop::format_budget(&budget));
+    }
+    if let Some(v) = &verdict {
+        table.push_str(&v.table());
     }
     Ok((table, failure))
 }
@@ -425,18 +445,31 @@ impl ClosedLoopRunner {
         "status",
         "stop",
     ];
+
+    /// The case's verdict: every requirement, the judged mode's pointing included.
+    const VERDICT: [&'static str; 6] = [
+        "passes",
+        "phase_margin_deg",
+        "gain_margin_up_db",
+        "gain_margin_down_db",
+        "ms",
+        "failing",
+    ];
 }
 
 impl CaseRunner for ClosedLoopRunner {
     fn columns(&self) -> Vec<String> {
-        self.modes
+        let mut columns: Vec<String> = self
+            .modes
             .iter()
             .flat_map(|m| {
                 Self::FIGURES
                     .iter()
                     .map(move |f| format!("{}_{f}", m.name()))
             })
-            .collect()
+            .collect();
+        columns.extend(Self::VERDICT.iter().map(|c| c.to_string()));
+        columns
     }
 
     fn run(&self, scenario: &Scenario, _case: &Case) -> Vec<Cell> {
@@ -444,7 +477,7 @@ impl CaseRunner for ClosedLoopRunner {
             Ok(r) => r,
             // Could not run at all: every mode is an error, apart from a physical stop.
             Err(e) => {
-                return self
+                let mut cells: Vec<Cell> = self
                     .modes
                     .iter()
                     .flat_map(|_| {
@@ -457,6 +490,10 @@ impl CaseRunner for ClosedLoopRunner {
                         cells
                     })
                     .collect();
+                cells.push(Cell::Text("false".into()));
+                cells.extend((0..4).map(|_| Cell::Num(None)));
+                cells.push(Cell::Text(format!("cannot run: {e}")));
+                return cells;
             }
         };
         let mut cells = Vec::new();
@@ -490,6 +527,27 @@ impl CaseRunner for ClosedLoopRunner {
                     ]);
                 }
                 None => cells.extend(Self::FIGURES.iter().map(|_| Cell::Num(None))),
+            }
+        }
+        let verdict = closed_loop::ClosedLoopSource::closed_loop_setup(scenario)
+            .ok()
+            .and_then(|setup| {
+                let judged = crate::analysis::verdict::judged_result(setup.params, &result.modes)?;
+                Some(crate::analysis::verdict::judge(&setup, judged))
+            });
+        match verdict {
+            Some(v) => cells.extend([
+                Cell::Text(v.passes.to_string()),
+                Cell::Num(v.worst_value("phase_margin")),
+                Cell::Num(v.worst_value("gain_margin_up")),
+                Cell::Num(v.worst_value("gain_margin_down")),
+                Cell::Num(v.worst_value("sensitivity_peak")),
+                Cell::Text(v.reasons().join("; ")),
+            ]),
+            None => {
+                cells.push(Cell::Text("false".into()));
+                cells.extend((0..4).map(|_| Cell::Num(None)));
+                cells.push(Cell::Text("the judged mode was not simulated".into()));
             }
         }
         cells
@@ -696,8 +754,27 @@ pub fn run_sweep(
     );
     text.push_str(&outcomes.1);
     text.push_str(&answers.1);
+    let verdicts = figure_columns.iter().position(|c| c == "passes").map(|j| {
+        let passing = table
+            .rows
+            .iter()
+            .filter(|(_, cells)| matches!(cells.get(j), Some(Cell::Text(t)) if t == "true"))
+            .count();
+        (passing, table.rows.len())
+    });
+    if let Some((passing, total)) = verdicts {
+        text.push_str(&if passing == total {
+            format!("verdict: every case meets every requirement ({total} of {total})\n")
+        } else {
+            format!(
+                "verdict: {} of {total} cases miss a requirement (sweep.csv column `failing` says which; a stopped case counts as missing)\n",
+                total - passing
+            )
+        });
+    }
     let mut report = finish(staged, text, failure, warnings)?;
     report.signal = signal;
+    report.requirements_met = verdicts.map(|(passing, total)| passing == total);
     Ok(report)
 }
 
@@ -890,6 +967,8 @@ pub struct FreqRespReport {
     pub table: String,
     /// Whether every amplitude met the requirements with every frequency measured.
     pub passes: bool,
+    /// Whether every frequency of every amplitude was measured.
+    pub complete: bool,
     /// Plots that could not be drawn.
     pub warnings: Vec<String>,
     /// Simulation runs and simulated seconds.
@@ -926,6 +1005,10 @@ pub fn run_freqresp(
         dir,
         table: report::freqresp::format_table(&r),
         passes: r.amplitudes.iter().all(|a| a.passes()),
+        complete: r
+            .amplitudes
+            .iter()
+            .all(|a| a.points.iter().all(|p| p.failure.is_none())),
         warnings,
         runs: (r.runs, r.simulated_s),
     })
@@ -996,28 +1079,32 @@ pub fn run_compare(
     let outcomes = designs
         .par_iter()
         .map(|d| -> Result<report::compare::DesignOutcome, RunError> {
-            let p = d.scenario.closed_loop.as_ref().ok_or_else(|| {
+            // `--mode` asks for the designs to be judged in that mode: the same as
+            // `--set closed_loop.requirements.mode=...`, so every command agrees.
+            let mut scenario = d.scenario.clone();
+            let p = scenario.closed_loop.as_mut().ok_or_else(|| {
                 RunError::Unsupported(format!("design {:?} is not a closed-loop study", d.name))
             })?;
-            let m = mode.unwrap_or(
-                *p.modes
-                    .last()
-                    .unwrap_or(&closed_loop::CompensationMode::None),
-            );
+            if mode.is_some() {
+                p.requirements.mode = mode;
+            }
+            let p = p.clone();
+            let m = p.judged_mode();
             let options = closed_loop::RunOptions {
                 modes: Some(vec![m]),
-                ..recording(p)
+                ..recording(&p)
             };
-            let mut r = closed_loop::run_closed_loop(&d.scenario, &options)?;
+            let mut r = closed_loop::run_closed_loop(&scenario, &options)?;
             let result = r.modes.remove(0);
+            let setup = closed_loop::ClosedLoopSource::closed_loop_setup(&scenario)?;
+            let verdict = crate::analysis::verdict::judge(&setup, &result);
             Ok(report::compare::DesignOutcome {
                 name: d.name.clone(),
                 description: d.description.clone(),
-                scenario: d.scenario.clone(),
+                scenario: scenario.clone(),
                 mode: m,
                 result,
-                margins: crate::analysis::linear::LinearLoop::new(p, &d.scenario.drive)
-                    .margins(2000),
+                verdict,
                 target_mrad: p.target_mrad,
             })
         })
@@ -1038,8 +1125,10 @@ pub fn run_compare(
         }
     }
     let table = report::compare::format_compare(&outcomes);
+    let mut run = finish(staged, table, None, warnings)?;
+    run.requirements_met = Some(passing == outcomes.len());
     Ok(CompareReport {
-        run: finish(staged, table, None, warnings)?,
+        run,
         passing,
         designs: outcomes.len(),
     })

@@ -336,7 +336,7 @@ fn outputs_are_written_and_metrics_do_not_depend_on_recording() {
     assert!(steps[0].settling_time_s.is_some(), "{steps:?}");
 
     let dir = tempfile::tempdir().unwrap();
-    let files = write_closed_loop_outputs(dir.path(), &s, &rec).unwrap();
+    let files = write_closed_loop_outputs(dir.path(), &s, &rec, None).unwrap();
     // Time series, error spectrum, summary.
     assert_eq!(files.len(), 3, "{files:?}");
     assert!(dir.path().join("error_psd.csv").is_file());

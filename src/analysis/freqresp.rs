@@ -36,7 +36,8 @@ use nalgebra::Complex;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::linear::{LinearLoop, Margins};
+use super::linear::LinearLoop;
+use super::margins::Margins;
 use crate::closed_loop::params::{ClosedLoopParams, CompensationMode, Feedback};
 pub use crate::closed_loop::probe::{FreqRespParams, LoopPoint};
 use crate::closed_loop::sim::{

@@ -24,7 +24,6 @@
 //! the margins.
 
 use nalgebra::{Complex, DMatrix, DVector};
-use serde::Serialize;
 
 use crate::closed_loop::filters::{Biquad, FilterSpec};
 use crate::closed_loop::params::{Amplifier, ClosedLoopParams, Feedback, RateSource};
@@ -93,31 +92,6 @@ struct RateModel {
     a_v: f64,
     command_filters: Vec<Biquad>,
     measurement_filters: Vec<Biquad>,
-}
-
-/// Margins, peaks and bandwidth of a loop.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Margins {
-    /// Phase margin, deg (`None` when `|L|` never crosses 1).
-    pub phase_margin_deg: Option<f64>,
-    /// Gain crossover frequency, Hz.
-    pub crossover_hz: Option<f64>,
-    /// Upward gain margin, dB (`None` when the phase never crosses -180 deg with `|L| < 1`).
-    pub gain_margin_db: Option<f64>,
-    /// Frequency of that phase crossover, Hz.
-    pub phase_crossover_hz: Option<f64>,
-    /// Downward gain margin, dB (conditionally stable loops: how far the gain may fall).
-    pub lower_gain_margin_db: Option<f64>,
-    /// Sensitivity peak `max |S|` (1.3 to 2 for a sound design).
-    pub ms: f64,
-    /// Complementary sensitivity peak `max |T|`.
-    pub mt: f64,
-    /// Closed-loop bandwidth: first frequency where `|T|` falls below -3 dB, Hz.
-    pub bandwidth_hz: Option<f64>,
-    /// Whether every pole of the sampled closed loop lies inside the unit circle.
-    pub stable: bool,
-    /// Largest closed-loop pole magnitude (below 1 when stable).
-    pub spectral_radius: f64,
 }
 
 fn augmented_exp(a: &DMatrix<f64>, b: &DVector<f64>, tau: f64) -> (DMatrix<f64>, DVector<f64>) {
@@ -706,88 +680,6 @@ impl LinearLoop {
             .fold(0.0, f64::max)
     }
 
-    /// Margins, peaks and bandwidth, on `points` log-spaced frequencies from 0.1 Hz to
-    /// just below Nyquist (2000 is plenty), refined by bisection.
-    pub fn margins(&self, points: usize) -> Margins {
-        let (lo, hi) = (0.1_f64, self.nyquist_hz() * 0.9999);
-        let points = points.max(10);
-        let freqs: Vec<f64> = (0..points)
-            .map(|i| lo * (hi / lo).powf(i as f64 / (points - 1) as f64))
-            .collect();
-        let l: Vec<Complex<f64>> = freqs.iter().map(|&f| self.loop_gain(f)).collect();
-        let refine = |f0: f64, f1: f64, g: &dyn Fn(f64) -> f64| {
-            let (mut a, mut b) = (f0, f1);
-            let ga = g(a);
-            for _ in 0..60 {
-                let m = (a * b).sqrt();
-                if (g(m) > 0.0) == (ga > 0.0) {
-                    a = m;
-                } else {
-                    b = m;
-                }
-            }
-            (a * b).sqrt()
-        };
-        let mut pm: Option<(f64, f64)> = None;
-        let mut gm_up: Option<(f64, f64)> = None;
-        let mut gm_down: Option<f64> = None;
-        for i in 1..points {
-            let (l0, l1) = (l[i - 1], l[i]);
-            if (l0.norm() - 1.0) * (l1.norm() - 1.0) <= 0.0 && l0.norm() != l1.norm() {
-                let f = refine(freqs[i - 1], freqs[i], &|f| self.loop_gain(f).norm() - 1.0);
-                let lf = self.loop_gain(f);
-                let margin = 180.0 - lf.arg().to_degrees().abs();
-                if pm.is_none_or(|(m, _)| margin < m) {
-                    pm = Some((margin, f));
-                }
-            }
-            // Crossing of the negative real axis: the imaginary part changes sign there.
-            if l0.im * l1.im <= 0.0 && (l0.re < 0.0 || l1.re < 0.0) && l0.im != l1.im {
-                let f = refine(freqs[i - 1], freqs[i], &|f| self.loop_gain(f).im);
-                let lf = self.loop_gain(f);
-                if lf.re < 0.0 {
-                    let db = -20.0 * lf.norm().log10();
-                    if lf.norm() < 1.0 {
-                        if gm_up.is_none_or(|(m, _)| db < m) {
-                            gm_up = Some((db, f));
-                        }
-                    } else if gm_down.is_none_or(|m| -db < m) {
-                        gm_down = Some(-db);
-                    }
-                }
-            }
-        }
-        let s: Vec<f64> = l
-            .iter()
-            .map(|l| (Complex::from(1.0) + l).inv().norm())
-            .collect();
-        let t: Vec<f64> = l
-            .iter()
-            .map(|l| (l / (Complex::from(1.0) + l)).norm())
-            .collect();
-        let half_power = std::f64::consts::FRAC_1_SQRT_2;
-        let bandwidth = (1..points)
-            .find(|&i| t[i - 1] >= half_power && t[i] < half_power)
-            .map(|i| {
-                refine(freqs[i - 1], freqs[i], &|f| {
-                    self.complementary(f).norm() - half_power
-                })
-            });
-        let rho = self.spectral_radius();
-        Margins {
-            phase_margin_deg: pm.map(|p| p.0),
-            crossover_hz: pm.map(|p| p.1),
-            gain_margin_db: gm_up.map(|g| g.0),
-            phase_crossover_hz: gm_up.map(|g| g.1),
-            lower_gain_margin_db: gm_down,
-            ms: s.iter().copied().fold(0.0, f64::max),
-            mt: t.iter().copied().fold(0.0, f64::max),
-            bandwidth_hz: bandwidth,
-            stable: rho < 1.0,
-            spectral_radius: rho,
-        }
-    }
-
     /// The same loop with every controller gain scaled by `g` (for margin checks).
     pub fn with_gain(&self, g: f64) -> Self {
         if self.law.is_some() {
@@ -814,31 +706,6 @@ fn chain_response(chain: &[Biquad], f_hz: f64, fs: f64) -> Complex<f64> {
 
 fn dot(r: &DVector<f64>, x: &DVector<Complex<f64>>) -> Complex<f64> {
     r.iter().zip(x.iter()).map(|(c, x)| x * *c).sum()
-}
-
-/// Margins a servo engineer signs: phase margin >= 35 deg and gain margin >= 6 dB.
-pub fn margins_signable(m: &Margins) -> Result<(), String> {
-    if !m.stable {
-        return Err(format!(
-            "the sampled closed loop is unstable (largest pole magnitude {:.4})",
-            m.spectral_radius
-        ));
-    }
-    match m.phase_margin_deg {
-        Some(pm) if pm >= 35.0 => {}
-        other => return Err(format!("phase margin {other:?} deg is below 35 deg")),
-    }
-    if let Some(gm) = m.gain_margin_db {
-        if gm < 6.0 {
-            return Err(format!("gain margin {gm:.2} dB is below 6 dB"));
-        }
-    }
-    if let Some(gm) = m.lower_gain_margin_db {
-        if gm < 6.0 {
-            return Err(format!("downward gain margin {gm:.2} dB is below 6 dB"));
-        }
-    }
-    Ok(())
 }
 
 #[cfg(test)]

@@ -6,3 +6,5 @@
 pub mod budget;
 pub mod freqresp;
 pub mod linear;
+pub mod margins;
+pub mod verdict;

@@ -36,15 +36,19 @@ pub const TIMESERIES_HEADER: [&str; 16] = [
     "gyro_rad_s",
 ];
 
+/// A mode's figures; a mode that stopped has none (null), with the reason.
 #[derive(Serialize)]
 struct ModeSummary<'a> {
     name: &'static str,
-    rms_mrad: f64,
-    peak_mrad: f64,
-    p95_mrad: f64,
-    within_target_fraction: f64,
+    rms_mrad: Option<f64>,
+    peak_mrad: Option<f64>,
+    p95_mrad: Option<f64>,
+    within_target_fraction: Option<f64>,
     passes_target: bool,
-    metrics: &'a Metrics,
+    /// Why the figures are null (a stop, an empty metrics window).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    no_metrics_reason: Option<String>,
+    metrics: Option<&'a Metrics>,
     solver: &'a SolverStats,
     completion: &'a Completion,
     simulated_s: f64,
@@ -74,6 +78,9 @@ struct Summary<'a> {
     complete: bool,
     command_unit: &'static str,
     modes: Vec<ModeSummary<'a>>,
+    /// The design's verdict: every requirement with its measured value and margin.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    verdict: Option<&'a crate::analysis::verdict::Verdict>,
     /// What the memory and memoryless feedforward were given in advance.
     compensator_given: CompensatorGiven,
     solver: SolverStats,
@@ -81,19 +88,33 @@ struct Summary<'a> {
 }
 
 fn mode_summary(m: &ModeResult) -> ModeSummary<'_> {
+    // What a stopped mode ran is not the design's answer: no figures, the reason instead.
+    let reason = match &m.completion {
+        Completion::Incomplete { fault, time_s, .. } => Some(format!(
+            "stopped at t = {} s: {fault}",
+            crate::significant(*time_s, 5)
+        )),
+        Completion::Complete if m.metrics.samples == 0 => {
+            Some("the metrics window holds no sample".to_string())
+        }
+        Completion::Complete => None,
+    };
+    let ok = reason.is_none();
+    let figure = |v: f64| ok.then_some(v);
     ModeSummary {
         name: m.mode.name(),
-        rms_mrad: m.metrics.rms_mrad,
-        peak_mrad: m.metrics.peak_mrad,
-        p95_mrad: m.metrics.p95_mrad,
-        within_target_fraction: m.metrics.within_target_fraction,
-        passes_target: m.metrics.passes_target,
-        metrics: &m.metrics,
+        rms_mrad: figure(m.metrics.rms_mrad),
+        peak_mrad: figure(m.metrics.peak_mrad),
+        p95_mrad: figure(m.metrics.p95_mrad),
+        within_target_fraction: figure(m.metrics.within_target_fraction),
+        passes_target: ok && m.metrics.passes_target,
+        no_metrics_reason: reason,
+        metrics: ok.then_some(&m.metrics),
         solver: &m.stats,
         completion: &m.completion,
         simulated_s: m.simulated_s,
         limit_cycle: &m.limit_cycle,
-        los: m.los.as_ref(),
+        los: m.los.as_ref().filter(|_| ok),
         effects_compensated: m.effects_compensated,
         command_saturation: m.saturation,
     }
@@ -143,11 +164,12 @@ pub fn write_closed_loop_outputs(
     dir: &Path,
     scenario: &Scenario,
     result: &ClosedLoopResult,
+    verdict: Option<&crate::analysis::verdict::Verdict>,
 ) -> Result<Vec<PathBuf>, ReportError> {
     use rayon::prelude::*;
     // Formatting is most of the cost of writing: each mode's rows on its own core.
     let rows: Vec<Option<Vec<u8>>> = result.modes.par_iter().map(timeseries_rows).collect();
-    write_closed_loop_outputs_with_rows(dir, scenario, result, rows)
+    write_closed_loop_outputs_with_rows(dir, scenario, result, rows, verdict)
 }
 
 /// [`write_closed_loop_outputs`] with each mode's `timeseries.csv` rows already formatted
@@ -158,6 +180,7 @@ pub fn write_closed_loop_outputs_with_rows(
     scenario: &Scenario,
     result: &ClosedLoopResult,
     rows: Vec<Option<Vec<u8>>>,
+    verdict: Option<&crate::analysis::verdict::Verdict>,
 ) -> Result<Vec<PathBuf>, ReportError> {
     std::fs::create_dir_all(dir).map_err(|e| ReportError::io(dir, e))?;
     let mut written = Vec::new();
@@ -210,6 +233,7 @@ pub fn write_closed_loop_outputs_with_rows(
         complete: result.complete,
         command_unit,
         modes: result.modes.iter().map(mode_summary).collect(),
+        verdict,
         compensator_given: CompensatorGiven {
             reference: true,
             known_load_terms: scenario.load.known_terms(),

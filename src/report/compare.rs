@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
-use crate::analysis::linear::Margins;
+use crate::analysis::verdict::Verdict;
 use crate::closed_loop::{CompensationMode, Completion, ModeResult};
 use crate::plot::{save_panels, Chart, HBand, PlotError, Series};
 use crate::report::ReportError;
@@ -25,21 +25,16 @@ pub struct DesignOutcome {
     pub mode: CompensationMode,
     /// Its result.
     pub result: ModeResult,
-    /// Margins of its exact linear reference.
-    pub margins: Margins,
+    /// The design's verdict (margins over the operating range, pointing of `mode`).
+    pub verdict: Verdict,
     /// Pointing target, mrad.
     pub target_mrad: f64,
 }
 
 impl DesignOutcome {
-    /// Ran to the end and met the pointing target.
+    /// Meets every requirement: its verdict.
     pub fn passes(&self) -> bool {
-        self.result.completion == Completion::Complete && self.result.metrics.passes_target
-    }
-
-    /// Whether its margins are ones an engineer signs (PM >= 35 deg, GM >= 6 dB, stable).
-    pub fn margins_signable(&self) -> bool {
-        crate::analysis::linear::margins_signable(&self.margins).is_ok()
+        self.verdict.passes
     }
 }
 
@@ -48,12 +43,11 @@ struct DesignSummary<'a> {
     name: &'a str,
     description: &'a str,
     mode: &'static str,
-    passes_target: bool,
-    margins_signable: bool,
+    passes: bool,
     rms_mrad: Option<f64>,
     peak_mrad: Option<f64>,
     los: Option<&'a crate::metrics::los::LosMetrics>,
-    margins: &'a Margins,
+    verdict: &'a Verdict,
     completion: &'a Completion,
     scenario: &'a Scenario,
 }
@@ -72,17 +66,17 @@ pub fn write_compare(dir: &Path, designs: &[DesignOutcome]) -> Result<Vec<PathBu
         "design",
         "mode",
         "status",
-        "passes_target",
+        "passes",
         "rms_mrad",
         "peak_mrad",
         "jitter_max_mrad",
         "jitter_p95_mrad",
         "exposure_s",
         "phase_margin_deg",
-        "gain_margin_db",
+        "gain_margin_up_db",
+        "gain_margin_down_db",
         "ms",
-        "crossover_hz",
-        "margins_signable",
+        "failing",
         "description",
     ])
     .map_err(csv_err)?;
@@ -100,11 +94,11 @@ pub fn write_compare(dir: &Path, designs: &[DesignOutcome]) -> Result<Vec<PathBu
             opt(los.and_then(|l| l.jitter_rms_max_mrad)),
             opt(los.and_then(|l| l.jitter_rms_p95_mrad)),
             opt(los.map(|l| l.exposure_s)),
-            opt(d.margins.phase_margin_deg),
-            opt(d.margins.gain_margin_db),
-            opt(Some(d.margins.ms)),
-            opt(d.margins.crossover_hz),
-            d.margins_signable().to_string(),
+            opt(d.verdict.worst_value("phase_margin")),
+            opt(d.verdict.worst_value("gain_margin_up")),
+            opt(d.verdict.worst_value("gain_margin_down")),
+            opt(d.verdict.worst_value("sensitivity_peak")),
+            d.verdict.reasons().join("; "),
             d.description.clone(),
         ])
         .map_err(csv_err)?;
@@ -117,12 +111,11 @@ pub fn write_compare(dir: &Path, designs: &[DesignOutcome]) -> Result<Vec<PathBu
             name: &d.name,
             description: &d.description,
             mode: d.mode.name(),
-            passes_target: d.passes(),
-            margins_signable: d.margins_signable(),
+            passes: d.passes(),
             rms_mrad: finished(d).then_some(d.result.metrics.rms_mrad),
             peak_mrad: finished(d).then_some(d.result.metrics.peak_mrad),
             los: d.result.los.as_ref().filter(|_| finished(d)),
-            margins: &d.margins,
+            verdict: &d.verdict,
             completion: &d.result.completion,
             scenario: &d.scenario,
         })
@@ -151,6 +144,7 @@ pub fn write_compare(dir: &Path, designs: &[DesignOutcome]) -> Result<Vec<PathBu
             &sub,
             &d.scenario,
             &result,
+            Some(&d.verdict),
         )?);
     }
     Ok(written)
@@ -166,17 +160,17 @@ pub fn format_compare(designs: &[DesignOutcome]) -> String {
         .unwrap_or(6)
         .max(6);
     let mut out = format!(
-        "{:<width$} {:<10} {:>9} {:>9} {:>11} {:>7} {:>6} {:>5} {:>7} {:>9}  {}\n",
+        "{:<width$} {:<10} {:>9} {:>9} {:>11} {:>7} {:>8} {:>10} {:>5} {:>7}  {}\n",
         "design",
         "mode",
         "rms_mrad",
         "peak_mrad",
         "jitter_mrad",
         "PM_deg",
-        "GM_dB",
+        "GM_up_dB",
+        "GM_down_dB",
         "Ms",
-        "passes",
-        "signable",
+        "verdict",
         "status"
     );
     for d in designs {
@@ -189,12 +183,6 @@ pub fn format_compare(designs: &[DesignOutcome]) -> String {
             }
         };
         if d.result.completion == Completion::Complete {
-            if !d.margins.stable {
-                status.push_str(&format!(
-                    "; linear reference UNSTABLE (|z| = {:.4})",
-                    d.margins.spectral_radius
-                ));
-            }
             if let crate::metrics::limit_cycle::LimitCycle::Detected {
                 amplitude_mrad,
                 frequency_hz,
@@ -207,7 +195,7 @@ pub fn format_compare(designs: &[DesignOutcome]) -> String {
             }
         }
         out.push_str(&format!(
-            "{:<width$} {:<10} {:>9} {:>9} {:>11} {:>7} {:>6} {:>5} {:>7} {:>9}  {}\n",
+            "{:<width$} {:<10} {:>9} {:>9} {:>11} {:>7} {:>8} {:>10} {:>5} {:>7}  {}\n",
             d.name,
             d.mode.name(),
             f(ok.then_some(d.result.metrics.rms_mrad), 4),
@@ -220,13 +208,19 @@ pub fn format_compare(designs: &[DesignOutcome]) -> String {
                     .and_then(|l| l.jitter_rms_max_mrad),
                 4
             ),
-            f(d.margins.phase_margin_deg, 1),
-            f(d.margins.gain_margin_db, 1),
-            f(Some(d.margins.ms), 2),
-            if d.passes() { "yes" } else { "no" },
-            if d.margins_signable() { "yes" } else { "no" },
+            f(d.verdict.worst_value("phase_margin"), 1),
+            f(d.verdict.worst_value("gain_margin_up"), 1),
+            f(d.verdict.worst_value("gain_margin_down"), 1),
+            f(d.verdict.worst_value("sensitivity_peak"), 2),
+            if d.passes() { "PASS" } else { "FAIL" },
             status
         ));
+    }
+    out.push_str(
+        "(margins: the worst over the operating range; a dash: none, as for an unstable loop)\n",
+    );
+    for d in designs {
+        out.push_str(&format!("\ndesign {}:\n{}", d.name, d.verdict.table()));
     }
     out
 }

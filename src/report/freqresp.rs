@@ -332,7 +332,7 @@ pub fn format_table(r: &FreqResponse) -> String {
         opt(e.gain_margin_db, 2),
         opt(e.phase_crossover_hz, 1),
         opt(e.lower_gain_margin_db, 2),
-        format!("{:.3}", e.ms),
+        opt(e.ms, 3),
         opt(e.bandwidth_hz, 1),
         "-",
         if e.stable { "stable" } else { "UNSTABLE" }
