@@ -439,7 +439,7 @@ fn format_rejection_table(r: &FreqResponse) -> String {
         }
     }
     if !declared {
-        t.push_str("no base-rejection requirement declared: no verdict (give closed_loop.requirements.min_base_rejection_db and base_rejection_hz to judge one)\n");
+        t.push_str("no base-rejection requirement declared: no verdict on the rejection (give closed_loop.requirements.min_base_rejection_db and base_rejection_hz to judge one)\n");
     }
     t
 }
