@@ -361,3 +361,123 @@ fn command_refuses_bad_input_and_writes_its_files() {
         assert!(dir.path().join("r").join(f).exists(), "{f} missing");
     }
 }
+
+/// Base motion on the shipped stabilised gimbal: the default range is accepted (its top
+/// just inside a tenth of the control rate, and measured there without the scenario's
+/// own base-motion check refusing the snapped frequency); the console shows per frequency
+/// the rejection in dB beside the exact reference's, not "-"; with no declared
+/// requirement it gives no verdict, with one it judges it.
+#[test]
+fn base_motion_default_range_is_accepted_and_the_console_shows_rejection() {
+    let s = Scenario::load("gimbal_stabilized", &[]).unwrap_or_else(|e| panic!("{e}"));
+    let p = s.closed_loop.as_ref().expect("a closed loop");
+    let spec = FreqRespParams {
+        point: LoopPoint::BaseMotion,
+        ..FreqRespParams::default()
+    };
+    spec.validate(p).unwrap_or_else(|e| panic!("{e}"));
+    let f = spec
+        .frequencies(p.controller.sample_rate_hz)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let top = f.last().copied().unwrap_or_default();
+    assert!(top < 2000.0 && top > 1990.0, "{top}");
+    let r = measure(
+        s.closed_loop_setup().unwrap_or_else(|e| panic!("{e}")),
+        &FreqRespParams {
+            frequencies_hz: vec![top],
+            amplitudes: vec![0.01],
+            ..spec.clone()
+        },
+        1,
+        &|| {},
+    )
+    .unwrap_or_else(|e| panic!("the top of the default range: {e}"));
+    assert!(r.amplitudes[0].points[0].frequency_hz < 2000.0);
+
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let bin = env!("CARGO_BIN_EXE_cable-servo");
+    let go = |out: &str, extra: &[&str]| {
+        let mut args = vec![
+            "freqresp",
+            "gimbal_stabilized",
+            "--point",
+            "base_motion",
+            "--amplitudes",
+            "1",
+            "--out",
+            out,
+        ];
+        args.extend(extra);
+        let o = std::process::Command::new(bin)
+            .current_dir(dir.path())
+            .args(&args)
+            .output()
+            .unwrap_or_else(|e| panic!("{e}"));
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stdout).to_string(),
+            String::from_utf8_lossy(&o.stderr).to_string(),
+        )
+    };
+    let (code, text, err) = go("none", &["--frequencies", "5,50"]);
+    assert_eq!(code, Some(0), "{text}{err}");
+    assert!(
+        text.contains("rejection_db") && text.contains("reference_db"),
+        "{text}"
+    );
+    let rows: Vec<&str> = text.lines().filter(|l| l.starts_with("1 mrad ")).collect();
+    assert_eq!(rows.len(), 2, "{text}");
+    for row in rows {
+        // amplitude, unit, frequency, rejection, reference, difference, phase, THD
+        let v: Vec<f64> = row
+            .split_whitespace()
+            .skip(2)
+            .take(5)
+            .map(|x| {
+                x.parse()
+                    .unwrap_or_else(|_| panic!("not a number in {row:?}"))
+            })
+            .collect();
+        assert!(v[1] > 0.0 && v[2] > 0.0, "{row}");
+    }
+    assert!(
+        text.contains("no base-rejection requirement declared: no verdict")
+            && !text.contains("passes yes"),
+        "{text}"
+    );
+    let csv = std::fs::read_to_string(dir.path().join("none").join("freqresp.csv"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        csv.lines()
+            .next()
+            .is_some_and(|h| h.contains(",rejection_db,reference_rejection_db,")),
+        "{csv}"
+    );
+    let summary = std::fs::read_to_string(dir.path().join("none").join("summary.json"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert!(summary.contains("\"passes\": null"), "{summary}");
+
+    let required = |db: &str| {
+        [
+            "--frequencies".to_string(),
+            "5".to_string(),
+            "--set".to_string(),
+            format!("closed_loop.requirements.min_base_rejection_db={db}"),
+            "--set".to_string(),
+            "closed_loop.requirements.base_rejection_hz=5".to_string(),
+        ]
+    };
+    let met = required("10");
+    let met: Vec<&str> = met.iter().map(String::as_str).collect();
+    let (code, text, err) = go("met", &met);
+    assert_eq!(code, Some(0), "{text}{err}");
+    assert!(
+        text.contains("required >= 10 dB: passes yes") && !text.contains("no verdict"),
+        "{text}"
+    );
+    let missed = required("190");
+    let missed: Vec<&str> = missed.iter().map(String::as_str).collect();
+    let (code, text, err) = go("missed", &missed);
+    assert_ne!(code, Some(0), "{text}{err}");
+    assert!(text.contains("required >= 190 dB: passes no"), "{text}");
+}

@@ -347,3 +347,236 @@ fn compare_runs_designs_side_by_side() {
     let csv = std::fs::read_to_string(out.join("compare.csv")).unwrap();
     assert_eq!(csv.lines().count(), 3, "{csv}");
 }
+
+/// An exact model of the sampled loop under a sinusoidal base, built here from the
+/// scenario's numbers and not from `LinearLoop`: the continuous plant with the base as an
+/// exosystem (`beta'' = -w^2 beta`) and the held command as states, discretised over one
+/// period by a single matrix exponential; the law's difference equations (gyro angle or
+/// encoder PID with its filtered derivative, the gyro rate PI, the command filters) and
+/// the computation delay as a shift register; the steady state at the exosystem's mode
+/// `[beta, beta'] = [1, jw] z^k` read off `(zI - A)^-1` of the rest. The plant's angles
+/// are the drum's inertial angle and the motor's relative angle plus `ic beta` (where it
+/// stands for an unstretched cable under a still drum), so the line of sight is a state
+/// and no two large numbers cancel. Current amplifier, whole periods of delay, no
+/// observer, no measurement filters, the rate loop on the gyro.
+fn independent_base_to_los(s: &Scenario, f_hz: f64) -> nalgebra::Complex<f64> {
+    use cable_servo::closed_loop::filters::Biquad;
+    use cable_servo::closed_loop::params::{Amplifier, ClosedLoopParams, Feedback, RateSource};
+    use nalgebra::{Complex, DMatrix, DVector};
+    let p = s.closed_loop.as_ref().expect("a closed loop");
+    let ctl = &p.controller;
+    assert_eq!(p.motor.amplifier, Amplifier::Current);
+    assert!(ctl.measurement_filters.is_empty() && ctl.disturbance_observer.is_none());
+    assert!(ctl.rate_command_filters.is_empty() && ctl.rate_measurement_filters.is_empty());
+    let delay = ctl.computation_delay_samples;
+    assert_eq!(delay.fract(), 0.0, "whole periods of delay only");
+    let m = delay as usize;
+    let d = &s.drive;
+    let (ri, ro) = (d.pulley_radius_m, d.drum_radius_m);
+    let ic = ro / ri;
+    let k = ClosedLoopParams::half_stiffness_n_per_m(d);
+    let c = p.cable_damping_n_s_per_m(d);
+    let (jm, bm, kt) = (
+        p.motor.inertia_kg_m2,
+        p.motor.viscous_nm_s_per_rad,
+        p.motor.torque_constant_nm_per_a,
+    );
+    let (jo, bo) = (p.output.inertia_kg_m2, p.output.viscous_nm_s_per_rad);
+    let (wn, zeta) = p.gyro.as_ref().map_or((1.0, 1.0), |g| {
+        (std::f64::consts::TAU * g.bandwidth_hz, g.damping)
+    });
+    let w = std::f64::consts::TAU * f_hz;
+    let ts = 1.0 / ctl.sample_rate_hz;
+    // Continuous states: 0 motor angle (relative + ic beta), 1 its rate, 2 drum inertial
+    // angle, 3 its rate, 4 gyro, 5 its rate, 6 beta, 7 beta', 8 the held command.
+    let mut a = DMatrix::<f64>::zeros(9, 9);
+    // Relative angles and rates as rows over the states.
+    let mut th_m = [0.0; 9];
+    th_m[0] = 1.0;
+    th_m[6] = -ic;
+    let mut th_o = [0.0; 9];
+    th_o[2] = 1.0;
+    th_o[6] = -1.0;
+    let mut w_m = [0.0; 9];
+    w_m[1] = 1.0;
+    w_m[7] = -ic;
+    let mut w_o = [0.0; 9];
+    w_o[3] = 1.0;
+    w_o[7] = -1.0;
+    for j in 0..9 {
+        // F = Tu - Tl = 2k (ri th_m - ro th_o) + 2c (ri w_m - ro w_o), relative.
+        let f = 2.0 * k * (ri * th_m[j] - ro * th_o[j]) + 2.0 * c * (ri * w_m[j] - ro * w_o[j]);
+        // Jm (w_m,rel' + beta'') = Kt u - ri F - bm w_m,rel; the shifted rate adds ic beta''.
+        a[(1, j)] = (-ri * f - bm * w_m[j]) / jm;
+        // Jo (w_o,rel' + beta'') = ro F - bo w_o,rel: the inertial rate's derivative.
+        a[(3, j)] = (ro * f - bo * w_o[j]) / jo;
+    }
+    a[(1, 8)] += kt / jm;
+    a[(1, 6)] += (ic - 1.0) * -w * w;
+    a[(0, 1)] = 1.0;
+    a[(2, 3)] = 1.0;
+    a[(4, 5)] = 1.0;
+    a[(5, 3)] = wn * wn;
+    a[(5, 4)] = -wn * wn;
+    a[(5, 5)] = -2.0 * zeta * wn;
+    a[(6, 7)] = 1.0;
+    a[(7, 6)] = -w * w;
+    let e = (a * ts).exp();
+    // Discrete state: plant 0..8 (without the command), then the law, then the delay line.
+    let fs = ctl.sample_rate_hz;
+    let filters: Vec<Biquad> = ctl
+        .command_filters
+        .iter()
+        .map(|f| Biquad::design(f, fs))
+        .collect();
+    let (g_at, i_at, d_at, yp_at, r_at) = (8, 9, 10, 11, 12);
+    let f_at = 13;
+    let h_at = f_at + 2 * filters.len();
+    let dim = h_at + m.max(1);
+    let ad = (-std::f64::consts::TAU * ctl.derivative_filter_hz * ts).exp();
+    let step = |s: &DVector<f64>| -> DVector<f64> {
+        let mut out = DVector::<f64>::zeros(dim);
+        let dot = |r: &[f64; 9]| (0..8).map(|j| r[j] * s[j]).sum::<f64>();
+        let gyro = s[4];
+        let y = match ctl.feedback {
+            Feedback::Motor => dot(&th_m),
+            Feedback::Output => ic * dot(&th_o),
+            Feedback::GyroAngle => ic * s[g_at],
+        };
+        out[g_at] = s[g_at] + ts * gyro;
+        let integ = s[i_at] - ctl.ki * ts * y;
+        let deriv = ad * s[d_at] - (1.0 - ad) * (ctl.kd / ts) * (y - s[yp_at]);
+        out[i_at] = integ;
+        out[d_at] = deriv;
+        out[yp_at] = y;
+        let mut v = -ctl.kp * y + integ + deriv;
+        if let Some(r) = &ctl.rate_loop {
+            assert_eq!(r.measurement, RateSource::Gyro);
+            let err = v - gyro;
+            let ri_next = s[r_at] + r.ki * ts * err;
+            out[r_at] = ri_next;
+            v = r.kp * err + ri_next;
+        }
+        for (q, b) in filters.iter().enumerate() {
+            let [b0, b1, b2, a1, a2] = b.coefficients();
+            let at = f_at + 2 * q;
+            let y = b0 * v + s[at];
+            out[at] = b1 * v - a1 * y + s[at + 1];
+            out[at + 1] = b2 * v - a2 * y;
+            v = y;
+        }
+        // The command held over this period was computed m periods ago.
+        let held = if m == 0 { v } else { s[h_at + m - 1] };
+        for i in 0..8 {
+            out[i] = (0..8).map(|j| e[(i, j)] * s[j]).sum::<f64>() + e[(i, 8)] * held;
+        }
+        if m > 0 {
+            out[h_at] = v;
+            for q in 1..m {
+                out[h_at + q] = s[h_at + q - 1];
+            }
+        }
+        out
+    };
+    let mut full = DMatrix::<f64>::zeros(dim, dim);
+    for j in 0..dim {
+        let mut u = DVector::<f64>::zeros(dim);
+        u[j] = 1.0;
+        full.set_column(j, &step(&u));
+    }
+    // Everything but the exosystem (6, 7), forced by its mode [1, jw].
+    let rest: Vec<usize> = (0..dim).filter(|&i| i != 6 && i != 7).collect();
+    let nr = rest.len();
+    let z = Complex::from_polar(1.0, w * ts);
+    let lhs = DMatrix::<Complex<f64>>::from_fn(nr, nr, |i, j| {
+        let v = Complex::from(-full[(rest[i], rest[j])]);
+        if i == j {
+            v + z
+        } else {
+            v
+        }
+    });
+    let rhs = DVector::<Complex<f64>>::from_fn(nr, |i, _| {
+        Complex::from(full[(rest[i], 6)]) + Complex::new(0.0, w) * full[(rest[i], 7)]
+    });
+    let x = lhs
+        .lu()
+        .solve(&rhs)
+        .expect("the closed loop is regular on the unit circle");
+    // The drum's inertial angle is rest[2] = 2.
+    x[2]
+}
+
+/// The exact reference `LinearLoop::base_to_los` against the independent model above,
+/// from 0.05 to 50 Hz within 0.01 dB and 0.1 deg: on the shipped stabilised gimbal (gyro
+/// angle, rate loop, notch) and on a plain PID on the motor encoder with base motion.
+/// Below 1 Hz the reference used to cancel two order-one terms and was off by +22 dB at
+/// 0.2 Hz; the rejection there is near 150 dB.
+#[test]
+fn base_to_los_matches_an_independent_exact_model() {
+    let designs = [
+        ("gimbal_stabilized", scenario("gimbal_stabilized", &[])),
+        (
+            "plain PID",
+            scenario(
+                "eots_tracking",
+                &["closed_loop.base_motion={kind=\"sine\",amplitude_rad=1e-3,frequency_hz=2.0}"],
+            ),
+        ),
+    ];
+    for (name, s) in &designs {
+        let lin = LinearLoop::new(s.closed_loop.as_ref().unwrap(), &s.drive);
+        for f in [0.05, 0.1, 0.2, 0.3, 0.5, 1.0, 5.0, 50.0] {
+            let got = lin.base_to_los(f);
+            let want = independent_base_to_los(s, f);
+            let phase = (got / want).arg().to_degrees();
+            println!(
+                "{name}: {f:5} Hz  reference {:9.4} dB  independent {:9.4} dB  {phase:+.4} deg",
+                db(got),
+                db(want)
+            );
+            assert!(
+                (db(got) - db(want)).abs() < 0.01 && phase.abs() < 0.1,
+                "{name} at {f} Hz: {} dB against {} dB, {phase} deg",
+                db(got),
+                db(want)
+            );
+        }
+    }
+}
+
+/// The simulation under a sinusoidal base agrees with the exact reference within 0.1 dB
+/// from 0.2 Hz up, where the stabilised loop rejects about 150 dB.
+#[test]
+fn simulated_base_motion_agrees_with_the_exact_reference_from_0_2_hz() {
+    let s = stabilised(&[]);
+    let spec = FreqRespParams {
+        point: LoopPoint::BaseMotion,
+        frequencies_hz: vec![0.2, 1.0, 5.0],
+        amplitudes: vec![1.0],
+        refine_iterations: 0,
+        measure_periods: 1,
+        // The outer loop's slowest pole (0.5 s) must have died away far below the
+        // -150 dB left at 0.2 Hz.
+        settle_min_s: 10.0,
+        ..FreqRespParams::default()
+    };
+    let r = run(&s, &spec);
+    for pt in &r.amplitudes[0].points {
+        let got = pt.response.unwrap_or_else(|| panic!("{:?}", pt.failure));
+        let phase = (got / pt.exact).arg().to_degrees();
+        println!(
+            "{:7.3} Hz  simulated {:9.3} dB  exact {:9.3} dB  {phase:+.3} deg",
+            pt.frequency_hz,
+            db(got),
+            db(pt.exact)
+        );
+        assert!(
+            (db(got) - db(pt.exact)).abs() < 0.1,
+            "{} Hz: {} dB against {} dB",
+            pt.frequency_hz,
+            db(got),
+            db(pt.exact)
+        );
+    }
+}

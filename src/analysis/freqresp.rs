@@ -72,6 +72,30 @@ fn invalid(key: &str, message: String) -> FreqRespError {
     }
 }
 
+/// Highest base-motion frequency the simulation takes at `sample_rate_hz`, exclusive:
+/// a tenth of the control rate, Hz (the base is interpolated inside each period).
+pub fn base_motion_limit_hz(sample_rate_hz: f64) -> f64 {
+    0.1 * sample_rate_hz
+}
+
+/// Base-motion rejection in dB from line of sight over base angle: `-20 log10 |LOS/base|`
+/// (positive when the line of sight moves less than the base).
+pub fn rejection_db(los_over_base: Complex<f64>) -> f64 {
+    -20.0 * los_over_base.norm().log10()
+}
+
+/// The declared base-rejection requirement `(frequency Hz, least rejection dB)`, when
+/// `point` measures base motion and both keys are given.
+fn base_requirement(
+    point: LoopPoint,
+    req: &crate::closed_loop::Requirements,
+) -> Option<(f64, f64)> {
+    match (point, req.base_rejection_hz, req.min_base_rejection_db) {
+        (LoopPoint::BaseMotion, Some(f), Some(db)) => Some((f, db)),
+        _ => None,
+    }
+}
+
 impl FreqRespParams {
     /// The frequencies to measure, Hz, checked against Nyquist.
     pub fn frequencies(&self, sample_rate_hz: f64) -> Result<Vec<f64>, FreqRespError> {
@@ -88,11 +112,12 @@ impl FreqRespParams {
                 Ok(f)
             }
         };
-        // The base's motion is interpolated inside each period: a tenth of the rate at most.
-        let base_limit = 0.1 * sample_rate_hz;
+        // The base's motion is interpolated inside each period: below a tenth of the rate
+        // (the scenario's own check on `closed_loop.base_motion`, strict).
+        let base_limit = base_motion_limit_hz(sample_rate_hz);
         let base_check = |key: &str, f: f64| {
-            if self.point == LoopPoint::BaseMotion && f > base_limit {
-                Err(invalid(key, format!("frequency {f} Hz: base motion is measured up to a tenth of the control rate ({base_limit} Hz), as the base is interpolated inside each period")))
+            if self.point == LoopPoint::BaseMotion && f >= base_limit {
+                Err(invalid(key, format!("frequency {f} Hz: base motion is measured up to a tenth of the control rate (below {base_limit} Hz), as the base is interpolated inside each period")))
             } else {
                 Ok(f)
             }
@@ -108,17 +133,24 @@ impl FreqRespParams {
             return Ok(f);
         }
         let lo = check("f_min_hz", self.f_min_hz)?;
-        let default_hi = if self.point == LoopPoint::BaseMotion {
-            base_limit
-        } else {
-            0.4 * nyquist
+        let (hi, hi_key) = match self.f_max_hz {
+            Some(f) => (base_check("f_max_hz", check("f_max_hz", f)?)?, "f_max_hz"),
+            // The default sits just inside the real limit: a frequency snapped to whole
+            // periods moves by at most half a sample in `min_samples`.
+            None if self.point == LoopPoint::BaseMotion => (
+                base_limit * (1.0 - 1.0 / f64::from(self.min_samples.max(16))),
+                "f_min_hz",
+            ),
+            None => (0.4 * nyquist, "f_min_hz"),
         };
-        let hi = check("f_max_hz", self.f_max_hz.unwrap_or(default_hi))?;
-        let hi = base_check("f_max_hz", hi)?;
         if hi <= lo {
             return Err(invalid(
-                "f_max_hz",
-                format!("{hi} Hz must be above f_min_hz = {lo} Hz"),
+                hi_key,
+                if self.f_max_hz.is_some() {
+                    format!("{hi} Hz must be above f_min_hz = {lo} Hz")
+                } else {
+                    format!("{lo} Hz must be below the default upper end of the range, {hi} Hz (or give f_max_hz)")
+                },
             ));
         }
         if !(2..=500).contains(&self.points) {
@@ -192,6 +224,15 @@ impl FreqRespParams {
             _ => {}
         }
         self.frequencies(p.controller.sample_rate_hz)?;
+        if let Some((f, _)) = base_requirement(self.point, &p.requirements) {
+            let limit = base_motion_limit_hz(p.controller.sample_rate_hz);
+            if f >= limit {
+                return Err(FreqRespError::Invalid {
+                    key: "closed_loop.requirements.base_rejection_hz".into(),
+                    message: format!("{f} Hz: base motion is measured below a tenth of the control rate ({limit} Hz); judge the rejection at a lower frequency"),
+                });
+            }
+        }
         self.amplitudes(p.motor.command_limit())?;
         let positive = |key: &str, v: f64, hi: f64| {
             if v.is_finite() && v >= 0.0 && v <= hi {
@@ -311,6 +352,68 @@ pub struct AmplitudeResponse {
     pub margins: Option<EstimatedMargins>,
     /// Requirements not met, and frequencies that failed (empty = passes).
     pub shortfalls: Vec<String>,
+    /// The base-motion rejection at the required frequency (base motion with
+    /// `requirements.min_base_rejection_db` declared; `None` otherwise).
+    pub base_rejection: Option<RejectionCheck>,
+}
+
+/// The base-motion rejection at the frequency `[closed_loop.requirements]` names.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RejectionCheck {
+    /// Frequency judged, Hz (`requirements.base_rejection_hz`).
+    pub frequency_hz: f64,
+    /// Measured rejection there, dB (`-20 log10 |LOS/base|`, interpolated linearly in dB
+    /// on log frequency between the measured neighbours); `None` when not measured.
+    pub rejection_db: Option<f64>,
+    /// The exact linear reference's rejection there, dB.
+    pub reference_rejection_db: f64,
+    /// Least rejection required, dB (`requirements.min_base_rejection_db`).
+    pub min_rejection_db: f64,
+}
+
+impl RejectionCheck {
+    /// Whether the measured rejection meets the requirement.
+    pub fn passes(&self) -> bool {
+        self.rejection_db
+            .is_some_and(|r| r >= self.min_rejection_db)
+    }
+
+    /// The shortfall, worded for the console (`None` when it passes).
+    pub fn shortfall(&self) -> Option<String> {
+        match self.rejection_db {
+            _ if self.passes() => None,
+            Some(r) => Some(format!(
+                "base-motion rejection {r:.2} dB at {} Hz < {} dB required",
+                self.frequency_hz, self.min_rejection_db
+            )),
+            None => Some(format!(
+                "base-motion rejection at {} Hz not measured (its frequency and neighbours failed)",
+                self.frequency_hz
+            )),
+        }
+    }
+}
+
+/// Measured rejection at `f_hz`, dB: linear in dB on log frequency between the measured
+/// points either side, or the nearest point when it lies within the frequency snap.
+fn rejection_at(points: &[FreqPoint], f_hz: f64) -> Option<f64> {
+    let ok: Vec<(f64, f64)> = points
+        .iter()
+        .filter_map(|p| p.response.map(|r| (p.frequency_hz, rejection_db(r))))
+        .collect();
+    if let Some(w) = ok
+        .windows(2)
+        .find(|w| w[0].0 <= f_hz && f_hz <= w[1].0 && w[1].0 > w[0].0)
+    {
+        let s = (f_hz / w[0].0).ln() / (w[1].0 / w[0].0).ln();
+        return Some(w[0].1 + s * (w[1].1 - w[0].1));
+    }
+    // Outside the measured span only the requirement's own point, moved by the snap to
+    // whole periods (half a sample in `min_samples`, 16 or more), may stand for it.
+    ok.iter()
+        .filter(|(f, _)| (f / f_hz).ln().abs() < 0.04)
+        .min_by(|a, b| (a.0 / f_hz).ln().abs().total_cmp(&(b.0 / f_hz).ln().abs()))
+        .map(|p| p.1)
 }
 
 impl AmplitudeResponse {
@@ -351,6 +454,22 @@ pub struct FreqResponse {
     pub runs: usize,
     /// Simulated time over all runs, s.
     pub simulated_s: f64,
+}
+
+impl FreqResponse {
+    /// The verdict: `None` when there is nothing to judge (base motion without a declared
+    /// `requirements.min_base_rejection_db`, every frequency measured), else whether
+    /// every amplitude meets its requirements.
+    pub fn verdict(&self) -> Option<bool> {
+        let passes = self.amplitudes.iter().all(AmplitudeResponse::passes);
+        let undeclared = self.point == LoopPoint::BaseMotion
+            && self.amplitudes.iter().all(|a| a.base_rejection.is_none());
+        if undeclared && passes {
+            None
+        } else {
+            Some(passes)
+        }
+    }
 }
 
 /// An oscillation the describing function predicts: where the loop gain `K P(A)` at a
@@ -572,7 +691,16 @@ impl Bench<'_> {
         let point = self.spec.point;
         let ts = 1.0 / base.controller.sample_rate_hz;
         let ic = self.setup.drive.ratio();
-        let w = window(self.spec, f_hz, ts);
+        let mut w = window(self.spec, f_hz, ts);
+        if point == LoopPoint::BaseMotion {
+            // One more sample in the window lowers the snapped frequency: it must stay
+            // below the limit the scenario's base motion is checked against.
+            let limit = base_motion_limit_hz(base.controller.sample_rate_hz);
+            while w.frequency_hz >= limit {
+                w.samples += 1;
+                w.frequency_hz = w.cycles as f64 / (w.samples as f64 * ts);
+            }
+        }
         let n = w.settle + w.samples;
         let mut p = base.clone();
         p.duration_s = n as f64 * ts;
@@ -996,7 +1124,16 @@ pub fn measure(
 ) -> Result<FreqResponse, FreqRespError> {
     let p = setup.params;
     spec.validate(p)?;
-    let freqs = spec.frequencies(p.controller.sample_rate_hz)?;
+    let mut freqs = spec.frequencies(p.controller.sample_rate_hz)?;
+    let required = base_requirement(spec.point, &p.requirements);
+    // The required frequency is measured itself, so the verdict reads no interpolation
+    // across a wide step of the grid.
+    if let Some((f, _)) = required {
+        if !freqs.iter().any(|&g| (g / f - 1.0).abs() < 1e-9) {
+            freqs.push(f);
+            freqs.sort_by(f64::total_cmp);
+        }
+    }
     let amps = spec.amplitudes(p.motor.command_limit())?;
     let free = ClosedLoopParams::half_stiffness_n_per_m(setup.drive);
     let k = match spec.reference_load_nm {
@@ -1064,7 +1201,14 @@ pub fn measure(
                 if let Some(e) = error {
                     return Err(e);
                 }
-                let shortfalls = shortfalls(&p.requirements, &points, margins.as_ref());
+                let mut shortfalls = shortfalls(&p.requirements, &points, margins.as_ref());
+                let base_rejection = required.map(|(f, min_db)| RejectionCheck {
+                    frequency_hz: f,
+                    rejection_db: rejection_at(&points, f),
+                    reference_rejection_db: rejection_db(bench.lin.base_to_los(f)),
+                    min_rejection_db: min_db,
+                });
+                shortfalls.extend(base_rejection.as_ref().and_then(RejectionCheck::shortfall));
                 Ok((
                     AmplitudeResponse {
                         amplitude: amp,
@@ -1072,6 +1216,7 @@ pub fn measure(
                         points,
                         margins,
                         shortfalls,
+                        base_rejection,
                     },
                     extra_runs,
                     extra_s,

@@ -50,6 +50,8 @@ pub struct LinearLoop {
     c_scale: [f64; 3],
     /// Base rate's entry (the gyro sees it), per rad/s.
     base_rate: DVector<f64>,
+    /// Transmission ratio `ro / ri`: motor rad per drum rad.
+    ic: f64,
     /// Whole periods of computation delay.
     whole: usize,
     /// Sample period, s.
@@ -311,6 +313,7 @@ impl LinearLoop {
             rows,
             c_scale,
             base_rate,
+            ic,
             whole: whole as usize,
             ts,
             kp: ctl.kp,
@@ -414,45 +417,73 @@ impl LinearLoop {
     /// turns as `sin(2 pi f t)`, the loop answers through the drum, the gyro and the
     /// motor, and the line of sight is the base angle plus the drum's. 1 at low frequency
     /// for a loop on the encoders (the drum follows the base), small for a stabilised one.
+    ///
+    /// Evaluated on the sampled closed loop, `(zI - Acl)^-1` applied to the base's input,
+    /// whose poles lie inside the unit circle. A NaN ratio means the closed loop is
+    /// singular at `f_hz` (a pole on the unit circle there).
     pub fn base_to_los(&self, f_hz: f64) -> Complex<f64> {
-        // Worked in inertial angles (drum and motor angle plus the base's), where the line
-        // of sight is a state: in the relative angles the simulation uses it would be the
-        // difference of two numbers near 1 that agree to 1e-6 and more for a stiff
-        // stabilisation, which double precision cannot resolve through the resolvent.
-        // With x_in = x + beta a + beta' b (a: the angles, b: the speeds) the base's
-        // acceleration drops out and what is left is the coupling through the cable,
-        // friction and drag: x_in' = A x_in + B u - A a beta + (a - A b + e_rate) beta'.
+        // Coordinates: the drum's inertial angle (the line of sight itself) and the motor's
+        // angle relative to the base plus `ic` times the base's (where the motor must
+        // stand for the cable to be unstretched under a drum held still), speeds alike.
+        // In them the base stretches no cable: it enters only through friction, drag and
+        // back-EMF on relative speeds, the motor's inertia (it turns by (1 - ic) beta)
+        // and the encoders' readings, all of the size of the loop's answer, so nothing
+        // cancels. In relative angles the line of sight is the difference of two numbers
+        // near the base angle; in plain inertial angles the cable is stretched by
+        // (ro - ri) beta, an order-one forcing that the open loop's double pole at z = 1
+        // amplifies and the loop's answer cancels. Both lost every digit below ~1 Hz.
+        let n = self.ad.nrows();
         let w = std::f64::consts::TAU * f_hz;
         let jw = Complex::new(0.0, w);
-        let n = self.ad.nrows();
-        let mut a_vec = DVector::<f64>::zeros(n);
-        let mut b_vec = DVector::<f64>::zeros(n);
-        a_vec[0] = 1.0;
-        a_vec[2] = 1.0;
-        b_vec[1] = 1.0;
-        b_vec[3] = 1.0;
-        let by_angle = -(&self.a_cont * &a_vec);
-        let by_rate = &a_vec - &self.a_cont * &b_vec + &self.base_rate;
-        let v: DVector<Complex<f64>> = by_angle.map(Complex::from) + by_rate.map(|x| jw * x);
-        // Forcing of beta = e^{jwt} over one period: the integral of e^{A(T-s)} v e^{jws}
-        // ds = (jwI - A)^-1 (e^{jwT} I - Ad) v.
-        let eye = DMatrix::<Complex<f64>>::identity(n, n);
-        let m = &eye * jw - self.a_cont.map(Complex::from);
-        let ejwt = Complex::from_polar(1.0, w * self.ts);
-        let rhs = (&eye * ejwt - self.ad.map(Complex::from)) * v;
-        let forcing = m.lu().solve(&rhs).unwrap_or_else(|| DVector::zeros(n));
-        let xq = self.resolvent(f_hz, &forcing);
-        // The encoders read angles relative to the base (x = x_in - beta a); the gyro
-        // reads the inertial rate.
-        let feedthrough = [-1.0, -1.0, 0.0];
-        let q_in: [Complex<f64>; 3] = std::array::from_fn(|j| dot(&self.rows[j], &xq));
-        let q: [Complex<f64>; 3] = std::array::from_fn(|j| q_in[j] + Complex::from(feedthrough[j]));
-        let p = self.plant_rows(f_hz);
-        let k = self.law_row(f_hz);
-        let num: Complex<f64> = (0..3).map(|j| k[j] * q[j]).sum();
-        let den: Complex<f64> =
-            Complex::from(1.0) - (0..3).map(|j| k[j] * p[j]).sum::<Complex<f64>>();
-        p[ROW_DRUM] * (num / den) + q_in[ROW_DRUM]
+        let mut shift_rate = DVector::<f64>::zeros(n);
+        shift_rate[1] = self.ic;
+        shift_rate[3] = 1.0;
+        let mut shift_angle = DVector::<f64>::zeros(n);
+        shift_angle[0] = self.ic;
+        shift_angle[2] = 1.0;
+        // Both inertias feel -J beta'' in the relative angles the plant is written in.
+        let mut accel = DVector::<f64>::zeros(n);
+        accel[1] = -1.0;
+        accel[3] = -1.0;
+        // x' = A x + B u + (shift_angle + base_rate - A shift_rate) beta'
+        //      + (shift_rate + accel) beta''; A shift_angle is the cable's stretch under
+        // the shift, zero by construction, and left out rather than rounded.
+        let by_rate = &shift_angle + &self.base_rate - &self.a_cont * &shift_rate;
+        let by_accel = &shift_rate + &accel;
+        let v: DVector<Complex<f64>> =
+            by_rate.map(|x| jw * x) + by_accel.map(|x| Complex::from(-w * w * x));
+        // Forcing of beta = e^{jwt} over the period from t = 0: the integral of
+        // e^{A(T-s)} v e^{jws} ds, the corner of the exponential of [[A, v], [0, jw]].
+        let scale = v.norm();
+        let mut forcing = DVector::<Complex<f64>>::zeros(n);
+        if scale > 0.0 {
+            let mut m = DMatrix::<Complex<f64>>::zeros(n + 1, n + 1);
+            m.view_mut((0, 0), (n, n))
+                .copy_from(&self.a_cont.map(Complex::from));
+            m.view_mut((0, n), (n, 1))
+                .copy_from(&(&v / Complex::from(scale)));
+            m[(n, n)] = jw;
+            let e = (m * Complex::from(self.ts)).exp();
+            forcing = e.view((0, n), (n, 1)).column(0).into_owned() * Complex::from(scale);
+        }
+        // The encoders read relative angles: the motor's is the shifted one less
+        // ic beta, the drum's the inertial one less beta; the gyro reads the state.
+        let law = self.step_read(
+            &DVector::zeros(self.closed_loop_dim()),
+            &[self.ic, 1.0, 0.0],
+        );
+        let mut input = law.map(Complex::from);
+        for i in 0..n {
+            input[i] += forcing[i];
+        }
+        let acl = self.closed_loop_matrix();
+        let dim = acl.nrows();
+        let z = Complex::from_polar(1.0, w * self.ts);
+        let lhs = DMatrix::<Complex<f64>>::identity(dim, dim) * z - acl.map(Complex::from);
+        match lhs.lu().solve(&input) {
+            Some(s) => s[2],
+            None => Complex::new(f64::NAN, f64::NAN),
+        }
     }
 
     /// Controller `K` at `f_hz`.
@@ -514,6 +545,12 @@ impl LinearLoop {
     /// law is written out here again as difference equations, apart from its code in
     /// `law.rs`, so the two can be checked against each other.
     fn step(&self, s: &DVector<f64>) -> DVector<f64> {
+        self.step_read(s, &[0.0; 3])
+    }
+
+    /// [`Self::step`] with the law reading the motor angle, the drum angle and the gyro's
+    /// rate less `offset` (the encoders' view of a turning base; rad, rad, rad/s).
+    fn step_read(&self, s: &DVector<f64>, offset: &[f64; 3]) -> DVector<f64> {
         let n = self.ad.nrows();
         let x = s.rows(0, n);
         let (integ, deriv, y_prev) = (s[n], s[n + 1], s[n + 2]);
@@ -538,9 +575,9 @@ impl LinearLoop {
             c.iter().fold(v, |v, b| biquad(b, v, alloc(2), out))
         };
         let rows = [
-            self.rows[ROW_MOTOR].dot(&x),
-            self.rows[ROW_DRUM].dot(&x),
-            self.rows[ROW_GYRO].dot(&x),
+            self.rows[ROW_MOTOR].dot(&x) - offset[ROW_MOTOR],
+            self.rows[ROW_DRUM].dot(&x) - offset[ROW_DRUM],
+            self.rows[ROW_GYRO].dot(&x) - offset[ROW_GYRO],
         ];
         let pid = |y: f64, out: &mut DVector<f64>| {
             let integ = integ - self.ki_t * y;
@@ -551,7 +588,10 @@ impl LinearLoop {
             -self.kp * y + integ + deriv
         };
         let u = match &self.law {
-            None => pid(self.c.dot(&x), &mut out),
+            None => {
+                let read: f64 = (0..3).map(|j| self.c_scale[j] * offset[j]).sum();
+                pid(self.c.dot(&x) - read, &mut out)
+            }
             Some(l) => {
                 let raw = match l.feedback {
                     Feedback::Motor => rows[ROW_MOTOR],
@@ -619,7 +659,7 @@ impl LinearLoop {
 
     /// The sampled closed loop as a matrix (its columns are the responses to unit states).
     pub fn closed_loop_matrix(&self) -> DMatrix<f64> {
-        let dim = self.ad.nrows() + 3 + self.whole + 1 + self.law_states();
+        let dim = self.closed_loop_dim();
         let mut m = DMatrix::<f64>::zeros(dim, dim);
         for j in 0..dim {
             let mut e = DVector::<f64>::zeros(dim);
@@ -627,6 +667,11 @@ impl LinearLoop {
             m.set_column(j, &self.step(&e));
         }
         m
+    }
+
+    /// Size of the sampled closed loop's state.
+    fn closed_loop_dim(&self) -> usize {
+        self.ad.nrows() + 3 + self.whole + 1 + self.law_states()
     }
 
     /// Poles of the sampled closed loop. A loop that holds the gyro-integrated angle reads
@@ -826,6 +871,7 @@ mod tests {
             ],
             c_scale: [1.0, 0.0, 0.0],
             base_rate: DVector::zeros(2),
+            ic: 1.0,
             whole: 0,
             ts,
             kp: 0.0,

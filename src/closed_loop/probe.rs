@@ -115,7 +115,8 @@ pub struct FreqRespParams {
     pub frequencies_hz: Vec<f64>,
     /// Lowest frequency of the log range, Hz (1).
     pub f_min_hz: f64,
-    /// Highest frequency of the log range, Hz; `None` = 0.4 x Nyquist.
+    /// Highest frequency of the log range, Hz; `None` = 0.4 x Nyquist (base motion: just
+    /// under a tenth of the control rate, the highest the base is simulated at).
     pub f_max_hz: Option<f64>,
     /// Frequencies in the log range (20).
     pub points: usize,

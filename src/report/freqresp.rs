@@ -7,13 +7,14 @@ use nalgebra::Complex;
 
 use super::{csv_writer, write_json, write_summary, ReportError};
 use crate::analysis::freqresp::{
-    exact_transfer, AmplitudeResponse, FreqPoint, FreqResponse, PredictedCycle,
+    exact_transfer, rejection_db, AmplitudeResponse, FreqPoint, FreqResponse, LoopPoint,
+    PredictedCycle,
 };
 use crate::analysis::linear::LinearLoop;
 use crate::plot::{family_colour, save_chart, save_panels, Chart, Series, REFERENCE_RGB};
 use crate::scenario::Scenario;
 
-const COLUMNS: [&str; 19] = [
+const COLUMNS: [&str; 21] = [
     "amplitude",
     "amplitude_unit",
     "requested_hz",
@@ -32,6 +33,8 @@ const COLUMNS: [&str; 19] = [
     "complementary_mag_db",
     "distortion_percent",
     "output_amplitude_mrad",
+    "rejection_db",
+    "reference_rejection_db",
     "failure",
 ];
 
@@ -43,8 +46,10 @@ fn num(v: Option<f64>) -> String {
     v.map_or_else(String::new, |v| format!("{v}"))
 }
 
-fn row(a: &AmplitudeResponse, p: &FreqPoint) -> Vec<String> {
+fn row(point: LoopPoint, a: &AmplitudeResponse, p: &FreqPoint) -> Vec<String> {
     let r = p.response;
+    // Rejection is the base-motion point's figure; elsewhere the columns stay empty.
+    let base = point == LoopPoint::BaseMotion;
     let l = p.loop_gain;
     let one = Complex::from(1.0);
     vec![
@@ -66,6 +71,8 @@ fn row(a: &AmplitudeResponse, p: &FreqPoint) -> Vec<String> {
         num(l.map(|l| db(l / (one + l)))),
         num(p.distortion_percent),
         num(p.output_amplitude_mrad),
+        num(r.filter(|_| base).map(rejection_db)),
+        num(base.then(|| rejection_db(p.exact))),
         p.failure.clone().unwrap_or_default(),
     ]
 }
@@ -85,7 +92,7 @@ fn write_rows(path: &Path, rows: &[Vec<String>]) -> Result<(), ReportError> {
 pub fn write_outputs(dir: &Path, scenario: &Scenario, r: &FreqResponse) -> Result<(), ReportError> {
     let mut all = Vec::new();
     for (k, a) in r.amplitudes.iter().enumerate() {
-        let rows: Vec<Vec<String>> = a.points.iter().map(|p| row(a, p)).collect();
+        let rows: Vec<Vec<String>> = a.points.iter().map(|p| row(r.point, a, p)).collect();
         write_rows(&dir.join(format!("amplitude_{}.csv", k + 1)), &rows)?;
         let json = serde_json::to_value(a).map_err(|e| ReportError::Encode {
             path: dir.join(format!("amplitude_{}.json", k + 1)),
@@ -102,8 +109,9 @@ pub fn write_outputs(dir: &Path, scenario: &Scenario, r: &FreqResponse) -> Resul
             serde_json::json!({
                 "amplitude": a.amplitude,
                 "unit": a.unit,
-                "passes": a.passes(),
+                "passes": r.verdict().map(|_| a.passes()),
                 "shortfalls": a.shortfalls,
+                "base_rejection": a.base_rejection,
                 "frequencies": a.points.len(),
                 "failed_frequencies": a.points.iter().filter(|p| p.failure.is_some()).count(),
                 "margins": a.margins,
@@ -118,7 +126,7 @@ pub fn write_outputs(dir: &Path, scenario: &Scenario, r: &FreqResponse) -> Resul
             "freqresp": {
                 "point": r.point,
                 "transfer": r.transfer,
-                "passes": r.amplitudes.iter().all(AmplitudeResponse::passes),
+                "passes": r.verdict(),
                 "amplitudes": amplitudes,
                 "exact_linear_reference": r.exact_margins,
                 "reference_cable": r.reference_cable,
@@ -280,8 +288,12 @@ pub fn plot(dir: &Path, r: &FreqResponse, lin: &LinearLoop) -> Result<Vec<PathBu
     Ok(written)
 }
 
-/// The console table: per amplitude, the estimated margins beside the exact reference's.
+/// The console table: per amplitude, the estimated margins beside the exact reference's;
+/// for base motion, the rejection per frequency beside the exact reference's.
 pub fn format_table(r: &FreqResponse) -> String {
+    if r.point == LoopPoint::BaseMotion {
+        return format_rejection_table(r);
+    }
     let opt = |v: Option<f64>, d: usize| v.map_or_else(|| "-".to_string(), |v| format!("{v:.d$}"));
     let e = &r.exact_margins;
     let mut t = format!(
@@ -358,6 +370,76 @@ pub fn format_table(r: &FreqResponse) -> String {
     }
     if let Some(cycles) = &r.limit_cycles {
         t.push_str(&limit_cycle_lines(r, cycles));
+    }
+    t
+}
+
+/// The base-motion table: per amplitude and frequency the measured rejection
+/// (`-20 log10 |LOS/base|`), the exact reference's, their difference and the phase of the
+/// measured response relative to the reference; then the verdict, or why there is none.
+fn format_rejection_table(r: &FreqResponse) -> String {
+    let mut t = format!(
+        "{:<12} {:>12} {:>13} {:>13} {:>13} {:>14} {:>8}\n",
+        "amplitude",
+        "frequency_hz",
+        "rejection_db",
+        "reference_db",
+        "difference_db",
+        "phase_diff_deg",
+        "THD%"
+    );
+    for a in &r.amplitudes {
+        for p in &a.points {
+            let head = format!(
+                "{:<12} {:>12.4} ",
+                format!("{} {}", a.amplitude, a.unit),
+                p.frequency_hz
+            );
+            let exact = rejection_db(p.exact);
+            t.push_str(&match p.response {
+                Some(c) => format!(
+                    "{head}{:>13.3} {:>13.3} {:>13.3} {:>14.2} {:>8}\n",
+                    rejection_db(c),
+                    exact,
+                    rejection_db(c) - exact,
+                    (c / p.exact).arg().to_degrees(),
+                    p.distortion_percent
+                        .map_or_else(|| "-".to_string(), |v| format!("{v:.1}"))
+                ),
+                None => format!(
+                    "{head}{:>13} {:>13.3} {:>13} {:>14} {:>8}  failed: {}\n",
+                    "-",
+                    exact,
+                    "-",
+                    "-",
+                    "-",
+                    p.failure.as_deref().unwrap_or("")
+                ),
+            });
+        }
+    }
+    let mut declared = false;
+    for a in &r.amplitudes {
+        if let Some(c) = &a.base_rejection {
+            declared = true;
+            t.push_str(&format!(
+                "{} {}: rejection {} dB at {} Hz (exact reference {:.2} dB), required >= {} dB: passes {}\n",
+                a.amplitude,
+                a.unit,
+                c.rejection_db
+                    .map_or_else(|| "-".to_string(), |v| format!("{v:.2}")),
+                c.frequency_hz,
+                c.reference_rejection_db,
+                c.min_rejection_db,
+                if a.passes() { "yes" } else { "no" }
+            ));
+        }
+        for s in &a.shortfalls {
+            t.push_str(&format!("{} {}: {s}\n", a.amplitude, a.unit));
+        }
+    }
+    if !declared {
+        t.push_str("no base-rejection requirement declared: no verdict on the rejection (give closed_loop.requirements.min_base_rejection_db and base_rejection_hz to judge one)\n");
     }
     t
 }
