@@ -176,17 +176,22 @@ impl Check {
     /// The check as a sentence: `phase margin at tangent at 1.5 N m: 24.1 deg, required
     /// >= 35 deg (at 31.2 Hz)`.
     pub fn sentence(&self) -> String {
-        let measured = self.measured.map_or_else(
-            || "no value".to_string(),
-            |v| format!("{} {}", fmt_value(v), self.unit),
-        );
+        let with_unit = |v: f64| {
+            if self.unit.is_empty() {
+                fmt_value(v)
+            } else {
+                format!("{} {}", fmt_value(v), self.unit)
+            }
+        };
+        let measured = self
+            .measured
+            .map_or_else(|| "no value".to_string(), with_unit);
         let mut s = format!(
-            "{} ({}): {measured}, required {} {} {}",
+            "{} ({}): {measured}, required {} {}",
             self.requirement.replace('_', " "),
             self.condition,
             self.relation,
-            fmt_value(self.limit),
-            self.unit
+            with_unit(self.limit)
         );
         if !self.note.is_empty() {
             s.push_str(&format!("; {}", self.note));
@@ -244,7 +249,7 @@ fn margin_checks(p: &ClosedLoopParams, point: &OperatingPoint, out: &mut Vec<Che
             || "the sampled closed loop has a pole on or outside the unit circle".to_string(),
             |i| {
                 format!(
-                    "pole |z| = {} at {} Hz, growing at {} 1/s: no margins",
+                    "largest pole |z| = {} at {} Hz, growing at {} 1/s: no margins",
                     crate::significant(i.pole_magnitude, 6),
                     crate::significant(i.frequency_hz, 4),
                     crate::significant(i.growth_per_s, 4)
@@ -257,7 +262,7 @@ fn margin_checks(p: &ClosedLoopParams, point: &OperatingPoint, out: &mut Vec<Che
             cond,
             Some(m.spectral_radius),
             ("<", 1.0),
-            "|z|",
+            "",
             note,
         );
         c.passes = false;
@@ -269,8 +274,8 @@ fn margin_checks(p: &ClosedLoopParams, point: &OperatingPoint, out: &mut Vec<Che
         cond,
         Some(m.spectral_radius),
         ("<", 1.0),
-        "|z|",
-        "largest closed-loop pole".into(),
+        "",
+        "largest closed-loop pole |z|".into(),
     ));
     let n_gain = m.gain_crossovers.len();
     out.push(match m.worst_gain_crossover() {
