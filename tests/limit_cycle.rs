@@ -138,3 +138,20 @@ fn describing_function_predicts_nothing_for_a_loop_that_settles() {
     let cycles = predicted(&sets);
     assert!(cycles.is_empty(), "{cycles:?}");
 }
+
+/// The stabilised gimbal is linear and stable at rest; its 5 Hz error is the base motion's
+/// (hull vibration, a PSD from 1 to 150 Hz) forced response, not a limit cycle.
+#[test]
+fn a_stable_loop_under_base_motion_reports_a_forced_error_not_a_limit_cycle() {
+    let s = Scenario::load("gimbal_stabilized", &[]).unwrap_or_else(|e| panic!("{e}"));
+    let r = run_closed_loop(&s, &RunOptions::metrics_only()).unwrap_or_else(|e| panic!("{e}"));
+    for m in &r.modes {
+        match &m.limit_cycle {
+            LimitCycle::Detected { .. } => panic!("{}: {:?}", m.mode.name(), m.limit_cycle),
+            LimitCycle::Forced { source, .. } => {
+                assert!(source.contains("base motion"), "{source}")
+            }
+            LimitCycle::None { .. } | LimitCycle::NotJudged => {}
+        }
+    }
+}
