@@ -242,9 +242,8 @@ pub fn dropped_parts(cl: &crate::closed_loop::params::ClosedLoopParams) -> Resul
         return Ok(());
     }
     Err(format!(
-        "the FMU carries the plant only (motor, cable drive, drum, loads, encoders), not {}; the exported loop would differ from the scenario's. Remove them to export the plant without them knowingly (e.g. --set {}=[] for a list of filters, or a copy of the scenario without the section), and build them in the co-simulation's controller",
-        keys.join(", "),
-        keys[0]
+        "the FMU carries the plant only (motor, cable drive, drum, loads, encoders), not {}; the exported loop would differ from the scenario's. To export the plant without them knowingly, remove them from a copy of the scenario (a filter list also with --set KEY=[]) and build them into the co-simulation's controller",
+        keys.join(", ")
     ))
 }
 
