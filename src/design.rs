@@ -124,7 +124,10 @@ pub fn largest_meeting_target(
     }
     if !(range.0.is_finite() && range.1 > range.0 && tolerance > 0.0) {
         return Err(DesignError::Unsuitable(format!(
-            "need a range lo < hi and a tolerance > 0, got {range:?} and {tolerance}"
+            "need a range lo < hi and a tolerance > 0, got {} to {} and {}",
+            crate::readable(range.0),
+            crate::readable(range.1),
+            crate::readable(tolerance)
         )));
     }
     let search = largest_passing(range.0, range.1, tolerance, |v| {

@@ -69,6 +69,32 @@ pub fn compact(v: f64) -> String {
     format!("{mantissa}{exponent}")
 }
 
+/// `v` as users read it: at most 7 significant digits, no trailing zeros, exponent form
+/// for very large or small magnitudes: `100.0001`, `1e300`, `-2.5e-12`.
+pub fn readable(v: f64) -> String {
+    let s = significant(v, 7);
+    let (mantissa, exponent) = match s.find('e') {
+        Some(i) => s.split_at(i),
+        None => (s.as_str(), ""),
+    };
+    let mantissa = if mantissa.contains('.') {
+        mantissa.trim_end_matches('0').trim_end_matches('.')
+    } else {
+        mantissa
+    };
+    format!("{mantissa}{exponent}")
+}
+
+/// `v` with `decimals` decimals for everyday magnitudes (as `{:.N}` prints them), and as
+/// [`readable`] beyond 1e9 in size, where fixed decimals would print hundreds of digits.
+pub fn fixed(v: f64, decimals: usize) -> String {
+    if v.is_finite() && v.abs() < 1e9 {
+        format!("{v:.decimals$}")
+    } else {
+        readable(v)
+    }
+}
+
 /// A duration as shown in messages: `40 s`, `12 min`, `3.5 h`, `9.2 days`.
 pub fn duration_words(s: f64) -> String {
     if !s.is_finite() {
@@ -114,5 +140,11 @@ mod words_tests {
         assert_eq!(super::compact(7.000000000000001e-7), "7e-7");
         assert_eq!(super::compact(2.14307), "2.143");
         assert_eq!(super::compact(1200.0), "1200");
+        assert_eq!(super::readable(1e300), "1e300");
+        assert_eq!(super::fixed(0.0, 3), "0.000");
+        assert_eq!(super::fixed(2.0288e300, 3), "2.0288e300");
+        assert_eq!(super::readable(100.00001), "100");
+        assert_eq!(super::readable(100.0001), "100.0001");
+        assert_eq!(super::readable(-1.23456789e-300), "-1.234568e-300");
     }
 }

@@ -553,7 +553,10 @@ fn main() -> ExitCode {
                     .map_or(scenario.load.peak_torque_nm(), |b| b.load_nm)
             });
             if !(load_nm.is_finite() && load_nm > 0.0) {
-                tell!("error: --load-nm {load_nm}: give a torque > 0 N m");
+                tell!(
+                    "error: --load-nm {}: give a torque > 0 N m",
+                    cable_servo::readable(load_nm)
+                );
                 return ExitCode::from(exit::USAGE);
             }
             if !(min_n > 0.0 && max_n > min_n && tol_n > 0.0) {
@@ -573,7 +576,8 @@ fn main() -> ExitCode {
                 tol_n,
             );
             say!(
-                "least preload at M = {load_nm} N m ({} model): {}",
+                "least preload at M = {} N m ({} model): {}",
+                cable_servo::readable(load_nm),
                 cable_servo::study::quasi_static::model_name(model),
                 r.preload_n.map_or(
                     format!("none up to {} N", cable_servo::number(r.range_n.1)),
@@ -589,8 +593,8 @@ fn main() -> ExitCode {
                 say!("  note: {note}");
             }
             say!(
-                "  for comparison M/(2*drum_radius_m) = {:.3} N (slack limit if span tensions moved equally and oppositely)",
-                r.slack_bound_n
+                "  for comparison M/(2*drum_radius_m) = {} N (slack limit if span tensions moved equally and oppositely)",
+                cable_servo::fixed(r.slack_bound_n, 3)
             );
             say!("  definition: {}", r.definition);
             if r.preload_n.is_some() {
@@ -1180,7 +1184,8 @@ fn load(name: &str, set: &[String]) -> Result<Scenario, ExitCode> {
         .map(std::path::Path::to_path_buf)
         .unwrap_or_default();
     cable_servo::io::tables::load_tables(&mut scenario, &base).map_err(|e| {
-        tell!("error: {e}");
+        // The table's own message names the CSV; the scenario that refers to it is named too.
+        tell!("error: {name}: {e}");
         ExitCode::from(exit::INPUT)
     })?;
     Ok(scenario)

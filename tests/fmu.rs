@@ -148,6 +148,24 @@ fn export_refuses_what_it_cannot_do() {
     ]);
     assert_eq!(o.status.code(), Some(3), "{}", text(&o));
     assert!(text(&o).contains("preload_n"), "{}", text(&o));
+    // A loop the plant FMU would carry only in part: every dropped key named, no file.
+    let gimbal = dir.path().join("gimbal.fmu");
+    let o = run(&[
+        "export-fmu",
+        "gimbal_stabilized",
+        "--out",
+        gimbal.to_str().unwrap_or_default(),
+    ]);
+    assert_eq!(o.status.code(), Some(3), "{}", text(&o));
+    for key in [
+        "closed_loop.base_motion",
+        "closed_loop.gyro",
+        "closed_loop.controller.rate_loop",
+        "closed_loop.controller.command_filters",
+    ] {
+        assert!(text(&o).contains(key), "{key}: {}", text(&o));
+    }
+    assert!(!gimbal.exists());
 }
 
 /// The full check of scripts/fmu_check.py: 20 s of eots_tracking at 20 kHz through FMPy,

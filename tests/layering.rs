@@ -14,6 +14,8 @@ const LAYERS: &[(&str, &[&str])] = &[
             "number",
             "compact",
             "significant",
+            "readable",
+            "fixed",
             "duration_words",
             "physics",
             "signal",
@@ -36,6 +38,7 @@ const LAYERS: &[(&str, &[&str])] = &[
 /// listed here, within a layer, is refused, which also rules out circles.
 const SAME_LAYER: &[(&str, &str)] = &[
     ("physics", "number"),
+    ("physics", "fixed"),
     ("signal", "number"),
     ("metrics", "number"),
     ("analysis", "closed_loop"),

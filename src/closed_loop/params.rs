@@ -796,14 +796,20 @@ impl ClosedLoopParams {
             if v.is_finite() && v > 0.0 {
                 Ok(())
             } else {
-                Err((key(k), format!("{v} must be a finite number > 0")))
+                Err((
+                    key(k),
+                    format!("{} must be a finite number > 0", crate::number(v)),
+                ))
             }
         };
         let nonneg = |k: &str, v: f64| -> Result<(), (String, String)> {
             if v.is_finite() && v >= 0.0 {
                 Ok(())
             } else {
-                Err((key(k), format!("{v} must be a finite number >= 0")))
+                Err((
+                    key(k),
+                    format!("{} must be a finite number >= 0", crate::number(v)),
+                ))
             }
         };
         pos("duration_s", self.duration_s)?;
@@ -957,11 +963,12 @@ impl ClosedLoopParams {
             return Err((
                 key("controller.sample_rate_hz"),
                 format!(
-                    "{} Hz is not well above the plant's fastest mode ({fast_hz:.0} Hz: drive mode {:.0} Hz, drum-held mode {:.0} Hz, electrical and friction rates included); use at least {:.0} Hz, or soften the fast element",
-                    c.sample_rate_hz,
-                    modes.free_mode_rad_s / std::f64::consts::TAU,
-                    modes.locked_mode_rad_s / std::f64::consts::TAU,
-                    10.0 * fast_hz
+                    "{} Hz is not well above the plant's fastest mode ({} Hz: drive mode {} Hz, drum-held mode {} Hz, electrical and friction rates included); use at least {} Hz, or soften the fast element",
+                    crate::number(c.sample_rate_hz),
+                    crate::fixed(fast_hz, 0),
+                    crate::fixed(modes.free_mode_rad_s / std::f64::consts::TAU, 0),
+                    crate::fixed(modes.locked_mode_rad_s / std::f64::consts::TAU, 0),
+                    crate::fixed(10.0 * fast_hz, 0)
                 ),
             ));
         }

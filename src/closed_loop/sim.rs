@@ -15,7 +15,7 @@ use super::plant::{
     load_torque, BaseSegment, BrakeState, PlantCable, PlantCoefficients, State, CURRENT, GYRO,
     OMEGA_M, OMEGA_O, THETA_M, THETA_O,
 };
-use crate::metrics::limit_cycle::{LimitCycle, LimitCycleDetector};
+use crate::metrics::limit_cycle::{Forcing, LimitCycle, LimitCycleDetector};
 use crate::metrics::los::{error_spectrum, los_metrics, ErrorSpectrum, LosMetrics};
 use crate::metrics::{Metrics, MetricsAccumulator, MetricsConfig, Sample, StepEvent};
 use crate::physics::{
@@ -827,6 +827,58 @@ fn solve_input_angle(theta0: f64, ic: f64, f: impl Fn(f64) -> (f64, f64)) -> f64
     theta
 }
 
+/// What drives the loop from outside (reference, base motion, load torques), so the
+/// hunting detector does not take their forced response for a limit cycle.
+fn forcing(p: &ClosedLoopParams, load: &LoadParams) -> Forcing {
+    let mut f = Forcing::default();
+    signal_forcing(&p.reference, "reference", &mut f);
+    if let Some(b) = &p.base_motion {
+        signal_forcing(b, "base motion", &mut f);
+    }
+    if load.sine_nm != 0.0 && load.sine_frequency_hz > 0.0 {
+        f.lines
+            .push((load.sine_frequency_hz, "load sine torque".to_string()));
+    }
+    if !load.disturbance.is_empty() {
+        // A tabulated torque's lines are not estimated: any frequency may be forced.
+        f.bands.push((
+            0.0,
+            f64::INFINITY,
+            "load disturbance table (broadband)".to_string(),
+        ));
+    }
+    f
+}
+
+/// The lines (sine and triangle frequencies) or bands (PSD, table) a signal drives at.
+fn signal_forcing(s: &Signal, source: &str, f: &mut Forcing) {
+    match s {
+        Signal::Sine {
+            amplitude_rad,
+            frequency_hz,
+            ..
+        } if *amplitude_rad != 0.0 && *frequency_hz > 0.0 => {
+            f.lines.push((*frequency_hz, source.to_string()));
+        }
+        Signal::Triangle { frequency_hz, .. } => {
+            f.lines.push((*frequency_hz, source.to_string()));
+        }
+        Signal::Sum { parts } => parts.iter().for_each(|q| signal_forcing(q, source, f)),
+        Signal::Psd { psd, .. } => {
+            if let (Some(lo), Some(hi)) = (psd.first(), psd.last()) {
+                f.bands
+                    .push((lo[0], hi[0], format!("{source} (broadband)")));
+            }
+        }
+        Signal::Table { samples, .. } if samples.len() > 1 => {
+            // A table's lines are not estimated: broadband over every frequency.
+            f.bands
+                .push((0.0, f64::INFINITY, format!("{source} (broadband)")));
+        }
+        _ => {}
+    }
+}
+
 fn run_mode(
     scenario: &ClosedLoopSetup<'_>,
     mode: CompensationMode,
@@ -894,7 +946,7 @@ fn run_mode(
         settle_band_mrad: p.settle_band_mrad.unwrap_or(p.target_mrad),
         steps: step_events(&p.reference, p.duration_s),
     });
-    let mut hunting = LimitCycleDetector::default();
+    let mut hunting = LimitCycleDetector::default().with_forcing(forcing(p, load));
     let mut saturation = Saturation::default();
     let window_samples = ((p.duration_s - p.metrics_start_s) * p.controller.sample_rate_hz)
         .max(0.0)

@@ -112,10 +112,15 @@ pub fn model_description(scenario: &Scenario, values: &Values, guid: &str) -> St
         x,
         r#"<fmiModelDescription fmiVersion="2.0" modelName="cable_servo {name}" guid="{guid}" description="{desc}" generationTool="cable-servo {ver}" variableNamingConvention="structured" numberOfEventIndicators="0">"#,
         name = xml_escape(scenario.name()),
+        // Only what the FMU carries: the scenario's own description names its whole loop
+        // (controller, gyro, base motion), which the plant FMU does not hold.
         desc = xml_escape(&format!(
-            "Cable-drive gimbal plant (motor, capstan cable with memory, drum, loads, encoders) of scenario {}: {}",
+            "Cable-drive gimbal plant of scenario {}: motor ({} amplifier), capstan cable drive, output drum, loads and encoders; the host closes the loop",
             scenario.name(),
-            scenario.description.as_deref().unwrap_or("")
+            match amp {
+                Amplifier::Current => "current",
+                Amplifier::Voltage => "voltage",
+            }
         )),
         ver = env!("CARGO_PKG_VERSION"),
     );

@@ -171,6 +171,7 @@ pub fn plant_params(scenario: &Scenario) -> Result<PlantParams, String> {
             "load.disturbance_csv = {path}: an FMU carries no table; feed the torque series through the input external_load_torque_nm"
         ));
     }
+    dropped_parts(&cl)?;
     let s = &cl.sensors;
     for (key, v) in [
         ("motor_counts_per_rev", s.motor_counts_per_rev),
@@ -197,6 +198,53 @@ pub fn plant_params(scenario: &Scenario) -> Result<PlantParams, String> {
         max_step_s,
         effects: scenario.effects.clone(),
     })
+}
+
+/// The parts of a closed-loop scenario that shape its loop but that the FMU (the plant
+/// only: motor, cable drive, drum, loads, encoders) does not carry. Exporting them would
+/// give an FMU whose loop behaves unlike the scenario's `run` without a word; every such
+/// key is named, with what to do.
+pub fn dropped_parts(cl: &crate::closed_loop::params::ClosedLoopParams) -> Result<(), String> {
+    let c = &cl.controller;
+    let mut keys: Vec<&str> = Vec::new();
+    if cl.base_motion.is_some() {
+        keys.push("closed_loop.base_motion");
+    }
+    if cl.gyro.is_some() {
+        keys.push("closed_loop.gyro");
+    }
+    if c.rate_loop.is_some() {
+        keys.push("closed_loop.controller.rate_loop");
+    }
+    for (key, filters) in [
+        (
+            "closed_loop.controller.measurement_filters",
+            &c.measurement_filters,
+        ),
+        (
+            "closed_loop.controller.rate_command_filters",
+            &c.rate_command_filters,
+        ),
+        (
+            "closed_loop.controller.rate_measurement_filters",
+            &c.rate_measurement_filters,
+        ),
+        ("closed_loop.controller.command_filters", &c.command_filters),
+    ] {
+        if !filters.is_empty() {
+            keys.push(key);
+        }
+    }
+    if c.disturbance_observer.is_some() {
+        keys.push("closed_loop.controller.disturbance_observer");
+    }
+    if keys.is_empty() {
+        return Ok(());
+    }
+    Err(format!(
+        "the FMU carries the plant only (motor, cable drive, drum, loads, encoders), not {}; the exported loop would differ from the scenario's. To export the plant without them knowingly, remove them from a copy of the scenario (a filter list also with --set KEY=[]) and build them into the co-simulation's controller",
+        keys.join(", ")
+    ))
 }
 
 /// Outputs of the plant at rest before initialisation (angles zero, spans at preload).

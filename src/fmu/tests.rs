@@ -550,3 +550,33 @@ fn a_jaw_link_behind_the_drum_is_refused_by_name() {
         "{m}"
     );
 }
+
+#[test]
+fn a_scenario_whose_loop_parts_the_fmu_would_drop_is_refused_naming_them() {
+    let gimbal = Scenario::load("gimbal_stabilized", &[]).unwrap_or_else(|e| panic!("{e}"));
+    let err = match super::instance::plant_params(&gimbal) {
+        Ok(_) => panic!("gimbal_stabilized exported"),
+        Err(e) => e,
+    };
+    for key in [
+        "closed_loop.base_motion",
+        "closed_loop.gyro",
+        "closed_loop.controller.rate_loop",
+        "closed_loop.controller.command_filters",
+    ] {
+        assert!(err.contains(key), "{key} not named: {err}");
+    }
+    let eots = Scenario::load("eots_tracking", &[]).unwrap_or_else(|e| panic!("{e}"));
+    let p = super::instance::plant_params(&eots).unwrap_or_else(|e| panic!("{e}"));
+    let values = super::variables::Values {
+        params: p,
+        inputs: Default::default(),
+        outputs: Default::default(),
+    };
+    let xml = super::export::model_description(&eots, &values, "{guid}");
+    assert!(xml.contains("description=\"Cable-drive gimbal plant of scenario eots_tracking"));
+    for absent in ["gyro", "base motion", "rate loop", "filter", "20 kHz"] {
+        let head = xml.lines().nth(1).unwrap_or_default();
+        assert!(!head.contains(absent), "{absent} in {head}");
+    }
+}

@@ -10,6 +10,12 @@
 //! `min_cycles` whole cycles are found, their periods agree (coefficient of variation
 //! below 0.15) and the swing does not die out (the last quarter's peak-to-peak at least
 //! 0.8 of the first quarter's). A decaying ring is a settling transient, not a cycle.
+//!
+//! A periodic error is not a limit cycle when something outside the loop drives it: a
+//! stable linear loop under a 5 Hz base motion shows a 5 Hz error at rest. The detector is
+//! told the [`Forcing`] (reference, base motion, load torques); an oscillation at a forcing
+//! line or one of its harmonics, within the detector's frequency resolution, or inside a
+//! broadband forcing's band, is reported as [`LimitCycle::Forced`].
 
 use serde::{Deserialize, Serialize};
 
@@ -25,6 +31,17 @@ pub enum LimitCycle {
         /// Time at rest judged, s.
         judged_s: f64,
     },
+    /// A periodic error at rest at a frequency the loop is driven at (a forcing line or
+    /// its harmonic, or inside a broadband forcing): a forced response, not a limit cycle.
+    /// Only reported when no stretch holds a real limit cycle.
+    Forced {
+        /// Half the peak-to-peak pointing error over the cycles, mrad.
+        amplitude_mrad: f64,
+        /// Frequency, Hz.
+        frequency_hz: f64,
+        /// What drives it, as users read it: `base motion`, `load sine torque`, ...
+        source: String,
+    },
     /// A sustained oscillation at rest (the largest one, if several stretches hunt).
     Detected {
         /// Half the peak-to-peak pointing error over the cycles, mrad.
@@ -38,6 +55,49 @@ pub enum LimitCycle {
     },
 }
 
+/// Most harmonics of a forcing line an error is matched against: a linear loop answers
+/// a sine at its frequency; the loop's nonlinearities (play, friction) add low harmonics.
+pub const MAX_FORCING_HARMONIC: u32 = 10;
+
+/// What drives the loop from outside, so a periodic error at a driven frequency is not
+/// taken for a limit cycle.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Forcing {
+    /// Periodic forcing lines `(frequency Hz, source)`, e.g. `(5.0, "base motion")`.
+    pub lines: Vec<(f64, String)>,
+    /// Broadband forcing `(lowest Hz, highest Hz, source)` whose lines are not known (a
+    /// random PSD motion, a tabulated motion or torque): any error inside the band may be
+    /// forced.
+    pub bands: Vec<(f64, f64, String)>,
+}
+
+impl Forcing {
+    /// Whether nothing drives the loop from outside.
+    pub fn is_empty(&self) -> bool {
+        self.lines.is_empty() && self.bands.is_empty()
+    }
+
+    /// The source that explains an oscillation at `frequency_hz` measured to within
+    /// `resolution_hz`, if any: a line or one of its first [`MAX_FORCING_HARMONIC`]
+    /// harmonics, else a band holding it.
+    pub fn explains(&self, frequency_hz: f64, resolution_hz: f64) -> Option<&str> {
+        let line = self.lines.iter().find(|(f0, _)| {
+            *f0 > 0.0
+                && (1..=MAX_FORCING_HARMONIC)
+                    .any(|k| (frequency_hz - k as f64 * f0).abs() <= resolution_hz)
+        });
+        if let Some((_, source)) = line {
+            return Some(source);
+        }
+        self.bands
+            .iter()
+            .find(|(lo, hi, _)| {
+                frequency_hz >= lo - resolution_hz && frequency_hz <= hi + resolution_hz
+            })
+            .map(|(_, _, source)| source.as_str())
+    }
+}
+
 /// Streaming detector: push every sample in time order, then [`LimitCycleDetector::finish`].
 #[derive(Clone, Debug)]
 pub struct LimitCycleDetector {
@@ -48,6 +108,8 @@ pub struct LimitCycleDetector {
     rest: Vec<(f64, f64)>,
     judged_s: f64,
     found: Option<LimitCycle>,
+    forcing: Forcing,
+    forced: Option<LimitCycle>,
 }
 
 impl Default for LimitCycleDetector {
@@ -69,7 +131,16 @@ impl LimitCycleDetector {
             rest: Vec::new(),
             judged_s: 0.0,
             found: None,
+            forcing: Forcing::default(),
+            forced: None,
         }
+    }
+
+    /// The same detector told what drives the loop: oscillations at those frequencies
+    /// are reported as [`LimitCycle::Forced`].
+    pub fn with_forcing(mut self, forcing: Forcing) -> Self {
+        self.forcing = forcing;
+        self
     }
 
     /// One sample: time (s), reference and output (rad).
@@ -103,6 +174,40 @@ impl LimitCycleDetector {
             return;
         };
         self.judged_s += length_s;
+        // A cycle at a driven frequency is the loop's forced response.
+        let found = match found {
+            Some(LimitCycle::Detected {
+                amplitude_mrad,
+                frequency_hz,
+                cycles,
+                ..
+            }) => {
+                // The frequency is the mean of `cycles` periods: known to about one cycle
+                // over the span they cover, and never finer than 2 % (period scatter).
+                let span_s = f64::from(cycles.max(1)) / frequency_hz;
+                let resolution_hz = (1.0 / span_s).max(0.02 * frequency_hz);
+                match self.forcing.explains(frequency_hz, resolution_hz) {
+                    Some(source) => {
+                        let bigger = match &self.forced {
+                            Some(LimitCycle::Forced {
+                                amplitude_mrad: a, ..
+                            }) => amplitude_mrad > *a,
+                            _ => true,
+                        };
+                        if bigger {
+                            self.forced = Some(LimitCycle::Forced {
+                                amplitude_mrad,
+                                frequency_hz,
+                                source: source.to_string(),
+                            });
+                        }
+                        None
+                    }
+                    None => found,
+                }
+            }
+            other => other,
+        };
         if let Some(found) = found {
             let bigger = match (&self.found, &found) {
                 (
@@ -124,7 +229,7 @@ impl LimitCycleDetector {
     /// The verdict over every rest stretch.
     pub fn finish(mut self) -> LimitCycle {
         self.close();
-        match self.found {
+        match self.found.or(self.forced) {
             Some(found) => found,
             None if self.judged_s > 0.0 => LimitCycle::None {
                 judged_s: self.judged_s,
@@ -298,5 +403,58 @@ mod tests {
             5.0,
         );
         assert_eq!(sine, LimitCycle::NotJudged);
+    }
+
+    fn rest_with_5hz(forcing: Forcing) -> LimitCycle {
+        let mut d = LimitCycleDetector::default().with_forcing(forcing);
+        for k in 0..=20_000 {
+            let t = k as f64 / 5000.0;
+            d.push(t, 0.0, 6e-7 * (std::f64::consts::TAU * 5.0 * t).sin());
+        }
+        d.finish()
+    }
+
+    #[test]
+    fn an_error_at_a_forcing_frequency_or_its_harmonic_is_forced_not_a_limit_cycle() {
+        assert!(matches!(
+            rest_with_5hz(Forcing::default()),
+            LimitCycle::Detected { .. }
+        ));
+        let base = Forcing {
+            lines: vec![(5.0, "base motion".into())],
+            bands: vec![],
+        };
+        match rest_with_5hz(base) {
+            LimitCycle::Forced {
+                frequency_hz,
+                source,
+                ..
+            } => {
+                assert!((frequency_hz - 5.0).abs() < 0.05, "{frequency_hz}");
+                assert_eq!(source, "base motion");
+            }
+            other => panic!("{other:?}"),
+        }
+        let sub = Forcing {
+            lines: vec![(2.5, "load sine torque".into())],
+            bands: vec![],
+        };
+        assert!(matches!(rest_with_5hz(sub), LimitCycle::Forced { .. }));
+        let broadband = Forcing {
+            lines: vec![],
+            bands: vec![(1.0, 100.0, "base motion (broadband)".into())],
+        };
+        assert!(matches!(
+            rest_with_5hz(broadband),
+            LimitCycle::Forced { .. }
+        ));
+        let elsewhere = Forcing {
+            lines: vec![(3.0, "reference".into())],
+            bands: vec![(20.0, 100.0, "base motion (broadband)".into())],
+        };
+        assert!(matches!(
+            rest_with_5hz(elsewhere),
+            LimitCycle::Detected { .. }
+        ));
     }
 }

@@ -278,11 +278,17 @@ impl std::fmt::Display for Half {
     }
 }
 
+/// A fault's number with `decimals` decimals, in exponent form when huge: a friction
+/// coefficient of 1e-300 demands a slip zone of 1e300 rad, which must not print 300 digits.
+fn shown(v: &f64, decimals: usize) -> String {
+    crate::fixed(*v, decimals)
+}
+
 /// A state the cable cannot reach: the drive's capacity is exceeded.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum DriveFault {
     /// A span would need negative tension: the cable cannot push.
-    #[error("{half} span goes slack (tension would fall to 0 N) at transmitted torque {torque_nm:.4} N m; raise preload_n above about {needed_preload_n:.1} N or reduce the load")]
+    #[error("{half} span goes slack (tension would fall to 0 N) at transmitted torque {} N m; raise preload_n above about {} N or reduce the load", shown(.torque_nm, 4), shown(.needed_preload_n, 1))]
     Slack {
         /// The half that goes slack.
         half: Half,
@@ -292,7 +298,7 @@ pub enum DriveFault {
         needed_preload_n: f64,
     },
     /// A pulley slip zone reached the neutral point: the cable slides around the pulley.
-    #[error("gross slip of the {half} half on the pulley: slip zone {slip_angle_rad:.3} rad reaches the neutral point at {available_rad:.3} rad (tension {tension_n:.2} N); increase the pulley wrap, preload or friction, or reduce the load")]
+    #[error("gross slip of the {half} half on the pulley: slip zone {} rad reaches the neutral point at {} rad (tension {} N); increase the pulley wrap, preload or friction, or reduce the load", shown(.slip_angle_rad, 3), shown(.available_rad, 3), shown(.tension_n, 2))]
     GrossSlip {
         /// The half that slips.
         half: Half,

@@ -76,7 +76,12 @@ impl EffectsParams {
         let check = |key: &str, v: Option<f64>, lo: f64, hi: f64| match v {
             Some(x) if !(x.is_finite() && x >= lo && x <= hi) => Err((
                 key.to_string(),
-                format!("{x} must be a finite number in [{lo}, {hi}]"),
+                format!(
+                    "{} must be a finite number in [{}, {}]",
+                    crate::number(x),
+                    crate::number(lo),
+                    crate::number(hi)
+                ),
             )),
             _ => Ok(()),
         };

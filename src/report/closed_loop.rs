@@ -363,6 +363,19 @@ pub fn format_table(result: &ClosedLoopResult) -> String {
                 m.mode.name()
             ));
         }
+        // A periodic error at a driven frequency is the loop's forced response: named, so
+        // nobody hunts a limit cycle that is not there.
+        if let crate::metrics::limit_cycle::LimitCycle::Forced {
+            amplitude_mrad,
+            frequency_hz,
+            source,
+        } = &m.limit_cycle
+        {
+            out.push_str(&format!(
+                "{}: periodic error at rest: {amplitude_mrad:.4} mrad at {frequency_hz:.2} Hz, also present in the {source}: forced, not a limit cycle\n",
+                m.mode.name()
+            ));
+        }
     }
     if result
         .modes
