@@ -13,7 +13,7 @@ use crate::analysis::linear::LinearLoop;
 use crate::plot::{family_colour, save_chart, save_panels, Chart, Series, REFERENCE_RGB};
 use crate::scenario::Scenario;
 
-const COLUMNS: [&str; 19] = [
+const COLUMNS: [&str; 21] = [
     "amplitude",
     "amplitude_unit",
     "requested_hz",
@@ -32,6 +32,8 @@ const COLUMNS: [&str; 19] = [
     "complementary_mag_db",
     "distortion_percent",
     "output_amplitude_mrad",
+    "axis",
+    "held_fraction",
     "failure",
 ];
 
@@ -66,6 +68,8 @@ fn row(a: &AmplitudeResponse, p: &FreqPoint) -> Vec<String> {
         num(l.map(|l| db(l / (one + l)))),
         num(p.distortion_percent),
         num(p.output_amplitude_mrad),
+        p.axis.map_or_else(String::new, |a| a.name().to_string()),
+        num(p.held_fraction),
         p.failure.clone().unwrap_or_default(),
     ]
 }
@@ -104,6 +108,10 @@ pub fn write_outputs(dir: &Path, scenario: &Scenario, r: &FreqResponse) -> Resul
                 "unit": a.unit,
                 "passes": a.passes(),
                 "shortfalls": a.shortfalls,
+                "slew_rate_rad_s": a.slew_rate_rad_s,
+                "axis": a.axis,
+                "axis_effect": a.axis.map(|m| m.effect()),
+                "axis_frequencies": a.axis_frequencies,
                 "frequencies": a.points.len(),
                 "failed_frequencies": a.points.iter().filter(|p| p.failure.is_some()).count(),
                 "margins": a.margins,
@@ -118,6 +126,10 @@ pub fn write_outputs(dir: &Path, scenario: &Scenario, r: &FreqResponse) -> Resul
             "freqresp": {
                 "point": r.point,
                 "transfer": r.transfer,
+                "operating_point": r.operating.operating_point,
+                "operating_point_reason": r.operating.reason,
+                "slew_rate_automatic": r.operating.slew_rate_automatic,
+                "slew_travel_rad": r.operating.travel_rad,
                 "passes": r.amplitudes.iter().all(AmplitudeResponse::passes),
                 "amplitudes": amplitudes,
                 "exact_linear_reference": r.exact_margins,
@@ -284,8 +296,24 @@ pub fn plot(dir: &Path, r: &FreqResponse, lin: &LinearLoop) -> Result<Vec<PathBu
 pub fn format_table(r: &FreqResponse) -> String {
     let opt = |v: Option<f64>, d: usize| v.map_or_else(|| "-".to_string(), |v| format!("{v:.d$}"));
     let e = &r.exact_margins;
-    let mut t = format!(
-        "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>6}\n",
+    let o = &r.operating;
+    let mut t = match o.operating_point {
+        crate::analysis::freqresp::OperatingPoint::Rest => {
+            format!("operating point: rest ({})\n", o.reason)
+        }
+        crate::analysis::freqresp::OperatingPoint::Slewing => format!(
+            "operating point: slewing at a constant output rate under the injection ({}); rate {} per amplitude, up to {} rad of output travel in one run\n",
+            o.reason,
+            if o.slew_rate_automatic {
+                "chosen as twice the largest output velocity of the injection on the exact linear reference (closed_loop.freqresp.slew_rate_rad_s unset)"
+            } else {
+                "set by closed_loop.freqresp.slew_rate_rad_s"
+            },
+            crate::significant(o.travel_rad, 3)
+        ),
+    };
+    t.push_str(&format!(
+        "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>12} {:>6}\n",
         "amplitude",
         "PM_deg",
         "fc_hz",
@@ -295,8 +323,9 @@ pub fn format_table(r: &FreqResponse) -> String {
         "Ms",
         "BW_hz",
         "THDmax%",
+        "axis",
         "passes"
-    );
+    ));
     for a in &r.amplitudes {
         let thd = a
             .points
@@ -306,7 +335,7 @@ pub fn format_table(r: &FreqResponse) -> String {
         let failed = a.points.iter().filter(|p| p.failure.is_some()).count();
         let m = a.margins.clone().unwrap_or_default();
         t.push_str(&format!(
-            "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>6}{}\n",
+            "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>12} {:>6}{}\n",
             format!("{} {}", a.amplitude, a.unit),
             opt(m.phase_margin_deg, 1),
             opt(m.crossover_hz, 1),
@@ -316,6 +345,7 @@ pub fn format_table(r: &FreqResponse) -> String {
             opt(m.ms, 3),
             opt(m.bandwidth_hz, 1),
             opt(thd, 1),
+            a.axis.map_or("-", |m| m.name()),
             if a.passes() { "yes" } else { "no" },
             if failed > 0 {
                 format!("  ({failed} frequencies failed)")
@@ -325,7 +355,7 @@ pub fn format_table(r: &FreqResponse) -> String {
         ));
     }
     t.push_str(&format!(
-        "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>6}\n",
+        "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>12} {:>6}\n",
         "exact linear reference",
         opt(e.phase_margin_deg, 1),
         opt(e.crossover_hz, 1),
@@ -334,6 +364,7 @@ pub fn format_table(r: &FreqResponse) -> String {
         opt(e.lower_gain_margin_db, 2),
         format!("{:.3}", e.ms),
         opt(e.bandwidth_hz, 1),
+        "-",
         "-",
         if e.stable { "stable" } else { "UNSTABLE" }
     ));
@@ -352,14 +383,57 @@ pub fn format_table(r: &FreqResponse) -> String {
         ),
     });
     for a in &r.amplitudes {
+        t.push_str(&axis_line(a));
+    }
+    for a in &r.amplitudes {
+        if !a.passes() {
+            t.push_str(&format!(
+                "{} {}: does not pass ({} reason{}):\n",
+                a.amplitude,
+                a.unit,
+                a.shortfalls.len(),
+                if a.shortfalls.len() == 1 { "" } else { "s" }
+            ));
+        }
         for s in &a.shortfalls {
-            t.push_str(&format!("{} {}: {s}\n", a.amplitude, a.unit));
+            t.push_str(&format!("  {} {}: {s}\n", a.amplitude, a.unit));
         }
     }
     if let Some(cycles) = &r.limit_cycles {
         t.push_str(&limit_cycle_lines(r, cycles));
     }
     t
+}
+
+/// How the axis moved at one amplitude and what that does to the estimate, one line.
+fn axis_line(a: &AmplitudeResponse) -> String {
+    let Some(worst) = a.axis else {
+        return String::new();
+    };
+    let c = &a.axis_frequencies;
+    let measured = c.frictionless + c.sliding + c.slipping + c.held;
+    let counts: Vec<String> = [
+        ("held", c.held),
+        ("slipping", c.slipping),
+        ("sliding", c.sliding),
+        ("frictionless", c.frictionless),
+    ]
+    .iter()
+    .filter(|(_, n)| *n > 0)
+    .map(|(name, n)| format!("{name} {n}"))
+    .collect();
+    let slew = a.slew_rate_rad_s.map_or_else(
+        || "at rest".to_string(),
+        |r| format!("slewing {} rad/s", crate::significant(r, 3)),
+    );
+    format!(
+        "{} {}: axis {} ({slew}; of {measured} frequencies {}): {}\n",
+        a.amplitude,
+        a.unit,
+        worst.name(),
+        counts.join(", "),
+        worst.effect()
+    )
 }
 
 /// What the describing-function family predicts, one line per crossing of -1.
