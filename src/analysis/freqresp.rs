@@ -521,6 +521,10 @@ pub struct FreqPoint {
     /// Reversals of the drum's or the motor's velocity in the window, per period of the
     /// injection (about 2 at rest, 0 when sliding).
     pub reversals_per_period: Option<f64>,
+    /// Relative uncertainty of the estimate, percent: the noise in the bins next to the
+    /// injected frequency over the fundamental (of the denominator too at the plant
+    /// input); above `MAX_UNCERTAINTY` the point fails.
+    pub uncertainty_percent: Option<f64>,
     /// Whether this frequency was added to refine a margin, peak or bandwidth.
     pub refinement: bool,
     /// Why the point has no result (slack, gross slip, saturation, divergence).
@@ -761,6 +765,34 @@ fn coefficient(x: &[f64], cycles: f64) -> Complex<f64> {
     Complex::new(re, im) * (2.0 / n)
 }
 
+/// Largest relative uncertainty of a measured point (0.1: about 0.8 dB and 6 deg); a
+/// point more uncertain fails, as its number would mislead the margins.
+pub const MAX_UNCERTAINTY: f64 = 0.1;
+
+/// RMS of the Fourier coefficients (scaled as [`coefficient`]) of the two bins either side
+/// of the fundamental's `cycles`, skipping harmonics and bins outside the window's band:
+/// the level of what is not the response near the injected frequency.
+fn noise_floor(x: &[f64], cycles: u64) -> f64 {
+    let half = x.len() as u64 / 2;
+    let bins: Vec<u64> = [
+        cycles.saturating_sub(2),
+        cycles.saturating_sub(1),
+        cycles + 1,
+        cycles + 2,
+    ]
+    .into_iter()
+    .filter(|&k| k >= 1 && k < half && k % cycles != 0)
+    .collect();
+    if bins.is_empty() {
+        return 0.0;
+    }
+    let power: f64 = bins
+        .iter()
+        .map(|&k| coefficient(x, k as f64).norm_sqr())
+        .sum();
+    (power / bins.len() as f64).sqrt()
+}
+
 /// `x` less the offset and linear drift of a joint least-squares fit of offset, drift and
 /// the sinusoid of `cycles` cycles over the window. What is left keeps the fitted
 /// sinusoid, and the residual is orthogonal to it, so [`coefficient`] of the result is the
@@ -947,6 +979,7 @@ impl Bench<'_> {
             axis: None,
             held_fraction: None,
             reversals_per_period: None,
+            uncertainty_percent: None,
             refinement,
             failure: None,
         };
@@ -1002,33 +1035,37 @@ impl Bench<'_> {
             .map(|k| injection.map_or(0.0, |i| i.at(series.t_s[k])))
             .collect();
         let c = |x: &[f64]| coefficient(x, cycles);
-        let (response, observed): (Complex<f64>, Vec<f64>) = match point {
-            LoopPoint::PlantInput => {
-                let u = open(series.motor_command[range.clone()].to_vec());
-                let u_c: Vec<f64> = u.iter().zip(&injected).map(|(u, d)| u - d).collect();
-                (-c(&u_c) / c(&u), u_c)
-            }
-            LoopPoint::OutputDisturbance => {
-                let y_d: Vec<f64> = measured.iter().zip(&injected).map(|(y, d)| y + d).collect();
-                (c(&y_d) / c(&injected), y_d)
-            }
-            LoopPoint::InputDisturbance | LoopPoint::Plant => {
-                (c(&measured) / c(&injected), measured)
-            }
-            LoopPoint::Reference => {
-                let r: Vec<f64> = open(
-                    series.reference_rad[range.clone()]
-                        .iter()
-                        .map(|r| ic * r)
-                        .collect(),
-                );
-                (c(&measured) / c(&r), measured)
-            }
-            LoopPoint::BaseMotion => {
-                let b = &series.base_angle_rad[range.clone()];
-                (c(&measured) / c(b), measured)
-            }
-        };
+        // The response, the signal observed, and the fundamental of a denominator that
+        // carries the observed signal's noise (the command at the plant input).
+        let (response, observed, noisy_denominator): (Complex<f64>, Vec<f64>, Option<f64>) =
+            match point {
+                LoopPoint::PlantInput => {
+                    let u = open(series.motor_command[range.clone()].to_vec());
+                    let u_c: Vec<f64> = u.iter().zip(&injected).map(|(u, d)| u - d).collect();
+                    (-c(&u_c) / c(&u), u_c, Some(c(&u).norm()))
+                }
+                LoopPoint::OutputDisturbance => {
+                    let y_d: Vec<f64> =
+                        measured.iter().zip(&injected).map(|(y, d)| y + d).collect();
+                    (c(&y_d) / c(&injected), y_d, None)
+                }
+                LoopPoint::InputDisturbance | LoopPoint::Plant => {
+                    (c(&measured) / c(&injected), measured, None)
+                }
+                LoopPoint::Reference => {
+                    let r: Vec<f64> = open(
+                        series.reference_rad[range.clone()]
+                            .iter()
+                            .map(|r| ic * r)
+                            .collect(),
+                    );
+                    (c(&measured) / c(&r), measured, None)
+                }
+                LoopPoint::BaseMotion => {
+                    let b = &series.base_angle_rad[range.clone()];
+                    (c(&measured) / c(b), measured, None)
+                }
+            };
         let fundamental = c(&observed).norm();
         // A signal that never moves (motion below one encoder count, an output the brake
         // holds) has no response to read: a failed point, not a gain of zero.
@@ -1050,6 +1087,24 @@ impl Bench<'_> {
                 } else {
                     ""
                 }
+            ));
+            return Ok((out, simulated));
+        }
+        // Noise at the injected frequency, read from the neighbouring bins: what the
+        // observed signal carries that the injection does not explain (quantisation,
+        // what is left of a transient, stick-slip) lands there as much as on the
+        // fundamental. Relative to the fundamentals it bounds the estimate's error.
+        let noise = noise_floor(&observed, w.cycles);
+        let relative = noise / fundamental + noisy_denominator.map_or(0.0, |u| noise / u);
+        out.uncertainty_percent = Some(100.0 * relative);
+        if relative > MAX_UNCERTAINTY {
+            // The numbers are in `uncertainty_percent`: one text for all such points
+            // lets the console group them.
+            out.failure = Some(format!(
+                "uncertain by more than {:.0} % ({:.1} dB, {:.0} deg): the measured signal carries motion the injection does not explain near this frequency (encoder quantisation, a transient, stick-slip); raise the amplitude",
+                100.0 * MAX_UNCERTAINTY,
+                20.0 * (1.0 + MAX_UNCERTAINTY).log10(),
+                MAX_UNCERTAINTY.asin().to_degrees()
             ));
             return Ok((out, simulated));
         }
@@ -1476,16 +1531,20 @@ fn shortfalls(
     let mut out = Vec::new();
     // Failed frequencies grouped by their reason, each group with its frequencies, so
     // the console says which failed and why without the CSV.
-    let mut groups: Vec<(&str, Vec<f64>)> = Vec::new();
+    let mut groups: Vec<(&str, Vec<f64>, Vec<f64>)> = Vec::new();
     for p in points {
         if let Some(why) = p.failure.as_deref() {
+            let u: Vec<f64> = p.uncertainty_percent.into_iter().collect();
             match groups.iter_mut().find(|g| g.0 == why) {
-                Some(g) => g.1.push(p.frequency_hz),
-                None => groups.push((why, vec![p.frequency_hz])),
+                Some(g) => {
+                    g.1.push(p.frequency_hz);
+                    g.2.extend(u);
+                }
+                None => groups.push((why, vec![p.frequency_hz], u)),
             }
         }
     }
-    for (why, f) in &groups {
+    for (why, f, u) in &groups {
         const SHOWN: usize = 8;
         let mut list: Vec<String> = f
             .iter()
@@ -1495,8 +1554,16 @@ fn shortfalls(
         if f.len() > SHOWN {
             list.push(format!("and {} more", f.len() - SHOWN));
         }
+        let spread = if u.is_empty() {
+            String::new()
+        } else {
+            let (lo, hi) = u.iter().fold((f64::INFINITY, 0.0_f64), |(lo, hi), v| {
+                (lo.min(*v), hi.max(*v))
+            });
+            format!(" (uncertainty {lo:.0} to {hi:.0} %)")
+        };
         out.push(format!(
-            "{} of {} frequencies failed, at {} Hz: {why}",
+            "{} of {} frequencies failed, at {} Hz: {why}{spread}",
             f.len(),
             points.len(),
             list.join(", ")
@@ -1582,6 +1649,7 @@ mod tests {
                 axis: None,
                 held_fraction: None,
                 reversals_per_period: None,
+                uncertainty_percent: None,
                 refinement: true,
                 failure: None,
             };

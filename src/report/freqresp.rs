@@ -13,7 +13,7 @@ use crate::analysis::linear::LinearLoop;
 use crate::plot::{family_colour, save_chart, save_panels, Chart, Series, REFERENCE_RGB};
 use crate::scenario::Scenario;
 
-const COLUMNS: [&str; 21] = [
+const COLUMNS: [&str; 22] = [
     "amplitude",
     "amplitude_unit",
     "requested_hz",
@@ -34,6 +34,7 @@ const COLUMNS: [&str; 21] = [
     "output_amplitude_mrad",
     "axis",
     "held_fraction",
+    "uncertainty_percent",
     "failure",
 ];
 
@@ -70,6 +71,7 @@ fn row(a: &AmplitudeResponse, p: &FreqPoint) -> Vec<String> {
         num(p.output_amplitude_mrad),
         p.axis.map_or_else(String::new, |a| a.name().to_string()),
         num(p.held_fraction),
+        num(p.uncertainty_percent),
         p.failure.clone().unwrap_or_default(),
     ]
 }
