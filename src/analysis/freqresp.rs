@@ -252,6 +252,7 @@ pub fn operating_plan(
 ) -> Result<OperatingPlan, FreqRespError> {
     let p = setup.params;
     let friction = holding_friction(setup);
+    let moving = angle_dependent_terms(setup);
     let (operating_point, reason) = match spec.operating_point {
         Some(o) => (o, "set by closed_loop.freqresp.operating_point".to_string()),
         None if spec.point == LoopPoint::Plant => (
@@ -262,6 +263,15 @@ pub fn operating_plan(
         None if friction.is_empty() => (
             OperatingPoint::Rest,
             "no brake or Coulomb friction can hold the axis".to_string(),
+        ),
+        // Chosen, not asked for: rest, saying why, rather than refusing.
+        None if !moving.is_empty() => (
+            OperatingPoint::Rest,
+            format!(
+                "{} would hold the axis, but the plant changes with the output angle ({}), so a slew would not stay at one operating point; the axis column says whether the friction held",
+                friction.join(", "),
+                moving.join(", ")
+            ),
         ),
         None => (
             OperatingPoint::Slewing,
@@ -311,7 +321,6 @@ pub fn operating_plan(
     if fastest > MAX_SLEW_RAD_S {
         return Err(invalid("slew_rate_rad_s", format!("the slew chosen for the largest amplitude, {} rad/s, is above {MAX_SLEW_RAD_S} rad/s: lower the amplitudes, or set closed_loop.freqresp.slew_rate_rad_s (the axis then slips where the injected motion outruns the slew)", crate::significant(fastest, 3))));
     }
-    let moving = angle_dependent_terms(setup);
     if !moving.is_empty() {
         return Err(invalid("operating_point", format!("slewing turns the output through up to {} rad in one run, and the plant changes with the output angle ({}): the loop would not be measured at one operating point; set closed_loop.freqresp.operating_point = \"rest\", or remove those terms to measure the loop alone", crate::significant(travel_rad, 3), moving.join(", "))));
     }
@@ -870,6 +879,10 @@ struct Bench<'a> {
     lin: LinearLoop,
     /// Whether the plant has friction that can hold the axis.
     friction: bool,
+    /// Whether a reversal of the drum reverses a friction (a brake or bearing friction).
+    drum_friction: bool,
+    /// Whether a reversal of the motor does (motor Coulomb friction).
+    motor_friction: bool,
 }
 
 impl Bench<'_> {
@@ -1008,7 +1021,12 @@ impl Bench<'_> {
             return Ok((out, simulated));
         }
         let cycles = w.cycles as f64;
-        let (axis, held, reversals) = classify(series, range.clone(), self.friction);
+        let (axis, held, reversals) = classify(
+            series,
+            range.clone(),
+            self.friction,
+            (self.drum_friction, self.motor_friction),
+        );
         out.axis = Some(axis);
         out.held_fraction = Some(held);
         out.reversals_per_period = Some(reversals as f64 / cycles);
@@ -1132,11 +1150,13 @@ impl Bench<'_> {
 /// drum, reversals of the drum's or the motor's velocity)`. The velocities are the
 /// simulated states' sample-to-sample differences (exact, not the encoders), and a
 /// sample where one does not move is no reversal. `friction` says whether anything
-/// can stick at all.
+/// can stick at all; `(drum, motor)` whether a reversal there reverses a friction (a
+/// reversal where nothing rubs changes nothing).
 fn classify(
     s: &TimeSeries,
     range: std::ops::Range<usize>,
     friction: bool,
+    (drum, motor): (bool, bool),
 ) -> (AxisMotion, f64, usize) {
     let n = range.len().max(1);
     let held = s
@@ -1156,7 +1176,15 @@ fn classify(
         }
         count
     };
-    let rev = reversals(&s.output_angle_rad[range.clone()]) + reversals(&s.motor_angle_rad[range]);
+    let rev = if drum {
+        reversals(&s.output_angle_rad[range.clone()])
+    } else {
+        0
+    } + if motor {
+        reversals(&s.motor_angle_rad[range])
+    } else {
+        0
+    };
     let held_fraction = held as f64 / n as f64;
     let motion = if !friction {
         AxisMotion::Frictionless
@@ -1426,6 +1454,9 @@ pub fn measure(
         spec,
         lin,
         friction,
+        drum_friction: setup.load.breakaway_nm() > 0.0
+            || setup.effects.is_some_and(|e| e.bearing_friction() > 0.0),
+        motor_friction: p.motor.coulomb_nm > 0.0,
     };
     let slews = plan.slew_rates_rad_s.clone();
     let pool = rayon::ThreadPoolBuilder::new()
