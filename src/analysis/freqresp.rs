@@ -1654,6 +1654,27 @@ mod tests {
     }
 
     #[test]
+    fn noise_floor_sees_what_the_injection_does_not_explain() {
+        let n = 4000usize;
+        let tau = std::f64::consts::TAU;
+        // Fundamental at 8 cycles, harmonics, an offset: no noise near the fundamental.
+        let clean: Vec<f64> = (0..n)
+            .map(|k| {
+                let x = tau * k as f64 / n as f64;
+                (8.0 * x).sin() + 0.5 * (16.0 * x).cos() + 3.0
+            })
+            .collect();
+        assert!(noise_floor(&clean, 8) < 1e-12);
+        // A tone of 0.1 in the next bin: RMS over the four neighbours is 0.1 / 2.
+        let noisy: Vec<f64> = clean
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + 0.1 * (tau * 9.0 * k as f64 / n as f64).sin())
+            .collect();
+        assert!((noise_floor(&noisy, 8) - 0.05).abs() < 1e-12);
+    }
+
+    #[test]
     fn window_snaps_to_whole_periods_in_whole_samples() {
         let spec = FreqRespParams::default();
         for f in [0.37, 3.1, 97.0, 3700.0] {
