@@ -340,6 +340,15 @@ enum Command {
         /// Frequencies in the log range.
         #[arg(long)]
         points: Option<usize>,
+        /// Operating point: rest (reference held at zero) or slewing (a constant-rate
+        /// ramp under the injection, so a brake or Coulomb friction slides). Default:
+        /// slewing where such friction would hold the axis, rest otherwise.
+        #[arg(long, value_name = "rest|slewing")]
+        operating_point: Option<String>,
+        /// Slew rate of the slewing operating point, output rad/s (default: twice the
+        /// injection's largest output velocity on the exact linear reference).
+        #[arg(long, value_name = "RAD_S")]
+        slew_rate: Option<f64>,
         /// Worker threads (default: all cores).
         #[arg(long, default_value_t = 0)]
         threads: usize,
@@ -758,7 +767,7 @@ fn main() -> ExitCode {
             let mut set = set;
             if let Some(m) = load_nm {
                 // The same as declaring the operating load: every command then agrees.
-                set.push(format!("closed_loop.requirements.operating_load_nm={m}"));
+                set.push(format!("closed_loop.requirements.operating_load_nm={m:e}"));
             }
             let scenario = match load(name, &set) {
                 Ok(s) => s,
@@ -784,6 +793,8 @@ fn main() -> ExitCode {
             f_min,
             f_max,
             points,
+            operating_point,
+            slew_rate,
             threads,
             out,
             set,
@@ -825,6 +836,21 @@ fn main() -> ExitCode {
             if let Some(n) = points {
                 spec.points = n;
                 spec.frequencies_hz.clear();
+            }
+            if let Some(o) = operating_point {
+                match cable_servo::analysis::freqresp::OperatingPoint::parse(&o) {
+                    Ok(o) => spec.operating_point = Some(o),
+                    Err(e) => {
+                        tell!("error: --operating-point: {e}");
+                        return ExitCode::from(exit::INPUT);
+                    }
+                }
+            }
+            if slew_rate.is_some() {
+                spec.slew_rate_rad_s = slew_rate;
+                // A slew rate asks for a slew.
+                spec.operating_point
+                    .get_or_insert(cable_servo::analysis::freqresp::OperatingPoint::Slewing);
             }
             let dir = out.unwrap_or_else(|| {
                 run::default_results_dir(

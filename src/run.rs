@@ -993,6 +993,12 @@ pub fn run_freqresp(
     // Bad settings stop here, before a results directory exists.
     spec.validate(p)?;
     let setup = closed_loop::ClosedLoopSource::closed_loop_setup(scenario)?;
+    // A slew the plant cannot take is refused here too, before a results directory exists.
+    crate::analysis::freqresp::operating_plan(
+        &setup,
+        spec,
+        &crate::analysis::linear::LinearLoop::new(p, &scenario.drive),
+    )?;
     let staged = StagedDir::create(&out.dir, out.force)?;
     let dir = staged.path().to_path_buf();
     let r = crate::analysis::freqresp::measure(setup, spec, threads, progress)?;

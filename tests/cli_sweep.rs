@@ -148,10 +148,16 @@ fn stopped_cases_are_named_and_never_numbers() {
         path(&out),
     ]);
     let console = String::from_utf8_lossy(&o.stdout).to_string();
-    assert!(
-        o.status.success(),
+    // A stopped case misses its requirements: the sweep says how many, and exits 4.
+    assert_eq!(
+        o.status.code(),
+        Some(4),
         "{console}{}",
         String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(
+        console.contains("verdict: 1 of 2 cases miss a requirement"),
+        "{console}"
     );
     let table = text(&out.join("sweep.csv"));
     let header: Vec<&str> = table.lines().next().unwrap_or("").split(',').collect();

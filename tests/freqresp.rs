@@ -2,7 +2,9 @@
 //! exact linear reference (computed, not simulated) and against the physics of the
 //! hysteretic cable.
 
-use cable_servo::analysis::freqresp::{measure, FreqRespParams, FreqResponse, LoopPoint};
+use cable_servo::analysis::freqresp::{
+    measure, AxisMotion, FreqRespParams, FreqResponse, LoopPoint, OperatingPoint,
+};
 use cable_servo::analysis::linear::{tangent_half_stiffness, LinearLoop};
 use cable_servo::closed_loop::params::ClosedLoopParams;
 use cable_servo::closed_loop::ClosedLoopSource;
@@ -276,11 +278,14 @@ fn bad_input_is_named_and_faults_are_not_numbers() {
         "{e}"
     );
 
+    // At rest, as the brake holds the drum between the large swings: the fault is the
+    // swing's, not a slew's.
     let weak = scenario(&["drive.preload_n=5"]);
     let spec = FreqRespParams {
         point: LoopPoint::Reference,
         frequencies_hz: vec![5.0],
         amplitudes: vec![0.1, 50.0],
+        operating_point: Some(OperatingPoint::Rest),
         ..FreqRespParams::default()
     };
     let r = run(&weak, &spec);
@@ -419,7 +424,9 @@ fn base_motion_default_range_is_accepted_and_the_console_shows_rejection() {
             String::from_utf8_lossy(&o.stderr).to_string(),
         )
     };
-    let (code, text, err) = go("none", &["--frequencies", "5,50"]);
+    // 20 and 50 Hz: at 5 Hz the line of sight moves 65 dB less than the base, below what
+    // the gyro noise and friction let a 1 mrad injection resolve (flagged as uncertain).
+    let (code, text, err) = go("none", &["--frequencies", "20,50"]);
     assert_eq!(code, Some(0), "{text}{err}");
     assert!(
         text.contains("rejection_db") && text.contains("reference_db"),
@@ -460,11 +467,11 @@ fn base_motion_default_range_is_accepted_and_the_console_shows_rejection() {
     let required = |db: &str| {
         [
             "--frequencies".to_string(),
-            "5".to_string(),
+            "50".to_string(),
             "--set".to_string(),
             format!("closed_loop.requirements.min_base_rejection_db={db}"),
             "--set".to_string(),
-            "closed_loop.requirements.base_rejection_hz=5".to_string(),
+            "closed_loop.requirements.base_rejection_hz=20".to_string(),
         ]
     };
     let met = required("10");
@@ -480,4 +487,89 @@ fn base_motion_default_range_is_accepted_and_the_console_shows_rejection() {
     let (code, text, err) = go("missed", &missed);
     assert_ne!(code, Some(0), "{text}{err}");
     assert!(text.contains("required >= 190 dB: passes no"), "{text}");
+}
+
+/// The shipped tracking design as a bench measures it. At rest its brake (breakaway
+/// 0.75 N m) holds the drum under a small injection, and the loop seen is the motor on
+/// the cable spring. With the default settings the axis slews (the brake makes it the
+/// default), the drum slides throughout, and the small-amplitude loop gain at the plant
+/// input is the exact linear reference's (free-span cable, drum free) from 5 to 500 Hz
+/// within 1 dB and 5 deg: a sliding brake is a constant torque the integral action
+/// carries, and the ramp and that constant command are fitted out of the window.
+/// 0.02 A (1/400 of the amplifier limit) is the smallest amplitude the motor encoder
+/// (2^20 counts) resolves over that band; at the default's 0.008 A its counts make the
+/// difference (up to 1.2 dB and 6 deg, flagged by `uncertainty_percent`), which the
+/// same run without quantisation shows: the cable's hysteresis is no part of it.
+#[test]
+fn slewing_axis_measures_the_design_through_its_brake() {
+    let ideal = scenario(&["closed_loop.sensors.quantize=false"]);
+    let r = run(
+        &ideal,
+        &FreqRespParams {
+            frequencies_hz: vec![5.0, 50.0, 500.0],
+            amplitudes: vec![0.008],
+            refine_iterations: 0,
+            ..FreqRespParams::default()
+        },
+    );
+    for p in &r.amplitudes[0].points {
+        let got = p
+            .loop_gain
+            .unwrap_or_else(|| panic!("{} Hz: {:?}", p.frequency_hz, p.failure));
+        let (d_db, d_deg) = (db(got) - db(p.exact), (got / p.exact).arg().to_degrees());
+        println!(
+            "no quantisation, 0.008 A, {:8.2} Hz: {d_db:+.3} dB {d_deg:+.2} deg",
+            p.frequency_hz
+        );
+        assert!(
+            d_db.abs() < 0.1 && d_deg.abs() < 0.5,
+            "{} Hz: {d_db} dB, {d_deg} deg",
+            p.frequency_hz
+        );
+    }
+    let s = scenario(&[]);
+    let spec = FreqRespParams {
+        frequencies_hz: vec![5.0, 15.0, 50.0, 150.0, 500.0],
+        amplitudes: vec![0.02],
+        refine_iterations: 0,
+        ..FreqRespParams::default()
+    };
+    let r = run(&s, &spec);
+    assert_eq!(r.operating.operating_point, OperatingPoint::Slewing);
+    let a = &r.amplitudes[0];
+    let rate = a.slew_rate_rad_s.unwrap_or(f64::NAN);
+    println!("slew {rate} rad/s, travel {} rad", r.operating.travel_rad);
+    for p in &a.points {
+        let got = p
+            .loop_gain
+            .unwrap_or_else(|| panic!("{} Hz: {:?}", p.frequency_hz, p.failure));
+        let (d_db, d_deg) = (db(got) - db(p.exact), (got / p.exact).arg().to_degrees());
+        println!(
+            "{:8.2} Hz: L {:8.3} dB {:8.2} deg, exact {:8.3} dB {:8.2} deg: {d_db:+.3} dB {d_deg:+.2} deg, axis {:?}",
+            p.frequency_hz,
+            db(got),
+            got.arg().to_degrees(),
+            db(p.exact),
+            p.exact.arg().to_degrees(),
+            p.axis
+        );
+        assert_eq!(p.axis, Some(AxisMotion::Sliding), "{} Hz", p.frequency_hz);
+        assert!(
+            d_db.abs() < 1.0 && d_deg.abs() < 5.0,
+            "{} Hz: {d_db} dB, {d_deg} deg",
+            p.frequency_hz
+        );
+    }
+    // The same injection at rest: the brake holds the drum, and the table says so.
+    let rest = run(
+        &s,
+        &FreqRespParams {
+            operating_point: Some(OperatingPoint::Rest),
+            frequencies_hz: vec![50.0],
+            ..spec.clone()
+        },
+    );
+    assert_eq!(rest.amplitudes[0].axis, Some(AxisMotion::Held));
+    let table = cable_servo::report::freqresp::format_table(&rest);
+    assert!(table.contains("axis held"), "{table}");
 }

@@ -27,6 +27,20 @@
 //! inertia from rest without a mean drift, and an offset and a linear drift are fitted out
 //! of the measured window with the fundamental.
 //!
+//! A brake with breakaway or Coulomb friction holds the axis while the injected motion is
+//! small, and the loop then sees the motor on the cable spring, not the design. The
+//! `slewing` operating point measures as a gimbal bench does: the reference is a ramp at
+//! a constant output rate fast enough that the drum never reverses, with the sinusoid on
+//! top, so the friction slides and acts as a constant torque. What the PID sees of the
+//! ramp is constant in the steady state: its derivative acts on the measurement (a
+//! constant `kd ic rate`), its integral settles to the constant command that drives the
+//! sliding friction and the viscous drag, and the error returns to zero; none of it is
+//! at the injected frequency. Each measured signal has its offset and linear drift fitted
+//! out jointly with the fundamental ([`without_drift`]), which removes the ramp exactly and
+//! what is left of the start-up transient in the window. Each measurement classifies the
+//! axis ([`AxisMotion`]) from the simulation's own brake state and the sign of the drum's
+//! and the motor's velocity.
+//!
 //! `y` is the measured angle in motor rad (the motor angle, or `ic` times the output
 //! angle under output feedback). The PID differentiates the measurement, not the error,
 //! so the reference-to-output response `T_r = P (kp + ki T/(1 - z^-1)) / (1 + L)` is not
@@ -39,10 +53,10 @@ use serde::Serialize;
 use super::linear::LinearLoop;
 use super::margins::Margins;
 use crate::closed_loop::params::{ClosedLoopParams, CompensationMode, Feedback};
-pub use crate::closed_loop::probe::{FreqRespParams, LoopPoint};
+pub use crate::closed_loop::probe::{FreqRespParams, LoopPoint, OperatingPoint};
 use crate::closed_loop::sim::{
     run_closed_loop, ClosedLoopError, ClosedLoopSetup, Completion, Injection, InjectionSite,
-    RunOptions,
+    RunOptions, TimeSeries,
 };
 use crate::signal::Signal;
 
@@ -94,6 +108,254 @@ fn base_requirement(
         (LoopPoint::BaseMotion, Some(f), Some(db)) => Some((f, db)),
         _ => None,
     }
+}
+
+/// Fastest slew accepted, output rad/s: beyond it a measurement of seconds turns the
+/// output through many revolutions, which says the amplitude is too large for a slew.
+pub const MAX_SLEW_RAD_S: f64 = 10.0;
+
+/// Slowest slew chosen automatically, output rad/s: slower than this the breakaway at the
+/// start of the ramp leaves a stick-slip transient that outlasts the settling time.
+pub const MIN_AUTO_SLEW_RAD_S: f64 = 0.01;
+
+/// How the axis moved during one measurement window, worst last.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AxisMotion {
+    /// No friction that can stick (no brake, no motor or bearing Coulomb friction).
+    Frictionless,
+    /// The friction slid one way throughout the window: a constant torque.
+    Sliding,
+    /// The drum stuck, or the drum or the motor reversed, for part of each cycle.
+    Slipping,
+    /// The brake held the drum for at least half of the window.
+    Held,
+}
+
+impl AxisMotion {
+    /// Name as written in tables and files.
+    pub fn name(self) -> &'static str {
+        match self {
+            AxisMotion::Frictionless => "frictionless",
+            AxisMotion::Sliding => "sliding",
+            AxisMotion::Slipping => "slipping",
+            AxisMotion::Held => "held",
+        }
+    }
+
+    /// What this motion does to the estimate, in one line.
+    pub fn effect(self) -> &'static str {
+        match self {
+            AxisMotion::Frictionless => "no friction to stick: the estimate is the linear loop, up to the cable's hysteresis",
+            AxisMotion::Sliding => "friction acts as a constant torque: the estimate is the linear loop",
+            AxisMotion::Slipping => "the friction sticks or reverses each cycle: a describing function, distorted by stick-slip, not the linear loop",
+            AxisMotion::Held => "the brake holds the drum: the loop sees the motor on the cable spring, the estimate is not the design's response (measure slewing)",
+        }
+    }
+}
+
+/// Frequencies of one amplitude by how the axis moved.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct AxisCounts {
+    /// Frequencies with no friction that can stick.
+    pub frictionless: usize,
+    /// Frequencies where the friction slid throughout.
+    pub sliding: usize,
+    /// Frequencies where it stuck or reversed part of each cycle.
+    pub slipping: usize,
+    /// Frequencies where the brake held the drum most of the window.
+    pub held: usize,
+}
+
+impl AxisCounts {
+    fn of(points: &[FreqPoint]) -> Self {
+        let mut c = AxisCounts::default();
+        for p in points {
+            match p.axis {
+                Some(AxisMotion::Frictionless) => c.frictionless += 1,
+                Some(AxisMotion::Sliding) => c.sliding += 1,
+                Some(AxisMotion::Slipping) => c.slipping += 1,
+                Some(AxisMotion::Held) => c.held += 1,
+                None => {}
+            }
+        }
+        c
+    }
+}
+
+/// The operating point a measurement runs at, and why.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct OperatingPlan {
+    /// Rest or slewing.
+    pub operating_point: OperatingPoint,
+    /// Why: the key that set it, or the friction that makes a slew necessary.
+    pub reason: String,
+    /// Slew rate per amplitude, output rad/s, in the order of the amplitudes (`None` at
+    /// rest).
+    pub slew_rates_rad_s: Vec<Option<f64>>,
+    /// Whether the rates were chosen automatically (`slew_rate_rad_s` unset).
+    pub slew_rate_automatic: bool,
+    /// Longest output travel of one run, rad (0 at rest): the slew over the settling and
+    /// measuring time of the lowest frequency.
+    pub travel_rad: f64,
+}
+
+/// Friction in the plant that can hold the axis, as `key = value`.
+fn holding_friction(setup: &ClosedLoopSetup<'_>) -> Vec<String> {
+    let mut out = Vec::new();
+    let breakaway = setup.load.breakaway_nm();
+    if breakaway > 0.0 {
+        out.push(format!(
+            "load.brake_nm = {} (breakaway {} N m)",
+            crate::compact(setup.load.brake_nm),
+            crate::compact(breakaway)
+        ));
+    }
+    let coulomb = setup.params.motor.coulomb_nm;
+    if coulomb > 0.0 {
+        out.push(format!(
+            "closed_loop.motor.coulomb_nm = {}",
+            crate::compact(coulomb)
+        ));
+    }
+    let bearing = setup.effects.map_or(0.0, |e| e.bearing_friction());
+    if bearing > 0.0 {
+        out.push(format!(
+            "effects.bearing_friction_nm = {}",
+            crate::compact(bearing)
+        ));
+    }
+    out
+}
+
+/// Terms of the plant that change with the output angle, as scenario keys: a slew moves
+/// the operating point along them.
+fn angle_dependent_terms(setup: &ClosedLoopSetup<'_>) -> Vec<&'static str> {
+    let mut out = Vec::new();
+    if setup.load.unbalance_nm != 0.0 {
+        out.push("load.unbalance_nm");
+    }
+    if let Some(e) = setup.effects {
+        let nz = |v: Option<f64>| v.is_some_and(|x| x != 0.0);
+        if nz(e.input_pulley_runout) {
+            out.push("effects.input_pulley_runout");
+        }
+        if nz(e.output_drum_runout) {
+            out.push("effects.output_drum_runout");
+        }
+        if e.angle_dependent_ratio_coefs
+            .as_ref()
+            .is_some_and(|c| c.iter().any(|v| *v != 0.0))
+        {
+            out.push("effects.angle_dependent_ratio_coefs");
+        }
+    }
+    out
+}
+
+/// Output angle per unit injection at `f` on the linear reference, rad (A or V at the
+/// command, output mrad elsewhere): under motor feedback the output is taken as the
+/// motor angle over the ratio, which overstates it above the cable's resonance (a
+/// conservative slew).
+fn output_per_injection(lin: &LinearLoop, point: LoopPoint, ic: f64, f: f64) -> f64 {
+    match point {
+        LoopPoint::PlantInput | LoopPoint::InputDisturbance | LoopPoint::Plant => {
+            (lin.plant(f) * lin.sensitivity(f)).norm() / ic
+        }
+        LoopPoint::OutputDisturbance => lin.complementary(f).norm() * 1e-3,
+        LoopPoint::Reference => exact_transfer(lin, point, f).norm() * 1e-3,
+        LoopPoint::BaseMotion => (lin.base_to_los(f) - Complex::from(1.0)).norm() * 1e-3,
+    }
+}
+
+/// Chooses the operating point and the slew rates, and refuses a slew the plant cannot
+/// take (keys named). `lin` is the exact linear reference the rates are read from.
+pub fn operating_plan(
+    setup: &ClosedLoopSetup<'_>,
+    spec: &FreqRespParams,
+    lin: &LinearLoop,
+) -> Result<OperatingPlan, FreqRespError> {
+    let p = setup.params;
+    let friction = holding_friction(setup);
+    let moving = angle_dependent_terms(setup);
+    let (operating_point, reason) = match spec.operating_point {
+        Some(o) => (o, "set by closed_loop.freqresp.operating_point".to_string()),
+        None if spec.point == LoopPoint::Plant => (
+            OperatingPoint::Rest,
+            "the plant point opens the loop: its describing function is measured at rest"
+                .to_string(),
+        ),
+        None if friction.is_empty() => (
+            OperatingPoint::Rest,
+            "no brake or Coulomb friction can hold the axis".to_string(),
+        ),
+        // Chosen, not asked for: rest, saying why, rather than refusing.
+        None if !moving.is_empty() => (
+            OperatingPoint::Rest,
+            format!(
+                "{} would hold the axis, but the plant changes with the output angle ({}), so a slew would not stay at one operating point; the axis column says whether the friction held",
+                friction.join(", "),
+                moving.join(", ")
+            ),
+        ),
+        None => (
+            OperatingPoint::Slewing,
+            format!(
+                "{} would hold the axis at small amplitude; slewing keeps it sliding",
+                friction.join(", ")
+            ),
+        ),
+    };
+    let amps = spec.amplitudes(p.motor.command_limit())?;
+    if operating_point == OperatingPoint::Rest {
+        return Ok(OperatingPlan {
+            operating_point,
+            reason,
+            slew_rates_rad_s: vec![None; amps.len()],
+            slew_rate_automatic: false,
+            travel_rad: 0.0,
+        });
+    }
+    let ts = 1.0 / p.controller.sample_rate_hz;
+    let freqs = spec.frequencies(p.controller.sample_rate_hz)?;
+    let ic = setup.drive.ratio();
+    let rates: Vec<f64> = match spec.slew_rate_rad_s {
+        Some(r) => vec![r; amps.len()],
+        None => amps
+            .iter()
+            .map(|&a| {
+                let peak = freqs
+                    .iter()
+                    .map(|&f| {
+                        std::f64::consts::TAU * f * a * output_per_injection(lin, spec.point, ic, f)
+                    })
+                    .fold(0.0_f64, f64::max);
+                (2.0 * peak).max(MIN_AUTO_SLEW_RAD_S)
+            })
+            .collect(),
+    };
+    let longest_s = freqs
+        .iter()
+        .map(|&f| {
+            let w = window(spec, f, ts);
+            (w.settle + w.samples) as f64 * ts
+        })
+        .fold(0.0_f64, f64::max);
+    let fastest = rates.iter().copied().fold(0.0_f64, f64::max);
+    let travel_rad = fastest * longest_s;
+    if fastest > MAX_SLEW_RAD_S {
+        return Err(invalid("slew_rate_rad_s", format!("the slew chosen for the largest amplitude, {} rad/s, is above {MAX_SLEW_RAD_S} rad/s: lower the amplitudes, or set closed_loop.freqresp.slew_rate_rad_s (the axis then slips where the injected motion outruns the slew)", crate::significant(fastest, 3))));
+    }
+    if !moving.is_empty() {
+        return Err(invalid("operating_point", format!("slewing turns the output through up to {} rad in one run, and the plant changes with the output angle ({}): the loop would not be measured at one operating point; set closed_loop.freqresp.operating_point = \"rest\", or remove those terms to measure the loop alone", crate::significant(travel_rad, 3), moving.join(", "))));
+    }
+    Ok(OperatingPlan {
+        operating_point,
+        reason,
+        slew_rates_rad_s: rates.into_iter().map(Some).collect(),
+        slew_rate_automatic: spec.slew_rate_rad_s.is_none(),
+        travel_rad,
+    })
 }
 
 impl FreqRespParams {
@@ -261,6 +523,17 @@ impl FreqRespParams {
                 format!("{}: allowed 0 to 50", self.harmonics),
             ));
         }
+        if let Some(rate) = self.slew_rate_rad_s {
+            if !(rate.is_finite() && rate > 0.0 && rate <= MAX_SLEW_RAD_S) {
+                return Err(invalid(
+                    "slew_rate_rad_s",
+                    format!("{rate} rad/s: allowed above 0 up to {MAX_SLEW_RAD_S} rad/s of output"),
+                ));
+            }
+        }
+        if self.point == LoopPoint::Plant && self.operating_point == Some(OperatingPoint::Slewing) {
+            return Err(invalid("operating_point", "slewing: the plant point opens the loop, so nothing would hold a slew; it measures the describing function at rest (operating_point = \"rest\"); measure the slewing loop at plant_input".into()));
+        }
         if self.refine_iterations > 50 {
             return Err(invalid(
                 "refine_iterations",
@@ -292,6 +565,17 @@ pub struct FreqPoint {
     pub distortion_percent: Option<f64>,
     /// Amplitude of the output angle at the injected frequency, mrad.
     pub output_amplitude_mrad: Option<f64>,
+    /// How the axis moved during the window (`None` when the run failed).
+    pub axis: Option<AxisMotion>,
+    /// Fraction of the window the brake held the drum, 0 to 1.
+    pub held_fraction: Option<f64>,
+    /// Reversals of the drum's or the motor's velocity in the window, per period of the
+    /// injection (about 2 at rest, 0 when sliding).
+    pub reversals_per_period: Option<f64>,
+    /// Relative uncertainty of the estimate, percent: the noise in the bins next to the
+    /// injected frequency over the fundamental (of the denominator too at the plant
+    /// input); above `MAX_UNCERTAINTY` the point fails.
+    pub uncertainty_percent: Option<f64>,
     /// Whether this frequency was added to refine a margin, peak or bandwidth.
     pub refinement: bool,
     /// Why the point has no result (slack, gross slip, saturation, divergence).
@@ -348,6 +632,12 @@ pub struct AmplitudeResponse {
     pub unit: String,
     /// Every frequency, ascending (refinements included).
     pub points: Vec<FreqPoint>,
+    /// Slew rate of the operating point, output rad/s (`None` at rest).
+    pub slew_rate_rad_s: Option<f64>,
+    /// How the axis moved: the worst over the frequencies measured.
+    pub axis: Option<AxisMotion>,
+    /// Frequencies by how the axis moved.
+    pub axis_frequencies: AxisCounts,
     /// Margins from the measured `L` (plant input, output disturbance).
     pub margins: Option<EstimatedMargins>,
     /// Requirements not met, and frequencies that failed (empty = passes).
@@ -441,6 +731,8 @@ pub struct FreqResponse {
     pub point: LoopPoint,
     /// Measured transfer (`L`, `S`, `PS`, `T_r`).
     pub transfer: String,
+    /// The operating point measured about, and why.
+    pub operating: OperatingPlan,
     /// One entry per amplitude.
     pub amplitudes: Vec<AmplitudeResponse>,
     /// Margins of the exact linear reference (cable as its linear spring).
@@ -602,6 +894,34 @@ fn coefficient(x: &[f64], cycles: f64) -> Complex<f64> {
     Complex::new(re, im) * (2.0 / n)
 }
 
+/// Largest relative uncertainty of a measured point (0.1: about 0.8 dB and 6 deg); a
+/// point more uncertain fails, as its number would mislead the margins.
+pub const MAX_UNCERTAINTY: f64 = 0.1;
+
+/// RMS of the Fourier coefficients (scaled as [`coefficient`]) of the two bins either side
+/// of the fundamental's `cycles`, skipping harmonics and bins outside the window's band:
+/// the level of what is not the response near the injected frequency.
+fn noise_floor(x: &[f64], cycles: u64) -> f64 {
+    let half = x.len() as u64 / 2;
+    let bins: Vec<u64> = [
+        cycles.saturating_sub(2),
+        cycles.saturating_sub(1),
+        cycles + 1,
+        cycles + 2,
+    ]
+    .into_iter()
+    .filter(|&k| k >= 1 && k < half && k % cycles != 0)
+    .collect();
+    if bins.is_empty() {
+        return 0.0;
+    }
+    let power: f64 = bins
+        .iter()
+        .map(|&k| coefficient(x, k as f64).norm_sqr())
+        .sum();
+    (power / bins.len() as f64).sqrt()
+}
+
 /// `x` less the offset and linear drift of a joint least-squares fit of offset, drift and
 /// the sinusoid of `cycles` cycles over the window. What is left keeps the fitted
 /// sinusoid, and the residual is orthogonal to it, so [`coefficient`] of the result is the
@@ -677,14 +997,22 @@ struct Bench<'a> {
     setup: ClosedLoopSetup<'a>,
     spec: &'a FreqRespParams,
     lin: LinearLoop,
+    /// Whether the plant has friction that can hold the axis.
+    friction: bool,
+    /// Whether a reversal of the drum reverses a friction (a brake or bearing friction).
+    drum_friction: bool,
+    /// Whether a reversal of the motor does (motor Coulomb friction).
+    motor_friction: bool,
 }
 
 impl Bench<'_> {
-    /// Runs the loop at `f_hz` with amplitude `amp` and correlates the window.
+    /// Runs the loop at `f_hz` with amplitude `amp`, slewing at `slew` output rad/s when
+    /// given, and correlates the window.
     fn measure(
         &self,
         f_hz: f64,
         amp: f64,
+        slew: Option<f64>,
         refinement: bool,
     ) -> Result<(FreqPoint, f64), FreqRespError> {
         let base = self.setup.params;
@@ -722,7 +1050,7 @@ impl Bench<'_> {
             phase_rad: 0.0,
             offset_rad: 0.0,
         });
-        p.reference = match point {
+        let about = match point {
             LoopPoint::Reference => Signal::Sine {
                 amplitude_rad: amp * 1e-3,
                 frequency_hz: w.frequency_hz,
@@ -733,6 +1061,21 @@ impl Bench<'_> {
                 amplitude_rad: 0.0,
                 time_s: 0.0,
             },
+        };
+        // The slew starts with the run: the breakaway and the integral's wind-up to the
+        // sliding torque are part of the settling, before the window.
+        p.reference = match slew {
+            Some(rate) => Signal::Sum {
+                parts: vec![
+                    Signal::Ramp {
+                        rate_rad_s: rate,
+                        start_s: 0.0,
+                        stop_s: None,
+                    },
+                    about,
+                ],
+            },
+            None => about,
         };
         let injection = match point {
             LoopPoint::PlantInput | LoopPoint::InputDisturbance => Some(Injection {
@@ -775,6 +1118,10 @@ impl Bench<'_> {
             exact,
             distortion_percent: None,
             output_amplitude_mrad: None,
+            axis: None,
+            held_fraction: None,
+            reversals_per_period: None,
+            uncertainty_percent: None,
             refinement,
             failure: None,
         };
@@ -803,14 +1150,20 @@ impl Bench<'_> {
             return Ok((out, simulated));
         }
         let cycles = w.cycles as f64;
-        // The open plant may drift: its offset and drift are not part of its response.
-        let open = |x: Vec<f64>| {
-            if point == LoopPoint::Plant {
-                without_drift(&x, cycles)
-            } else {
-                x
-            }
-        };
+        let (axis, held, reversals) = classify(
+            series,
+            range.clone(),
+            self.friction,
+            (self.drum_friction, self.motor_friction),
+        );
+        out.axis = Some(axis);
+        out.held_fraction = Some(held);
+        out.reversals_per_period = Some(reversals as f64 / cycles);
+        // Offsets and drifts are not part of a response: the open plant's drift, a
+        // slew's ramp, the constant command that drives the sliding friction, and what
+        // is left of the start-up transient. Fitted jointly with the fundamental, so
+        // the ramp takes none of the sinusoid with it.
+        let open = |x: Vec<f64>| without_drift(&x, cycles);
         let measured: Vec<f64> = open(
             range
                 .clone()
@@ -829,31 +1182,37 @@ impl Bench<'_> {
             .map(|k| injection.map_or(0.0, |i| i.at(series.t_s[k])))
             .collect();
         let c = |x: &[f64]| coefficient(x, cycles);
-        let (response, observed): (Complex<f64>, Vec<f64>) = match point {
-            LoopPoint::PlantInput => {
-                let u = &series.motor_command[range.clone()];
-                let u_c: Vec<f64> = u.iter().zip(&injected).map(|(u, d)| u - d).collect();
-                (-c(&u_c) / c(u), u_c)
-            }
-            LoopPoint::OutputDisturbance => {
-                let y_d: Vec<f64> = measured.iter().zip(&injected).map(|(y, d)| y + d).collect();
-                (c(&y_d) / c(&injected), y_d)
-            }
-            LoopPoint::InputDisturbance | LoopPoint::Plant => {
-                (c(&measured) / c(&injected), measured)
-            }
-            LoopPoint::Reference => {
-                let r: Vec<f64> = series.reference_rad[range.clone()]
-                    .iter()
-                    .map(|r| ic * r)
-                    .collect();
-                (c(&measured) / c(&r), measured)
-            }
-            LoopPoint::BaseMotion => {
-                let b = &series.base_angle_rad[range.clone()];
-                (c(&measured) / c(b), measured)
-            }
-        };
+        // The response, the signal observed, and the fundamental of a denominator that
+        // carries the observed signal's noise (the command at the plant input).
+        let (response, observed, noisy_denominator): (Complex<f64>, Vec<f64>, Option<f64>) =
+            match point {
+                LoopPoint::PlantInput => {
+                    let u = open(series.motor_command[range.clone()].to_vec());
+                    let u_c: Vec<f64> = u.iter().zip(&injected).map(|(u, d)| u - d).collect();
+                    (-c(&u_c) / c(&u), u_c, Some(c(&u).norm()))
+                }
+                LoopPoint::OutputDisturbance => {
+                    let y_d: Vec<f64> =
+                        measured.iter().zip(&injected).map(|(y, d)| y + d).collect();
+                    (c(&y_d) / c(&injected), y_d, None)
+                }
+                LoopPoint::InputDisturbance | LoopPoint::Plant => {
+                    (c(&measured) / c(&injected), measured, None)
+                }
+                LoopPoint::Reference => {
+                    let r: Vec<f64> = open(
+                        series.reference_rad[range.clone()]
+                            .iter()
+                            .map(|r| ic * r)
+                            .collect(),
+                    );
+                    (c(&measured) / c(&r), measured, None)
+                }
+                LoopPoint::BaseMotion => {
+                    let b = &series.base_angle_rad[range.clone()];
+                    (c(&measured) / c(b), measured, None)
+                }
+            };
         let fundamental = c(&observed).norm();
         // A signal that never moves (motion below one encoder count, an output the brake
         // holds) has no response to read: a failed point, not a gain of zero.
@@ -864,8 +1223,35 @@ impl Bench<'_> {
             || fundamental <= 1e-9 * largest
         {
             out.failure = Some(format!(
-                "no response at {:.4} Hz: the measured signal does not move at the injected frequency (motion below one encoder count, or held by the brake); raise the amplitude",
-                w.frequency_hz
+                "no response: the measured signal does not move at the injected frequency ({}); raise the amplitude{}",
+                if axis == AxisMotion::Held {
+                    "the brake holds the drum"
+                } else {
+                    "motion below one encoder count"
+                },
+                if slew.is_none() && self.friction {
+                    ", or measure slewing (closed_loop.freqresp.operating_point = \"slewing\")"
+                } else {
+                    ""
+                }
+            ));
+            return Ok((out, simulated));
+        }
+        // Noise at the injected frequency, read from the neighbouring bins: what the
+        // observed signal carries that the injection does not explain (quantisation,
+        // what is left of a transient, stick-slip) lands there as much as on the
+        // fundamental. Relative to the fundamentals it bounds the estimate's error.
+        let noise = noise_floor(&observed, w.cycles);
+        let relative = noise / fundamental + noisy_denominator.map_or(0.0, |u| noise / u);
+        out.uncertainty_percent = Some(100.0 * relative);
+        if relative > MAX_UNCERTAINTY {
+            // The numbers are in `uncertainty_percent`: one text for all such points
+            // lets the console group them.
+            out.failure = Some(format!(
+                "uncertain by more than {:.0} % ({:.1} dB, {:.0} deg): the measured signal carries motion the injection does not explain near this frequency (encoder quantisation, a transient, stick-slip); raise the amplitude",
+                100.0 * MAX_UNCERTAINTY,
+                20.0 * (1.0 + MAX_UNCERTAINTY).log10(),
+                MAX_UNCERTAINTY.asin().to_degrees()
             ));
             return Ok((out, simulated));
         }
@@ -887,6 +1273,58 @@ impl Bench<'_> {
         out.output_amplitude_mrad = Some(c(&theta_o).norm() * 1e3);
         Ok((out, simulated))
     }
+}
+
+/// How the axis moved over `range`: `(motion, fraction of samples the brake held the
+/// drum, reversals of the drum's or the motor's velocity)`. The velocities are the
+/// simulated states' sample-to-sample differences (exact, not the encoders), and a
+/// sample where one does not move is no reversal. `friction` says whether anything
+/// can stick at all; `(drum, motor)` whether a reversal there reverses a friction (a
+/// reversal where nothing rubs changes nothing).
+fn classify(
+    s: &TimeSeries,
+    range: std::ops::Range<usize>,
+    friction: bool,
+    (drum, motor): (bool, bool),
+) -> (AxisMotion, f64, usize) {
+    let n = range.len().max(1);
+    let held = s
+        .drum_held
+        .get(range.clone())
+        .map_or(0, |h| h.iter().filter(|x| **x).count());
+    let reversals = |x: &[f64]| {
+        let mut last = 0.0_f64;
+        let mut count = 0;
+        for d in x.windows(2).map(|w| w[1] - w[0]) {
+            if d != 0.0 {
+                if last != 0.0 && d.signum() != last {
+                    count += 1;
+                }
+                last = d.signum();
+            }
+        }
+        count
+    };
+    let rev = if drum {
+        reversals(&s.output_angle_rad[range.clone()])
+    } else {
+        0
+    } + if motor {
+        reversals(&s.motor_angle_rad[range])
+    } else {
+        0
+    };
+    let held_fraction = held as f64 / n as f64;
+    let motion = if !friction {
+        AxisMotion::Frictionless
+    } else if held_fraction >= 0.5 {
+        AxisMotion::Held
+    } else if held > 0 || rev > 0 {
+        AxisMotion::Slipping
+    } else {
+        AxisMotion::Sliding
+    };
+    (motion, held_fraction, rev)
 }
 
 /// Root of `g` between two measured points by the Illinois variant of regula falsi on
@@ -1147,7 +1585,18 @@ pub fn measure(
         free_span_half_stiffness_n_per_m: free,
     };
     let lin = LinearLoop::with_half_stiffness(p, setup.drive, k);
-    let bench = Bench { setup, spec, lin };
+    let plan = operating_plan(&setup, spec, &lin)?;
+    let friction = !holding_friction(&setup).is_empty();
+    let bench = Bench {
+        setup,
+        spec,
+        lin,
+        friction,
+        drum_friction: setup.load.breakaway_nm() > 0.0
+            || setup.effects.is_some_and(|e| e.bearing_friction() > 0.0),
+        motor_friction: p.motor.coulomb_nm > 0.0,
+    };
+    let slews = plan.slew_rates_rad_s.clone();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -1158,7 +1607,9 @@ pub fn measure(
     let measured: Vec<Result<(usize, FreqPoint, f64), FreqRespError>> = pool.install(|| {
         jobs.par_iter()
             .map(|&(a, f)| {
-                let r = bench.measure(f, amps[a], false).map(|(pt, s)| (a, pt, s));
+                let r = bench
+                    .measure(f, amps[a], slews[a], false)
+                    .map(|(pt, s)| (a, pt, s));
                 progress();
                 r
             })
@@ -1179,13 +1630,14 @@ pub fn measure(
         per_amp
             .into_par_iter()
             .zip(amps.par_iter())
-            .map(|(mut points, &amp)| {
+            .zip(slews.par_iter())
+            .map(|((mut points, &amp), &slew)| {
                 let mut extra_runs = 0;
                 let mut extra_s = 0.0;
                 let mut error = None;
                 let margins = spec.point.gives_loop_gain().then(|| {
                     margins_of(&mut points, spec.refine_iterations, &mut |f| match bench
-                        .measure(f, amp, true)
+                        .measure(f, amp, slew, true)
                     {
                         Ok((pt, s)) => {
                             extra_runs += 1;
@@ -1213,6 +1665,9 @@ pub fn measure(
                     AmplitudeResponse {
                         amplitude: amp,
                         unit: unit.clone(),
+                        slew_rate_rad_s: slew,
+                        axis: points.iter().filter_map(|p| p.axis).max(),
+                        axis_frequencies: AxisCounts::of(&points),
                         points,
                         margins,
                         shortfalls,
@@ -1235,6 +1690,7 @@ pub fn measure(
     Ok(FreqResponse {
         point: spec.point,
         transfer: spec.point.transfer().to_string(),
+        operating: plan,
         limit_cycles,
         amplitudes,
         exact_margins: bench.lin.margins(4000),
@@ -1250,14 +1706,44 @@ fn shortfalls(
     margins: Option<&EstimatedMargins>,
 ) -> Vec<String> {
     let mut out = Vec::new();
-    let failed: Vec<&FreqPoint> = points.iter().filter(|p| p.failure.is_some()).collect();
-    if let Some(first) = failed.first() {
+    // Failed frequencies grouped by their reason, each group with its frequencies, so
+    // the console says which failed and why without the CSV.
+    let mut groups: Vec<(&str, Vec<f64>, Vec<f64>)> = Vec::new();
+    for p in points {
+        if let Some(why) = p.failure.as_deref() {
+            let u: Vec<f64> = p.uncertainty_percent.into_iter().collect();
+            match groups.iter_mut().find(|g| g.0 == why) {
+                Some(g) => {
+                    g.1.push(p.frequency_hz);
+                    g.2.extend(u);
+                }
+                None => groups.push((why, vec![p.frequency_hz], u)),
+            }
+        }
+    }
+    for (why, f, u) in &groups {
+        const SHOWN: usize = 8;
+        let mut list: Vec<String> = f
+            .iter()
+            .take(SHOWN)
+            .map(|f| crate::significant(*f, 4))
+            .collect();
+        if f.len() > SHOWN {
+            list.push(format!("and {} more", f.len() - SHOWN));
+        }
+        let spread = if u.is_empty() {
+            String::new()
+        } else {
+            let (lo, hi) = u.iter().fold((f64::INFINITY, 0.0_f64), |(lo, hi), v| {
+                (lo.min(*v), hi.max(*v))
+            });
+            format!(" (uncertainty {lo:.0} to {hi:.0} %)")
+        };
         out.push(format!(
-            "{} of {} frequencies failed (first at {:.3} Hz: {})",
-            failed.len(),
+            "{} of {} frequencies failed, at {} Hz: {why}{spread}",
+            f.len(),
             points.len(),
-            first.requested_hz,
-            first.failure.as_deref().unwrap_or("")
+            list.join(", ")
         ));
     }
     let Some(m) = margins else {
@@ -1266,7 +1752,7 @@ fn shortfalls(
     match m.phase_margin_deg {
         Some(pm) if pm >= req.min_phase_margin_deg => {}
         Some(pm) => out.push(format!(
-            "phase margin {pm:.1} deg < {} deg",
+            "phase margin {pm:.1} deg < closed_loop.requirements.min_phase_margin_deg = {} deg",
             req.min_phase_margin_deg
         )),
         None => {
@@ -1279,13 +1765,19 @@ fn shortfalls(
     ] {
         if let Some(gm) = gm {
             if gm < req.min_gain_margin_db {
-                out.push(format!("{name} {gm:.2} dB < {} dB", req.min_gain_margin_db));
+                out.push(format!(
+                    "{name} {gm:.2} dB < closed_loop.requirements.min_gain_margin_db = {} dB",
+                    req.min_gain_margin_db
+                ));
             }
         }
     }
     if let Some(ms) = m.ms {
         if ms > req.max_ms {
-            out.push(format!("sensitivity peak Ms {ms:.3} > {}", req.max_ms));
+            out.push(format!(
+                "sensitivity peak Ms {ms:.3} > closed_loop.requirements.max_ms = {}",
+                req.max_ms
+            ));
         }
     }
     out
@@ -1305,6 +1797,27 @@ mod tests {
         assert!((c.norm() - 0.7).abs() < 1e-12, "{c}");
         // sin(w t + 0.3) = cos(w t + 0.3 - pi/2)
         assert!((c.arg() - (0.3 - std::f64::consts::FRAC_PI_2)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn noise_floor_sees_what_the_injection_does_not_explain() {
+        let n = 4000usize;
+        let tau = std::f64::consts::TAU;
+        // Fundamental at 8 cycles, harmonics, an offset: no noise near the fundamental.
+        let clean: Vec<f64> = (0..n)
+            .map(|k| {
+                let x = tau * k as f64 / n as f64;
+                (8.0 * x).sin() + 0.5 * (16.0 * x).cos() + 3.0
+            })
+            .collect();
+        assert!(noise_floor(&clean, 8) < 1e-12);
+        // A tone of 0.1 in the next bin: RMS over the four neighbours is 0.1 / 2.
+        let noisy: Vec<f64> = clean
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + 0.1 * (tau * 9.0 * k as f64 / n as f64).sin())
+            .collect();
+        assert!((noise_floor(&noisy, 8) - 0.05).abs() < 1e-12);
     }
 
     #[test]
@@ -1331,6 +1844,10 @@ mod tests {
                 exact: Complex::from(0.0),
                 distortion_percent: None,
                 output_amplitude_mrad: None,
+                axis: None,
+                held_fraction: None,
+                reversals_per_period: None,
+                uncertainty_percent: None,
                 refinement: true,
                 failure: None,
             };

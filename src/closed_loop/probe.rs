@@ -104,6 +104,46 @@ impl LoopPoint {
     }
 }
 
+/// The state of the axis the sinusoid is measured about.
+///
+/// A magnetic powder brake with breakaway, or Coulomb friction, holds the drum while the
+/// injected motion is small: at rest the loop then sees the motor on the cable spring,
+/// not the design. A bench measures with the axis slewing at a constant rate, so that the
+/// friction slides in one direction and acts as a constant torque.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OperatingPoint {
+    /// The reference held at zero: the sinusoid alone moves the axis.
+    Rest,
+    /// The reference a ramp at `slew_rate_rad_s` (output rad/s), the sinusoid on top.
+    Slewing,
+}
+
+impl OperatingPoint {
+    /// Every name accepted in a scenario or on the command line.
+    pub const NAMES: [&'static str; 2] = ["rest", "slewing"];
+
+    /// Name as written in a scenario.
+    pub fn name(self) -> &'static str {
+        match self {
+            OperatingPoint::Rest => "rest",
+            OperatingPoint::Slewing => "slewing",
+        }
+    }
+
+    /// The operating point by name; the error names the allowed ones.
+    pub fn parse(name: &str) -> Result<Self, String> {
+        match name {
+            "rest" => Ok(OperatingPoint::Rest),
+            "slewing" => Ok(OperatingPoint::Slewing),
+            _ => Err(format!(
+                "unknown operating point {name:?}; allowed: {}",
+                Self::NAMES.join(", ")
+            )),
+        }
+    }
+}
+
 /// Settings of a frequency-response measurement (`[closed_loop.freqresp]`, every key
 /// optional).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -142,6 +182,15 @@ pub struct FreqRespParams {
     /// free-span stiffness, the small-amplitude limit. The two bracket the drive: small
     /// motions see the free span, large monotone ones the tangent.
     pub reference_load_nm: Option<f64>,
+    /// Operating point (`rest` or `slewing`); `None` (the default) slews where a brake,
+    /// motor Coulomb friction or bearing friction would hold the axis, and rests
+    /// otherwise. The `plant` point (loop open) is measured at rest.
+    pub operating_point: Option<OperatingPoint>,
+    /// Slew rate of the `slewing` operating point, output rad/s; `None` (the default)
+    /// chooses it per amplitude: twice the largest output velocity the injection gives on
+    /// the exact linear reference over the frequencies measured (at least 0.01 rad/s), so
+    /// the drum never reverses and the friction never sticks.
+    pub slew_rate_rad_s: Option<f64>,
 }
 
 impl Default for FreqRespParams {
@@ -160,6 +209,8 @@ impl Default for FreqRespParams {
             harmonics: 5,
             refine_iterations: 6,
             reference_load_nm: None,
+            operating_point: None,
+            slew_rate_rad_s: None,
         }
     }
 }

@@ -335,6 +335,11 @@ pub struct TimeSeries {
     pub base_angle_rad: Vec<f64>,
     /// Gyro reading as the controller gets it, rad/s (0 without a gyro).
     pub gyro_rad_s: Vec<f64>,
+    /// Whether the brake held the drum at this sample (false without a brake): the
+    /// frequency response reads from it whether the axis slid during its measurement.
+    /// Not written to files.
+    #[serde(skip)]
+    pub drum_held: Vec<bool>,
 }
 
 impl TimeSeries {
@@ -356,6 +361,7 @@ impl TimeSeries {
             motor_reference_rad: v(),
             base_angle_rad: v(),
             gyro_rad_s: v(),
+            drum_held: Vec::with_capacity(n),
         }
     }
 
@@ -1167,6 +1173,7 @@ fn run_mode(
             s.motor_reference_rad.push(r_m);
             s.base_angle_rad.push(base_now.value);
             s.gyro_rad_s.push(gyro_reading);
+            s.drum_held.push(matches!(brake, BrakeState::Stuck));
         }
         reached = t;
         if k == n {

@@ -14,7 +14,7 @@ use crate::analysis::linear::LinearLoop;
 use crate::plot::{family_colour, save_chart, save_panels, Chart, Series, REFERENCE_RGB};
 use crate::scenario::Scenario;
 
-const COLUMNS: [&str; 21] = [
+const COLUMNS: [&str; 24] = [
     "amplitude",
     "amplitude_unit",
     "requested_hz",
@@ -35,6 +35,9 @@ const COLUMNS: [&str; 21] = [
     "output_amplitude_mrad",
     "rejection_db",
     "reference_rejection_db",
+    "axis",
+    "held_fraction",
+    "uncertainty_percent",
     "failure",
 ];
 
@@ -73,6 +76,9 @@ fn row(point: LoopPoint, a: &AmplitudeResponse, p: &FreqPoint) -> Vec<String> {
         num(p.output_amplitude_mrad),
         num(r.filter(|_| base).map(rejection_db)),
         num(base.then(|| rejection_db(p.exact))),
+        p.axis.map_or_else(String::new, |a| a.name().to_string()),
+        num(p.held_fraction),
+        num(p.uncertainty_percent),
         p.failure.clone().unwrap_or_default(),
     ]
 }
@@ -112,6 +118,10 @@ pub fn write_outputs(dir: &Path, scenario: &Scenario, r: &FreqResponse) -> Resul
                 "passes": r.verdict().map(|_| a.passes()),
                 "shortfalls": a.shortfalls,
                 "base_rejection": a.base_rejection,
+                "slew_rate_rad_s": a.slew_rate_rad_s,
+                "axis": a.axis,
+                "axis_effect": a.axis.map(|m| m.effect()),
+                "axis_frequencies": a.axis_frequencies,
                 "frequencies": a.points.len(),
                 "failed_frequencies": a.points.iter().filter(|p| p.failure.is_some()).count(),
                 "margins": a.margins,
@@ -127,6 +137,11 @@ pub fn write_outputs(dir: &Path, scenario: &Scenario, r: &FreqResponse) -> Resul
                 "point": r.point,
                 "transfer": r.transfer,
                 "passes": r.verdict(),
+                "operating_point": r.operating.operating_point,
+                "operating_point_reason": r.operating.reason,
+                "slew_rate_automatic": r.operating.slew_rate_automatic,
+                "slew_travel_rad": r.operating.travel_rad,
+                "passes": r.amplitudes.iter().all(AmplitudeResponse::passes),
                 "amplitudes": amplitudes,
                 "exact_linear_reference": r.exact_margins,
                 "reference_cable": r.reference_cable,
@@ -296,8 +311,24 @@ pub fn format_table(r: &FreqResponse) -> String {
     }
     let opt = |v: Option<f64>, d: usize| v.map_or_else(|| "-".to_string(), |v| format!("{v:.d$}"));
     let e = &r.exact_margins;
-    let mut t = format!(
-        "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>6}\n",
+    let o = &r.operating;
+    let mut t = match o.operating_point {
+        crate::analysis::freqresp::OperatingPoint::Rest => {
+            format!("operating point: rest ({})\n", o.reason)
+        }
+        crate::analysis::freqresp::OperatingPoint::Slewing => format!(
+            "operating point: slewing at a constant output rate under the injection ({}); rate {} per amplitude, up to {} rad of output travel in one run\n",
+            o.reason,
+            if o.slew_rate_automatic {
+                "chosen as twice the largest output velocity of the injection on the exact linear reference (closed_loop.freqresp.slew_rate_rad_s unset)"
+            } else {
+                "set by closed_loop.freqresp.slew_rate_rad_s"
+            },
+            crate::significant(o.travel_rad, 3)
+        ),
+    };
+    t.push_str(&format!(
+        "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>12} {:>6}\n",
         "amplitude",
         "PM_deg",
         "fc_hz",
@@ -307,8 +338,9 @@ pub fn format_table(r: &FreqResponse) -> String {
         "Ms",
         "BW_hz",
         "THDmax%",
+        "axis",
         "passes"
-    );
+    ));
     for a in &r.amplitudes {
         let thd = a
             .points
@@ -318,7 +350,7 @@ pub fn format_table(r: &FreqResponse) -> String {
         let failed = a.points.iter().filter(|p| p.failure.is_some()).count();
         let m = a.margins.clone().unwrap_or_default();
         t.push_str(&format!(
-            "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>6}{}\n",
+            "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>12} {:>6}{}\n",
             format!("{} {}", a.amplitude, a.unit),
             opt(m.phase_margin_deg, 1),
             opt(m.crossover_hz, 1),
@@ -328,6 +360,7 @@ pub fn format_table(r: &FreqResponse) -> String {
             opt(m.ms, 3),
             opt(m.bandwidth_hz, 1),
             opt(thd, 1),
+            a.axis.map_or("-", |m| m.name()),
             if a.passes() { "yes" } else { "no" },
             if failed > 0 {
                 format!("  ({failed} frequencies failed)")
@@ -337,7 +370,7 @@ pub fn format_table(r: &FreqResponse) -> String {
         ));
     }
     t.push_str(&format!(
-        "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>6}\n",
+        "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>12} {:>6}\n",
         "exact linear reference",
         opt(e.phase_margin_deg, 1),
         opt(e.crossover_hz, 1),
@@ -346,6 +379,7 @@ pub fn format_table(r: &FreqResponse) -> String {
         opt(e.lower_gain_margin_db, 2),
         opt(e.ms, 3),
         opt(e.bandwidth_hz, 1),
+        "-",
         "-",
         if e.stable { "stable" } else { "UNSTABLE" }
     ));
@@ -364,8 +398,20 @@ pub fn format_table(r: &FreqResponse) -> String {
         ),
     });
     for a in &r.amplitudes {
+        t.push_str(&axis_line(a));
+    }
+    for a in &r.amplitudes {
+        if !a.passes() {
+            t.push_str(&format!(
+                "{} {}: does not pass ({} reason{}):\n",
+                a.amplitude,
+                a.unit,
+                a.shortfalls.len(),
+                if a.shortfalls.len() == 1 { "" } else { "s" }
+            ));
+        }
         for s in &a.shortfalls {
-            t.push_str(&format!("{} {}: {s}\n", a.amplitude, a.unit));
+            t.push_str(&format!("  {} {}: {s}\n", a.amplitude, a.unit));
         }
     }
     if let Some(cycles) = &r.limit_cycles {
@@ -442,6 +488,37 @@ fn format_rejection_table(r: &FreqResponse) -> String {
         t.push_str("no base-rejection requirement declared: no verdict on the rejection (give closed_loop.requirements.min_base_rejection_db and base_rejection_hz to judge one)\n");
     }
     t
+}
+
+/// How the axis moved at one amplitude and what that does to the estimate, one line.
+fn axis_line(a: &AmplitudeResponse) -> String {
+    let Some(worst) = a.axis else {
+        return String::new();
+    };
+    let c = &a.axis_frequencies;
+    let measured = c.frictionless + c.sliding + c.slipping + c.held;
+    let counts: Vec<String> = [
+        ("held", c.held),
+        ("slipping", c.slipping),
+        ("sliding", c.sliding),
+        ("frictionless", c.frictionless),
+    ]
+    .iter()
+    .filter(|(_, n)| *n > 0)
+    .map(|(name, n)| format!("{name} {n}"))
+    .collect();
+    let slew = a.slew_rate_rad_s.map_or_else(
+        || "at rest".to_string(),
+        |r| format!("slewing {} rad/s", crate::significant(r, 3)),
+    );
+    format!(
+        "{} {}: axis {} ({slew}; of {measured} frequencies {}): {}\n",
+        a.amplitude,
+        a.unit,
+        worst.name(),
+        counts.join(", "),
+        worst.effect()
+    )
 }
 
 /// What the describing-function family predicts, one line per crossing of -1.
