@@ -228,3 +228,88 @@ fn an_upward_import_is_caught() {
     );
     assert!(crate_paths("use cable_servo::scenario::Scenario;").is_empty());
 }
+
+/// Sibling files of a room that `file` imports: `super::NAME` and
+/// `crate::ROOM::NAME`, test modules and comments left out.
+fn sibling_imports(room: &str, file: &Path, siblings: &BTreeSet<String>) -> BTreeSet<String> {
+    let text = std::fs::read_to_string(file).unwrap();
+    let code = text.split("#[cfg(test)]").next().unwrap_or("");
+    let mut out = BTreeSet::new();
+    for line in code.lines() {
+        let line = line.split("//").next().unwrap_or("");
+        for prefix in ["super::".to_string(), format!("crate::{room}::")] {
+            let mut rest = line;
+            while let Some(i) = rest.find(&prefix) {
+                rest = &rest[i + prefix.len()..];
+                let name: String = rest
+                    .chars()
+                    .take_while(|c| c.is_alphanumeric() || *c == '_')
+                    .collect();
+                if siblings.contains(&name) {
+                    out.insert(name);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Inside the rooms of the loop, no file imports one that imports it back (directly or
+/// round a longer circle): the simulated loop and its parameters below, the analysis of a
+/// loop above them.
+#[test]
+fn no_file_circle_in_the_loop_rooms() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    for room in ["closed_loop", "analysis"] {
+        let dir = src.join(room);
+        let mut files = Vec::new();
+        rust_files(&dir, &mut files);
+        let name = |p: &Path| p.file_stem().unwrap().to_string_lossy().into_owned();
+        let siblings: BTreeSet<String> = files
+            .iter()
+            .map(|f| name(f))
+            .filter(|n| n != "mod")
+            .collect();
+        let edges: BTreeMap<String, BTreeSet<String>> = files
+            .iter()
+            .filter(|f| name(f) != "mod")
+            .map(|f| (name(f), sibling_imports(room, f, &siblings)))
+            .map(|(n, mut e)| {
+                e.remove(&n);
+                (n, e)
+            })
+            .collect();
+        // Depth-first search for a back edge.
+        fn visit(
+            n: &str,
+            edges: &BTreeMap<String, BTreeSet<String>>,
+            path: &mut Vec<String>,
+            done: &mut BTreeSet<String>,
+        ) -> Option<Vec<String>> {
+            if let Some(i) = path.iter().position(|p| p == n) {
+                let mut circle = path[i..].to_vec();
+                circle.push(n.to_string());
+                return Some(circle);
+            }
+            if done.contains(n) {
+                return None;
+            }
+            path.push(n.to_string());
+            for m in edges.get(n).into_iter().flatten() {
+                if let Some(c) = visit(m, edges, path, done) {
+                    return Some(c);
+                }
+            }
+            path.pop();
+            done.insert(n.to_string());
+            None
+        }
+        let mut done = BTreeSet::new();
+        for n in edges.keys() {
+            if let Some(circle) = visit(n, &edges, &mut Vec::new(), &mut done) {
+                panic!("src/{room}: a file circle: {}", circle.join(" -> "));
+            }
+        }
+        assert!(edges.len() >= 3, "{room}: {edges:?}");
+    }
+}

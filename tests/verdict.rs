@@ -14,8 +14,11 @@ fn cable_servo(args: &[String], cwd: &std::path::Path) -> Output {
         .expect("the binary runs")
 }
 
-/// Requirement rows of a verdict table: (requirement, condition) -> passes.
-fn verdict_rows(stdout: &str) -> BTreeMap<(String, String), bool> {
+/// A verdict table's rows: (requirement, condition) -> passes.
+type Rows = BTreeMap<(String, String), bool>;
+
+/// Requirement rows of a verdict table.
+fn verdict_rows(stdout: &str) -> Rows {
     const NAMES: [&str; 11] = [
         "stable",
         "phase_margin",
@@ -155,7 +158,7 @@ fn every_command_gives_one_verdict_per_design() {
         outputs.push(("design", cable_servo(&args, tmp.path())));
 
         let want_code = if d.passes { 0 } else { 4 };
-        let mut reference: Option<(&str, BTreeMap<(String, String), bool>)> = None;
+        let mut reference: Option<(&str, Rows)> = None;
         for (command, out) in &outputs {
             let stdout = String::from_utf8_lossy(&out.stdout);
             let stderr = String::from_utf8_lossy(&out.stderr);

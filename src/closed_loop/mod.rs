@@ -12,6 +12,7 @@ pub mod base;
 pub mod controller;
 pub mod filters;
 pub mod law;
+pub mod mode;
 pub mod params;
 pub mod period;
 pub mod plant;

@@ -11,37 +11,7 @@ use crate::physics::EffectsParams;
 use crate::physics::{CableDrive, DriveParams, HysteresisModel, Routing};
 use crate::signal::Signal;
 
-/// Which backlash compensation the controller runs. One simulation per listed mode.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum CompensationMode {
-    /// No compensation: motor reference `ic * r_out`.
-    None,
-    /// Compensator copy of the cable without memory (Lu and Fan style).
-    Memoryless,
-    /// Compensator copy of the cable with capstan memory.
-    Memory,
-}
-
-impl CompensationMode {
-    /// Name used in files (`none`, `memoryless`, `memory`).
-    pub fn name(self) -> &'static str {
-        match self {
-            CompensationMode::None => "none",
-            CompensationMode::Memoryless => "memoryless",
-            CompensationMode::Memory => "memory",
-        }
-    }
-
-    /// History model of the compensator copy, if any.
-    pub fn model(self) -> Option<HysteresisModel> {
-        match self {
-            CompensationMode::None => None,
-            CompensationMode::Memoryless => Some(HysteresisModel::Memoryless),
-            CompensationMode::Memory => Some(HysteresisModel::Memory),
-        }
-    }
-}
+pub use super::mode::CompensationMode;
 
 /// How the plant's cable behaves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]

@@ -7,7 +7,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::params::CompensationMode;
+use super::mode::CompensationMode;
 
 /// Requirements of a closed-loop design. Defaults are what a servo engineer signs:
 /// PM >= 35 deg, GM >= 6 dB up and down, Ms <= 2, with the scenario's computation delay,
