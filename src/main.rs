@@ -901,9 +901,12 @@ fn main() -> ExitCode {
                     if !r.passes {
                         say!("measured: a requirement is not met at some amplitude (see the table above); the design's verdict below is judged on the exact linear reference over the operating range and the simulated pointing error");
                     }
+                    if r.unresolved > 0 {
+                        say!("{} measurement(s) could not be resolved at their amplitude and are left out of its estimate (listed above and in freqresp.csv with their reason; a larger amplitude resolves them)", r.unresolved);
+                    }
                     let code = verdict_exit(&scenario, Some("design verdict:"), false);
                     if !r.complete {
-                        tell!("frequency response INCOMPLETE: some frequencies failed (listed in freqresp.csv with their reason)");
+                        tell!("frequency response INCOMPLETE: a measurement run stopped (listed in freqresp.csv with its reason)");
                         return ExitCode::from(exit::PHYSICAL);
                     }
                     code

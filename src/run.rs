@@ -967,8 +967,11 @@ pub struct FreqRespReport {
     pub table: String,
     /// Whether every amplitude met the requirements with every frequency measured.
     pub passes: bool,
-    /// Whether every frequency of every amplitude was measured.
+    /// Whether every frequency of every amplitude was measured: no run stopped (points the
+    /// measurement could not resolve are named, not counted here).
     pub complete: bool,
+    /// Points left out as unresolved (no response or too noisy at their amplitude).
+    pub unresolved: usize,
     /// Plots that could not be drawn.
     pub warnings: Vec<String>,
     /// Simulation runs and simulated seconds.
@@ -1012,10 +1015,16 @@ pub fn run_freqresp(
         table: report::freqresp::format_table(&r),
         // No verdict (base motion without a declared rejection) is no failure.
         passes: r.verdict().unwrap_or(true),
-        complete: r
+        complete: r.amplitudes.iter().all(|a| {
+            a.points
+                .iter()
+                .all(|p| p.failure.is_none() || p.unresolved())
+        }),
+        unresolved: r
             .amplitudes
             .iter()
-            .all(|a| a.points.iter().all(|p| p.failure.is_none())),
+            .map(|a| a.points.iter().filter(|p| p.unresolved()).count())
+            .sum(),
         warnings,
         runs: (r.runs, r.simulated_s),
     })

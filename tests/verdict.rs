@@ -250,3 +250,60 @@ fn margins_of_an_unstable_or_poor_loop_read_as_words() {
         assert_eq!(out.status.code(), Some(4), "{text}");
     }
 }
+
+/// Every shipped closed-loop scenario: `run` and `margins` give the same exit code, and a
+/// scenario fails exactly when its description says it is a failing example.
+#[test]
+fn shipped_scenarios_meet_their_requirements_or_say_they_fail() {
+    use cable_servo::scenario::{Scenario, Study, BUILTIN};
+    let tmp = tempfile::tempdir().unwrap();
+    let mut checked = 0;
+    for (name, _) in BUILTIN {
+        let s = Scenario::load(name, &[]).unwrap();
+        if s.study != Study::ClosedLoop {
+            continue;
+        }
+        let description = s.description.clone().unwrap_or_default();
+        let failing_example = description.contains("FAILING EXAMPLE");
+        let want = if failing_example { 4 } else { 0 };
+        let run = cable_servo(
+            &[
+                "run".into(),
+                name.to_string(),
+                "--out".into(),
+                format!("run-{name}"),
+            ],
+            tmp.path(),
+        );
+        let margins = cable_servo(&["margins".into(), name.to_string()], tmp.path());
+        for (command, out) in [("run", &run), ("margins", &margins)] {
+            assert_eq!(
+                out.status.code(),
+                Some(want),
+                "{name} {command} (description: {description})\n{}{}",
+                String::from_utf8_lossy(&out.stdout),
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+        checked += 1;
+    }
+    assert!(checked >= 7, "{checked}");
+}
+
+/// The shipped tracking design's default frequency response: the brake would hold the
+/// axis, so it slews; what the encoder cannot resolve is named, and the exit code is the
+/// design's verdict, as `run` gives it.
+#[test]
+fn the_default_frequency_response_agrees_with_the_verdict() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = cable_servo(&["freqresp".into()], tmp.path());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("operating point: slewing"), "{text}");
+    assert!(text.contains("verdict: PASS"), "{text}");
+}

@@ -894,6 +894,25 @@ fn coefficient(x: &[f64], cycles: f64) -> Complex<f64> {
     Complex::new(re, im) * (2.0 / n)
 }
 
+impl FreqPoint {
+    /// Whether this point failed only because the measurement could not resolve it (no
+    /// response at the injected frequency, or noise above [`MAX_UNCERTAINTY`]): the run
+    /// itself went through, a larger amplitude would resolve it. Such a point is left out
+    /// of the estimate and named; a point whose run stopped (slack, slip, saturation) is
+    /// a failed measurement.
+    pub fn unresolved(&self) -> bool {
+        self.failure.is_some()
+            && (self.response.is_none()
+                && self
+                    .failure
+                    .as_deref()
+                    .is_some_and(|f| f.starts_with("no response"))
+                || self
+                    .uncertainty_percent
+                    .is_some_and(|u| u > 100.0 * MAX_UNCERTAINTY))
+    }
+}
+
 /// Largest relative uncertainty of a measured point (0.1: about 0.8 dB and 6 deg); a
 /// point more uncertain fails, as its number would mislead the margins.
 pub const MAX_UNCERTAINTY: f64 = 0.1;
