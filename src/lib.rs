@@ -28,9 +28,16 @@ pub mod signal;
 pub mod study;
 pub mod sweep;
 
+/// How a value that is not a number (a typed `nan`) reads in a message: in words, never
+/// as Rust's `NaN`.
+pub const NOT_A_NUMBER: &str = "not a number (nan)";
+
 /// A number as shown in messages: plain for everyday magnitudes, in exponent form for very
 /// large or small ones (`1e300`, not three hundred digits).
 pub fn number(v: f64) -> String {
+    if v.is_nan() {
+        return NOT_A_NUMBER.to_string();
+    }
     if v == 0.0 || !v.is_finite() || (1e-4..1e9).contains(&v.abs()) {
         format!("{v}")
     } else {
@@ -42,6 +49,9 @@ pub fn number(v: f64) -> String {
 /// exponent form beyond them: `37.2510`, `0.00123457`, `1.23457e300`.
 pub fn significant(v: f64, digits: usize) -> String {
     let digits = digits.max(1);
+    if v.is_nan() {
+        return NOT_A_NUMBER.to_string();
+    }
     if v == 0.0 || !v.is_finite() {
         return format!("{v}");
     }

@@ -95,6 +95,22 @@ fn check_rejected(
             failures.push(format!("{label}: panic text in stderr: {err}"));
         }
     }
+    // What a user reads: no debug formatting, no runaway digits.
+    let all = format!("{}{err}", String::from_utf8_lossy(&out.stdout));
+    for bad in ["Some(", "None", "NaN"] {
+        if all.contains(bad) {
+            failures.push(format!("{label}: {bad:?} in the output: {all}"));
+        }
+    }
+    if let Some(long) = all
+        .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .find(|w| w.chars().filter(char::is_ascii_digit).count() > 12)
+    {
+        failures.push(format!(
+            "{label}: a {}-character number in the output: {all}",
+            long.len()
+        ));
+    }
     let left = entries(tmp);
     if !left.is_empty() {
         failures.push(format!("{label}: left results behind: {left:?}"));

@@ -12,6 +12,7 @@ const LAYERS: &[(&str, &[&str])] = &[
         "bottom",
         &[
             "number",
+            "NOT_A_NUMBER",
             "compact",
             "significant",
             "readable",
