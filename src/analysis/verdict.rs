@@ -369,7 +369,8 @@ fn margin_checks(p: &ClosedLoopParams, point: &OperatingPoint, out: &mut Vec<Che
 }
 
 /// The operating range of a setup: the free span, and the tangent at the operating load
-/// when that load is above zero. `Err` names a load the cable cannot carry.
+/// when that load is above zero; with it, why there is no tangent when the cable cannot
+/// carry that load (a span would go slack first).
 pub fn operating_range(setup: &ClosedLoopSetup<'_>) -> (Vec<OperatingPoint>, Option<String>) {
     let p = setup.params;
     let free = ClosedLoopParams::half_stiffness_n_per_m(setup.drive);
