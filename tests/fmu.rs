@@ -190,7 +190,11 @@ fn fmpy_closed_loop_matches_the_native_run() {
         "--out",
         native.to_str().unwrap_or_default(),
     ]);
-    assert!(o.status.success(), "{}", text(&o));
+    // Uncompensated, the design misses its 0.1 mrad target: the verdict's exit 4, with the
+    // run complete and its files written.
+    assert_eq!(o.status.code(), Some(4), "{}", text(&o));
+    assert!(text(&o).contains("verdict: FAIL"), "{}", text(&o));
+    assert!(!native.join("INCOMPLETE.txt").exists(), "{}", text(&o));
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/fmu_check.py");
     let o = Command::new("python3")
         .arg(&script)
