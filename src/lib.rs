@@ -66,7 +66,12 @@ pub fn significant(v: f64, digits: usize) -> String {
 
 /// `v` to at most 4 significant digits without trailing zeros: `0.01`, `7e-7`, `2.143`.
 pub fn compact(v: f64) -> String {
-    let s = significant(v, 4);
+    trimmed(v, 4)
+}
+
+/// `v` to `digits` significant digits with trailing zeros (and a bare point) removed.
+fn trimmed(v: f64, digits: usize) -> String {
+    let s = significant(v, digits);
     let (mantissa, exponent) = match s.find('e') {
         Some(i) => s.split_at(i),
         None => (s.as_str(), ""),
@@ -82,17 +87,7 @@ pub fn compact(v: f64) -> String {
 /// `v` as users read it: at most 7 significant digits, no trailing zeros, exponent form
 /// for very large or small magnitudes: `100.0001`, `1e300`, `-2.5e-12`.
 pub fn readable(v: f64) -> String {
-    let s = significant(v, 7);
-    let (mantissa, exponent) = match s.find('e') {
-        Some(i) => s.split_at(i),
-        None => (s.as_str(), ""),
-    };
-    let mantissa = if mantissa.contains('.') {
-        mantissa.trim_end_matches('0').trim_end_matches('.')
-    } else {
-        mantissa
-    };
-    format!("{mantissa}{exponent}")
+    trimmed(v, 7)
 }
 
 /// `v` with `decimals` decimals for everyday magnitudes (as `{:.N}` prints them), and as

@@ -210,24 +210,26 @@ impl LinearLoop {
 /// (2000 is plenty), each crossing refined by bisection.
 pub fn margins(lin: &LinearLoop, points: usize) -> Margins {
     let rho = lin.spectral_radius();
-    if rho >= 1.0 {
-        return Margins {
-            stable: false,
-            spectral_radius: rho,
-            instability: lin.instability().map(InstabilityRecord::from),
-            gain_crossovers: Vec::new(),
-            phase_crossovers: Vec::new(),
-            phase_margin_deg: None,
-            crossover_hz: None,
-            gain_margin_db: None,
-            phase_crossover_hz: None,
-            lower_gain_margin_db: None,
-            lower_phase_crossover_hz: None,
-            ms: None,
-            ms_hz: None,
-            mt: None,
-            bandwidth_hz: None,
-        };
+    let mut m = Margins {
+        stable: rho < 1.0,
+        spectral_radius: rho,
+        instability: None,
+        gain_crossovers: Vec::new(),
+        phase_crossovers: Vec::new(),
+        phase_margin_deg: None,
+        crossover_hz: None,
+        gain_margin_db: None,
+        phase_crossover_hz: None,
+        lower_gain_margin_db: None,
+        lower_phase_crossover_hz: None,
+        ms: None,
+        ms_hz: None,
+        mt: None,
+        bandwidth_hz: None,
+    };
+    if !m.stable {
+        m.instability = lin.instability().map(InstabilityRecord::from);
+        return m;
     }
     let (lo, hi) = (0.1_f64, lin.nyquist_hz() * 0.9999);
     let points = points.max(10);
@@ -298,23 +300,12 @@ pub fn margins(lin: &LinearLoop, points: usize) -> Margins {
             (0, 0.0),
             |best, (i, v)| if v > best.1 { (i, v) } else { best },
         );
-    let mut m = Margins {
-        stable: true,
-        spectral_radius: rho,
-        instability: None,
-        gain_crossovers,
-        phase_crossovers,
-        phase_margin_deg: None,
-        crossover_hz: None,
-        gain_margin_db: None,
-        phase_crossover_hz: None,
-        lower_gain_margin_db: None,
-        lower_phase_crossover_hz: None,
-        ms: Some(ms),
-        ms_hz: Some(freqs[ms_i]),
-        mt: Some(t.iter().copied().fold(0.0, f64::max)),
-        bandwidth_hz: bandwidth,
-    };
+    m.gain_crossovers = gain_crossovers;
+    m.phase_crossovers = phase_crossovers;
+    m.ms = Some(ms);
+    m.ms_hz = Some(freqs[ms_i]);
+    m.mt = Some(t.iter().copied().fold(0.0, f64::max));
+    m.bandwidth_hz = bandwidth;
     if let Some(c) = m.worst_gain_crossover().copied() {
         m.phase_margin_deg = Some(c.phase_margin_deg);
         m.crossover_hz = Some(c.frequency_hz);

@@ -20,7 +20,7 @@ use super::linear::{tangent_half_stiffness, LinearLoop};
 use super::margins::{GainDirection, Margins};
 use crate::closed_loop::params::{ClosedLoopParams, CompensationMode};
 use crate::closed_loop::sim::{
-    run_closed_loop, ClosedLoopError, ClosedLoopSetup, Completion, ModeResult, RunOptions,
+    run_closed_loop, ClosedLoopError, ClosedLoopSetup, ModeResult, RunOptions,
 };
 use crate::metrics::Criterion;
 
@@ -422,26 +422,11 @@ pub fn judge(setup: &ClosedLoopSetup<'_>, judged: &ModeResult) -> Verdict {
         checks.push(c);
     }
     let mode = judged.mode.name();
-    let stopped = match &judged.completion {
-        Completion::Complete => None,
-        Completion::Incomplete { fault, time_s, .. } => Some(format!(
-            "mode {mode} stopped at t = {} s: {fault}",
-            crate::significant(*time_s, 5)
-        )),
-    };
+    let no_figures = judged.no_figures_reason();
     let m = &judged.metrics;
-    let empty = m.samples == 0;
-    let none_because = |what: &str| {
-        stopped.clone().unwrap_or_else(|| {
-            if empty {
-                "the metrics window holds no sample".to_string()
-            } else {
-                format!("no {what}")
-            }
-        })
-    };
+    let none_because = |what: &str| no_figures.clone().unwrap_or_else(|| format!("no {what}"));
     // Pointing: the peak error, or under a stare the error after settling of every step.
-    let pointing = if stopped.is_some() || empty {
+    let pointing = if no_figures.is_some() {
         let mut c = check(
             "pointing",
             mode,
@@ -489,7 +474,7 @@ pub fn judge(setup: &ClosedLoopSetup<'_>, judged: &ModeResult) -> Verdict {
         )
     };
     checks.push(pointing);
-    let ok = stopped.is_none() && !empty;
+    let ok = no_figures.is_none();
     let optional = |requirement: &'static str,
                     value: Option<f64>,
                     limit: f64,

@@ -414,6 +414,22 @@ pub struct ModeResult {
 }
 
 impl ModeResult {
+    /// Why this mode has no figures to judge (a stop, an empty metrics window); `None`
+    /// when its metrics are the design's answer. What a stopped mode ran is not.
+    pub fn no_figures_reason(&self) -> Option<String> {
+        match &self.completion {
+            Completion::Incomplete { fault, time_s, .. } => Some(format!(
+                "mode {} stopped at t = {} s: {fault}",
+                self.mode.name(),
+                crate::significant(*time_s, 5)
+            )),
+            Completion::Complete if self.metrics.samples == 0 => {
+                Some("the metrics window holds no sample".to_string())
+            }
+            Completion::Complete => None,
+        }
+    }
+
     /// The mode's name as figures label it: `memory + effects` when the extended model
     /// compensated.
     pub fn label(&self) -> String {

@@ -89,16 +89,7 @@ struct Summary<'a> {
 
 fn mode_summary(m: &ModeResult) -> ModeSummary<'_> {
     // What a stopped mode ran is not the design's answer: no figures, the reason instead.
-    let reason = match &m.completion {
-        Completion::Incomplete { fault, time_s, .. } => Some(format!(
-            "stopped at t = {} s: {fault}",
-            crate::significant(*time_s, 5)
-        )),
-        Completion::Complete if m.metrics.samples == 0 => {
-            Some("the metrics window holds no sample".to_string())
-        }
-        Completion::Complete => None,
-    };
+    let reason = m.no_figures_reason();
     let ok = reason.is_none();
     let figure = |v: f64| ok.then_some(v);
     ModeSummary {
