@@ -157,6 +157,44 @@ pub fn replay(drive: &DriveParams, torque: &[f64]) -> Result<Vec<f64>, (usize, S
     Ok(out)
 }
 
+/// Knots of a relaxing preload: the error is replayed at the preload of each knot and
+/// interpolated in time between them. Backlash is convex in the preload, so a single chord
+/// from the first to the last preload overstates the error in between and biases the fitted
+/// rate low (by about 10 % for a preload that falls by a third over the record); four
+/// chords cut that error sixteen-fold.
+pub const RELAXATION_KNOTS: usize = 4;
+
+/// [`replay`] with the preload falling linearly from `drive.preload_n` at rate `rate_per_s`
+/// (1/s of the initial preload, `preload_relaxation`), over sample times `t_s` of a record
+/// `duration_s` long.
+pub fn relaxing_replay(
+    drive: &DriveParams,
+    torque: &[f64],
+    t_s: &[f64],
+    duration_s: f64,
+    rate_per_s: f64,
+) -> Result<Vec<f64>, (usize, String)> {
+    let mut e = replay(drive, torque)?;
+    if !(rate_per_s > 0.0 && duration_s > 0.0) {
+        return Ok(e);
+    }
+    let k = RELAXATION_KNOTS;
+    let knots = (1..=k)
+        .map(|j| {
+            let mut d = drive.clone();
+            d.preload_n *= (1.0 - rate_per_s * duration_s * j as f64 / k as f64).max(0.05);
+            replay(&d, torque)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    for (i, v) in e.iter_mut().enumerate() {
+        let x = (t_s[i] / duration_s).clamp(0.0, 1.0) * k as f64;
+        let j = (x.floor() as usize).min(k - 1);
+        let lo = if j == 0 { *v } else { knots[j - 1][i] };
+        *v = lo + (x - j as f64) * (knots[j][i] - lo);
+    }
+    Ok(e)
+}
+
 /// Low-pass in input-travel domain: what stuck cable carried over the wraps does to a jump.
 pub fn transport_filter(e: &[f64], travel: &[f64], theta_c: f64) -> Vec<f64> {
     let mut out = Vec::with_capacity(e.len());
@@ -435,15 +473,7 @@ impl<'a> Evaluator<'a> {
                     t_s: l.t.get(i).copied().unwrap_or(0.0),
                     message: msg,
                 };
-                let mut e = replay(&drive, &torque).map_err(fail)?;
-                if rel > 0.0 {
-                    let mut d2 = drive.clone();
-                    d2.preload_n *= 1.0 - rel * l.duration;
-                    let e1 = replay(&d2, &torque).map_err(fail)?;
-                    for (i, v) in e.iter_mut().enumerate() {
-                        *v += l.t[i] / l.duration * (e1[i] - *v);
-                    }
-                }
+                let e = relaxing_replay(&drive, &torque, &l.t, l.duration, rel).map_err(fail)?;
                 all.push(e);
             }
             if self.cache.len() > 64 {

@@ -5,7 +5,7 @@ use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 
 use super::effects::EffectName;
-use super::model::{replay, transport_filter};
+use super::model::{relaxing_replay, transport_filter};
 use super::IdentifyError;
 use super::IdentifySource;
 use crate::measurement::BenchLog;
@@ -121,15 +121,8 @@ pub fn synthesize(
         t_s: t.get(i).copied().unwrap_or(0.0),
         message: m,
     };
-    let mut e = replay(drive, &torque).map_err(fail)?;
-    if let Some(r) = get(EffectName::PreloadRelaxation) {
-        let mut d2 = drive.clone();
-        d2.preload_n *= (1.0 - r * dur).max(0.05);
-        let e1 = replay(&d2, &torque).map_err(fail)?;
-        for k in 0..n {
-            e[k] += t[k] / dur * (e1[k] - e[k]);
-        }
-    }
+    let rel = get(EffectName::PreloadRelaxation).unwrap_or(0.0);
+    let mut e = relaxing_replay(drive, &torque, &t, dur, rel).map_err(fail)?;
     if let Some(tc) = get(EffectName::CableTransport) {
         let travel: Vec<f64> = (0..n)
             .map(|k| {

@@ -1,0 +1,42 @@
+//! The identification statistics on the independent truth of `tests/support/truth.rs`:
+//! every effect hidden at 50 random sizes and phases (half of them within a factor 2 of the
+//! smallest size), clean logs with the library and with every effect searched. Prints the
+//! table the README cites; `IDENTIFY_RATE_SEEDS` sets another count.
+
+#[path = "../tests/support/mod.rs"]
+mod support;
+
+use cable_servo::identify::EffectName;
+use support::rates::{clean_rate, opts, opts_every, run_effect, size_tolerance};
+
+fn main() {
+    let seeds: u64 = std::env::var("IDENTIFY_RATE_SEEDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(50);
+    let start = std::time::Instant::now();
+    let mut table = Vec::new();
+    for e in EffectName::EVERY {
+        let r = run_effect(e, seeds);
+        table.push(format!(
+            "| `{e}` | {}/{seeds} | {}/{seeds} within {:.0} % | {:.1} % |",
+            r.named,
+            r.sized,
+            size_tolerance(e) * 100.0,
+            r.worst * 100.0
+        ));
+    }
+    let none = clean_rate(seeds, &opts(), "library searched");
+    let none_every = clean_rate(seeds, &opts_every(), "every effect searched");
+    println!("| effect | named | sized | worst size error |");
+    println!("|---|---|---|---|");
+    for row in table {
+        println!("{row}");
+    }
+    println!("| clean logs, library searched | `none` {none}/{seeds} | | |");
+    println!("| clean logs, every effect searched | `none` {none_every}/{seeds} | | |");
+    println!(
+        "{seeds} seeds per row in {:.0} s",
+        start.elapsed().as_secs_f64()
+    );
+}

@@ -1,0 +1,4 @@
+//! Helpers shared by the integration tests and benchmarks.
+
+pub mod rates;
+pub mod truth;
