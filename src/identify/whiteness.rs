@@ -68,7 +68,7 @@ mod tests {
     /// Exact upper tail of the chi-square distribution with an even number `k` of degrees
     /// of freedom: `P(X > x) = exp(-x/2) sum_{j < k/2} (x/2)^j / j!`.
     fn exact_tail_even(x: f64, k: usize) -> f64 {
-        assert!(k % 2 == 0);
+        assert!(k.is_multiple_of(2));
         let mut term = 1.0;
         let mut sum = 1.0;
         for j in 1..k / 2 {
