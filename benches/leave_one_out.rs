@@ -1,9 +1,9 @@
 //! Joint calibration over the eleven da Vinci logs and the leave-one-log-out table
 //! (requirement: under 60 s on 2 cores). The logs are read from `$CABLE_SERVO_DAVINCI`,
-//! else `../shared/real-data/davinci`, else `/work/shared/real-data/davinci`; the bench
-//! says so and does nothing when none exists.
+//! else `../shared/real-data/davinci` beside the repository; the bench says so and does
+//! nothing when neither exists.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use cable_servo::identify::loo::leave_one_out;
 use cable_servo::identify::startup::StartMode;
@@ -20,10 +20,7 @@ fn data_dir() -> Option<PathBuf> {
     std::env::var_os("CABLE_SERVO_DAVINCI")
         .map(PathBuf::from)
         .into_iter()
-        .chain([
-            PathBuf::from("../shared/real-data/davinci"),
-            PathBuf::from("/work/shared/real-data/davinci"),
-        ])
+        .chain([Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/real-data/davinci")])
         .find(|d| d.join("tool4_00.csv").exists())
 }
 

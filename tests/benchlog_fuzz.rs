@@ -6,8 +6,13 @@
 //! * an `Err` is a one-line message naming the stream, with a line number inside the input;
 //! * the in-memory reader, the streaming visitor and a reader delivering random-size
 //!   chunks all agree.
+//!
+//! Each property counts the cases it ran and checks that count; the last property to
+//! finish checks the total (whatever order the tests run in).
 
+use std::cell::Cell;
 use std::io::{self, Read};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use cable_servo::io::benchlog::{
     read_bench_log, read_bench_log_from, visit_bench_log, write_bench_log, write_bench_log_to,
@@ -26,6 +31,37 @@ const CASES_VALID_MODEL: u32 = 15_000;
 const CASES_ROUND_TRIP_MEMORY: u32 = 5_000;
 /// Few: every case fsyncs a file and a directory.
 const CASES_ROUND_TRIP_FILE: u32 = 100;
+
+/// Properties below that count towards the total.
+const PROPERTIES: usize = 6;
+/// Cases run by the properties that finished, and how many finished.
+static CASES_RAN: AtomicUsize = AtomicUsize::new(0);
+static PROPERTIES_FINISHED: AtomicUsize = AtomicUsize::new(0);
+
+/// A property finished having run `ran` cases, planned `planned`: it must have run them
+/// all (more when proptest replays saved failures first); the last property to finish
+/// checks the total.
+fn finish(property: &str, ran: &Cell<u32>, planned: u32) {
+    let ran = ran.get();
+    assert!(
+        ran >= planned,
+        "{property}: {ran} cases ran of {planned} planned"
+    );
+    CASES_RAN.fetch_add(ran as usize, Ordering::SeqCst);
+    if PROPERTIES_FINISHED.fetch_add(1, Ordering::SeqCst) + 1 == PROPERTIES {
+        let total = CASES_RAN.load(Ordering::SeqCst);
+        assert!(
+            total >= 100_000,
+            "{total} cases ran in all, fewer than 100 000"
+        );
+        eprintln!("bench-log reader: {total} cases ran in all");
+    }
+}
+
+/// One more case ran.
+fn count(ran: &Cell<u32>) {
+    ran.set(ran.get() + 1);
+}
 
 /// Physical lines in `bytes` as the reader counts them (`\n`, `\r\n`, lone `\r`).
 fn physical_lines(bytes: &[u8]) -> u64 {
@@ -561,76 +597,96 @@ fn mutate(model: &Model, mutations: &[Mutation]) -> Vec<u8> {
 // Properties
 // ---------------------------------------------------------------------------------------
 
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(CASES_RANDOM_BYTES))]
-    #[test]
-    fn random_bytes_never_panic(
-        bytes in prop::collection::vec(any::<u8>(), 0..400),
-        chunks in prop::collection::vec(1usize..64, 0..4),
-    ) {
-        let _ = check(&bytes, &chunks);
-        // With a valid header in front the row parser sees the bytes too.
-        let mut with_header = b"t_s,theta_in_rad,theta_out_rad,load_nm\n".to_vec();
-        with_header.extend_from_slice(&bytes);
-        let _ = check(&with_header, &[]);
-    }
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(CASES_TOKEN_SOUP))]
-    #[test]
-    fn token_soup_never_panics(
-        bytes in token_soup(),
-        chunks in prop::collection::vec(1usize..16, 0..4),
-    ) {
-        let _ = check(&bytes, &chunks);
-    }
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(CASES_MUTATED))]
-    #[test]
-    fn mutated_valid_logs_never_panic(
-        model in model(),
-        mutations in prop::collection::vec(mutation(), 1..4),
-        chunks in prop::collection::vec(1usize..32, 1..4),
-    ) {
-        let bytes = mutate(&model, &mutations);
-        let _ = check(&bytes, &chunks);
-    }
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(CASES_VALID_MODEL))]
-    #[test]
-    fn valid_logs_parse_to_the_model(
-        model in model(),
-        chunks in prop::collection::vec(1usize..32, 0..3),
-    ) {
-        let bytes = model.render();
-        let log = match check(&bytes, &chunks) {
-            Ok(log) => log,
-            Err(e) => panic!("valid log rejected: {e}\n{}", String::from_utf8_lossy(&bytes)),
-        };
-        prop_assert_eq!(log.len(), model.rows.len());
-        let cols: [Option<&Vec<f64>>; 7] = [
-            Some(&log.t_s),
-            Some(&log.theta_in_rad),
-            Some(&log.theta_out_rad),
-            Some(&log.load_nm),
-            log.tension_upper_n.as_ref(),
-            log.tension_lower_n.as_ref(),
-            log.motor_current_a.as_ref(),
-        ];
-        for (r, expect) in model.values.iter().enumerate() {
-            for k in 0..7 {
-                let got = cols[k].map(|c| c[r].to_bits());
-                prop_assert_eq!(got, expect[k].map(f64::to_bits), "row {} column {}", r, KNOWN[k]);
-            }
+#[test]
+fn random_bytes_never_panic() {
+    let ran = Cell::new(0);
+    proptest!(
+        ProptestConfig::with_cases(CASES_RANDOM_BYTES),
+        |(
+            bytes in prop::collection::vec(any::<u8>(), 0..400),
+            chunks in prop::collection::vec(1usize..64, 0..4),
+        )| {
+            let _ = check(&bytes, &chunks);
+            // With a valid header in front the row parser sees the bytes too.
+            let mut with_header = b"t_s,theta_in_rad,theta_out_rad,load_nm\n".to_vec();
+            with_header.extend_from_slice(&bytes);
+            let _ = check(&with_header, &[]);
+            count(&ran);
         }
-        prop_assert_eq!(&log.extra_columns, &model.extras);
-        prop_assert_eq!(log.comments, model.expected_comments());
-    }
+    );
+    finish("random_bytes_never_panic", &ran, CASES_RANDOM_BYTES);
+}
+
+#[test]
+fn token_soup_never_panics() {
+    let ran = Cell::new(0);
+    proptest!(
+        ProptestConfig::with_cases(CASES_TOKEN_SOUP),
+        |(
+            bytes in token_soup(),
+            chunks in prop::collection::vec(1usize..16, 0..4),
+        )| {
+            let _ = check(&bytes, &chunks);
+            count(&ran);
+        }
+    );
+    finish("token_soup_never_panics", &ran, CASES_TOKEN_SOUP);
+}
+
+#[test]
+fn mutated_valid_logs_never_panic() {
+    let ran = Cell::new(0);
+    proptest!(
+        ProptestConfig::with_cases(CASES_MUTATED),
+        |(
+            model in model(),
+            mutations in prop::collection::vec(mutation(), 1..4),
+            chunks in prop::collection::vec(1usize..32, 1..4),
+        )| {
+            let bytes = mutate(&model, &mutations);
+            let _ = check(&bytes, &chunks);
+            count(&ran);
+        }
+    );
+    finish("mutated_valid_logs_never_panic", &ran, CASES_MUTATED);
+}
+
+#[test]
+fn valid_logs_parse_to_the_model() {
+    let ran = Cell::new(0);
+    proptest!(
+        ProptestConfig::with_cases(CASES_VALID_MODEL),
+        |(
+            model in model(),
+            chunks in prop::collection::vec(1usize..32, 0..3),
+        )| {
+            let bytes = model.render();
+            let log = match check(&bytes, &chunks) {
+                Ok(log) => log,
+                Err(e) => panic!("valid log rejected: {e}\n{}", String::from_utf8_lossy(&bytes)),
+            };
+            prop_assert_eq!(log.len(), model.rows.len());
+            let cols: [Option<&Vec<f64>>; 7] = [
+                Some(&log.t_s),
+                Some(&log.theta_in_rad),
+                Some(&log.theta_out_rad),
+                Some(&log.load_nm),
+                log.tension_upper_n.as_ref(),
+                log.tension_lower_n.as_ref(),
+                log.motor_current_a.as_ref(),
+            ];
+            for (r, expect) in model.values.iter().enumerate() {
+                for k in 0..7 {
+                    let got = cols[k].map(|c| c[r].to_bits());
+                    prop_assert_eq!(got, expect[k].map(f64::to_bits), "row {} column {}", r, KNOWN[k]);
+                }
+            }
+            prop_assert_eq!(&log.extra_columns, &model.extras);
+            prop_assert_eq!(log.comments, model.expected_comments());
+            count(&ran);
+        }
+    );
+    finish("valid_logs_parse_to_the_model", &ran, CASES_VALID_MODEL);
 }
 
 fn arbitrary_log() -> impl Strategy<Value = BenchLog> {
@@ -680,37 +736,44 @@ fn assert_same(back: &BenchLog, log: &BenchLog) {
     assert_eq!(back.comments, log.comments);
 }
 
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(CASES_ROUND_TRIP_MEMORY))]
-    #[test]
-    fn write_then_read_is_bit_exact_in_memory(log in arbitrary_log()) {
-        let mut bytes = Vec::new();
-        write_bench_log_to(&mut bytes, NAME, &log).unwrap();
-        let back = check(&bytes, &[]).unwrap();
-        assert_same(&back, &log);
-    }
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig::with_cases(CASES_ROUND_TRIP_FILE))]
-    #[test]
-    fn write_then_read_is_bit_exact_via_file(log in arbitrary_log()) {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("log.csv");
-        write_bench_log(&path, &log).unwrap();
-        let back = read_bench_log(&path).unwrap();
-        assert_same(&back, &log);
-        prop_assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
-    }
+#[test]
+fn write_then_read_is_bit_exact_in_memory() {
+    let ran = Cell::new(0);
+    proptest!(
+        ProptestConfig::with_cases(CASES_ROUND_TRIP_MEMORY),
+        |(log in arbitrary_log())| {
+            let mut bytes = Vec::new();
+            write_bench_log_to(&mut bytes, NAME, &log).unwrap();
+            let back = check(&bytes, &[]).unwrap();
+            assert_same(&back, &log);
+            count(&ran);
+        }
+    );
+    finish(
+        "write_then_read_is_bit_exact_in_memory",
+        &ran,
+        CASES_ROUND_TRIP_MEMORY,
+    );
 }
 
 #[test]
-fn case_budget_is_at_least_100k() {
-    let total = CASES_RANDOM_BYTES
-        + CASES_TOKEN_SOUP
-        + CASES_MUTATED
-        + CASES_VALID_MODEL
-        + CASES_ROUND_TRIP_MEMORY
-        + CASES_ROUND_TRIP_FILE;
-    assert!(total >= 100_000, "{total}");
+fn write_then_read_is_bit_exact_via_file() {
+    let ran = Cell::new(0);
+    proptest!(
+        ProptestConfig::with_cases(CASES_ROUND_TRIP_FILE),
+        |(log in arbitrary_log())| {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("log.csv");
+            write_bench_log(&path, &log).unwrap();
+            let back = read_bench_log(&path).unwrap();
+            assert_same(&back, &log);
+            prop_assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+            count(&ran);
+        }
+    );
+    finish(
+        "write_then_read_is_bit_exact_via_file",
+        &ran,
+        CASES_ROUND_TRIP_FILE,
+    );
 }

@@ -259,16 +259,39 @@ fn merge_refuses_a_missing_truncated_duplicated_or_foreign_shard() {
     assert!(record.contains("\"complete\": true"), "{record}");
 }
 
-/// Wait until a staging directory appears in `dir` (the command is writing), up to 60 s.
-fn wait_for_staging(dir: &Path) {
+/// Poll `done` every 10 ms until it gives a value. Harness use only: the deadline is a hang
+/// guard, far beyond what any machine needs, never a speed requirement; reaching it panics
+/// with "hung" and `what`.
+fn wait_for<T>(what: &str, mut done: impl FnMut() -> Option<T>) -> T {
+    const HANG_GUARD: std::time::Duration = std::time::Duration::from_secs(300);
     let start = std::time::Instant::now();
-    while start.elapsed() < std::time::Duration::from_secs(60) {
-        if entries(dir).iter().any(|e| e.contains(".partial-")) {
-            return;
+    loop {
+        if let Some(v) = done() {
+            return v;
         }
-        std::thread::sleep(std::time::Duration::from_millis(20));
+        assert!(start.elapsed() < HANG_GUARD, "hung: {what}");
+        std::thread::sleep(std::time::Duration::from_millis(10));
     }
-    panic!("no staging directory appeared in {}", dir.display());
+}
+
+/// The staging directory of process `pid` in `dir` once it is registered for removal on a
+/// signal: its results marker is written right after registration.
+fn staging_of(dir: &Path, pid: u32) -> Option<PathBuf> {
+    let tag = format!(".partial-{pid}-");
+    entries(dir)
+        .into_iter()
+        .find(|e| e.contains(&tag))
+        .map(|e| dir.join(e))
+        .filter(|d| d.join(".cable-servo-results").exists())
+}
+
+/// Complete data rows in a CSV being written (its header line and any partly written last
+/// line not counted).
+fn complete_rows(csv: &Path) -> usize {
+    let newlines = fs::read(csv)
+        .map(|b| b.iter().filter(|&&c| c == b'\n').count())
+        .unwrap_or(0);
+    newlines.saturating_sub(1)
 }
 
 fn send(signal: &str, pid: u32) {
@@ -289,6 +312,8 @@ fn sigint_during_a_sweep_keeps_finished_cases_marked_incomplete() {
         .args([
             "sweep",
             "eots_tolerance",
+            "--set",
+            "sweep.samples=4000",
             "--threads",
             "2",
             "--out",
@@ -299,8 +324,16 @@ fn sigint_during_a_sweep_keeps_finished_cases_marked_incomplete() {
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    wait_for_staging(tmp.path());
-    std::thread::sleep(std::time::Duration::from_millis(300));
+    // The signal goes once the staged sweep.csv holds a finished case: the sweep is under
+    // way and stops gracefully. The table is buffered, so the first rows show after a few
+    // dozen cases (about 25 of 330 bytes in 8 KiB), under 1 % of the 4000 drawn (the
+    // scenario's 1000 raised so): whatever the machine's speed, the sweep is far from done
+    // when the signal arrives.
+    let seen = wait_for("no finished case in the staged sweep.csv", || {
+        let staging = staging_of(tmp.path(), child.id())?;
+        let rows = complete_rows(&staging.join("sweep.csv"));
+        (rows >= 1).then_some(rows)
+    });
     send("-INT", child.id());
     let o = child.wait_with_output().unwrap();
     let err = stderr(&o);
@@ -318,11 +351,18 @@ fn sigint_during_a_sweep_keeps_finished_cases_marked_incomplete() {
         summary.contains("\"interrupted_by\": \"SIGINT\""),
         "{summary}"
     );
-    let rows = fs::read_to_string(out.join("sweep.csv"))
-        .unwrap()
-        .lines()
-        .count();
-    assert!(rows < 1001, "all 1000 cases ran: the signal came too late");
+    // Every case seen finished before the signal is kept, and the signal stopped the sweep
+    // short of its 4000 cases.
+    let kept = complete_rows(&out.join("sweep.csv"));
+    println!("{kept} of 4000 cases kept, {seen} seen before the signal");
+    assert!(
+        (seen..=3999).contains(&kept),
+        "{kept} rows kept, {seen} seen before the signal: all 4000 cases ran, or finished rows were lost"
+    );
+    assert!(
+        marker.contains(&format!("with the {kept} finished cases of 4000")),
+        "{marker}"
+    );
     // Such a shard is refused by merge as truncated.
     let o = cable_servo(
         &["merge", "--out", p(&tmp.path().join("m.csv")), p(&out)],
@@ -355,15 +395,22 @@ fn sigterm_during_a_run_leaves_nothing_and_stale_staging_is_cleared() {
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    assert!(!stale.exists() || entries(tmp.path()).len() <= 2);
-    wait_for_staging(tmp.path());
-    std::thread::sleep(std::time::Duration::from_millis(200));
+    // The run's own staging directory, registered for removal: the 100 s simulation has
+    // begun (it writes nothing until it ends) and the stale directory was cleared first.
+    let staging = wait_for("the run did not stage its results", || {
+        staging_of(tmp.path(), child.id())
+    });
+    assert!(
+        !stale.exists(),
+        "a new run kept the stale staging directory"
+    );
     send("-TERM", child.id());
     let o = child.wait_with_output().unwrap();
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(143), "{err}");
     assert!(err.contains("interrupted by SIGTERM"), "{err}");
     assert!(err.contains("partial results removed"), "{err}");
+    assert!(err.contains(&staging.display().to_string()), "{err}");
     assert!(!stale.exists(), "stale staging directory kept");
     assert!(entries(tmp.path()).is_empty(), "{:?}", entries(tmp.path()));
 }

@@ -3,6 +3,9 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
+#[path = "support/capstan.rs"]
+mod capstan;
+
 fn cable_servo(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_cable-servo"))
         .args(args)
@@ -112,6 +115,59 @@ fn bad_vary_names_the_argument_and_the_forms() {
     assert_eq!(o.status.code(), Some(2));
 }
 
+/// The first number in `line` after `after`.
+fn number_after(line: &str, after: &str) -> f64 {
+    let rest = &line[line
+        .find(after)
+        .unwrap_or_else(|| panic!("{after:?} in {line}"))
+        + after.len()..];
+    let end = rest
+        .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-' || c == 'e'))
+        .unwrap_or(rest.len());
+    rest[..end]
+        .parse()
+        .unwrap_or_else(|e| panic!("{:?} in {line}: {e}", &rest[..end]))
+}
+
+/// The backlash protocol of paper_fig11 at 0.72 N m with `preload_n`, run on its own:
+/// `(exit code, regime)`.
+fn backlash_at(preload_n: f64) -> (Option<i32>, String) {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("b");
+    let o = cable_servo(&[
+        "run",
+        "paper_fig11",
+        "--set",
+        &format!("drive.preload_n={preload_n}"),
+        "--set",
+        "backlash.load_nm=0.72",
+        "--out",
+        path(&out),
+    ]);
+    let console = String::from_utf8_lossy(&o.stdout).to_string();
+    let row = console
+        .lines()
+        .nth(1)
+        .unwrap_or_else(|| panic!("no result row: {console}"));
+    let regime = row
+        .split_whitespace()
+        .last()
+        .unwrap_or_default()
+        .to_string();
+    (o.status.code(), regime)
+}
+
+/// The least preload is checked against the closed form of the first +M loading (see
+/// tests/support/capstan.rs: gross slip of the loose half on the pulley at
+/// `M = 0.2333 N m per N of preload` for this drive, so 3.08602 N for 0.72 N m; the later
+/// -M and +M do not fail first) and against runs of the protocol on their own (not through
+/// the search): the answer passes and the answer less the tolerance fails. The bisection
+/// returns the upper end of its last bracket, so the answer lies in
+/// `[threshold, threshold + tolerance]`, up to the 5e-6 N of printing it to 6 significant
+/// digits. The comparison bound
+/// is `M / (2 r_drum) = 0.72 / 0.205 = 3.5122 N`, printed to 3 decimals; the search over
+/// [0.01, 700] N (1e5 capped at 5 % strain of 1.4e4 N) to 0.01 N needs
+/// `ceil(log2(69999)) + 2 = 19` probes at most.
 #[test]
 fn least_preload_answer() {
     let o = cable_servo(&[
@@ -123,8 +179,55 @@ fn least_preload_answer() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let out = String::from_utf8_lossy(&o.stdout);
-    assert!(out.contains("least preload at M = 0.72 N m"), "{out}");
     assert!(out.contains("definition:"), "{out}");
+    let answer = out
+        .lines()
+        .find(|l| l.starts_with("least preload at M = 0.72 N m (memory model): "))
+        .unwrap_or_else(|| panic!("{out}"));
+    let preload = number_after(answer, "(memory model): ");
+    let tolerance = number_after(answer, "(+");
+    let probes = number_after(answer, "N, ");
+    let bound_line = out
+        .lines()
+        .find(|l| l.contains("M/(2*drum_radius_m) = "))
+        .unwrap_or_else(|| panic!("{out}"));
+    let bound = number_after(bound_line, "M/(2*drum_radius_m) = ");
+    let exact_bound = 0.72 / (2.0 * 0.1025);
+    assert!(
+        (bound - exact_bound).abs() <= 0.5e-3,
+        "{bound} against {exact_bound}"
+    );
+    assert_eq!(tolerance, 0.01, "{answer}");
+    let most = ((700.0f64 - 0.01) / 0.01).log2().ceil() + 2.0;
+    assert!(
+        probes >= 2.0 && probes <= most,
+        "{probes} probes, at most {most}"
+    );
+    // Friction on the wraps moves the span tensions unequally: the answer lies below the
+    // equal-and-opposite slack bound, which is itself no lower bound.
+    assert!(preload > 0.0 && preload < exact_bound, "{answer}");
+    let (per_newton, _, _) = capstan::gross_slip_torque_nm(&capstan::PAPER_DRIVE, 1.0);
+    let threshold = 0.72 / per_newton;
+    println!("answer {preload} N, closed form {threshold} N");
+    assert!(
+        preload >= threshold - 5e-6 && preload <= threshold + tolerance + 5e-6,
+        "{preload} N against the closed form {threshold} N (+{tolerance} N)"
+    );
+    // The answer is printed to 6 significant digits (within 5e-6 N here): 1e-5 N above it
+    // is at least the answer, 1e-5 N below the answer less the tolerance is below it.
+    let (code, regime) = backlash_at(preload + 1e-5);
+    assert_eq!(
+        (code, regime.as_str()),
+        (Some(0), "ok"),
+        "at the answer {preload} N"
+    );
+    let below = preload - tolerance - 1e-5;
+    let (code, regime) = backlash_at(below);
+    assert_eq!(code, Some(4), "at {below} N: {regime}");
+    assert!(
+        regime == "gross_slip" || regime == "slack",
+        "at {below} N: {regime}"
+    );
 }
 
 /// Cases the physics stops are rows with a status, the stop's reason and empty figures;

@@ -1,7 +1,7 @@
 //! The FMU end to end: exported through the binary, then checked by FMPy in Python
 //! (validation, the closed loop against the native run, 100 load/unload cycles, two
-//! instances, bad input) when python3 with FMPy is present; the check says clearly when
-//! it is skipped.
+//! instances, bad input). The Python check needs python3 with FMPy
+//! (`python3 -m pip install fmpy`, as CI does) and fails, saying so, without them.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -66,12 +66,23 @@ fn export(dir: &Path, args: &[&str]) -> PathBuf {
     fmu
 }
 
-fn fmpy_available() -> bool {
-    Command::new("python3")
+/// Whether python3 can import FMPy; `Err` says what is missing and how to install it.
+fn fmpy_available() -> Result<(), String> {
+    const INSTALL: &str = "install it with `python3 -m pip install fmpy` (CI's .ci/run does)";
+    let o = Command::new("python3")
         .args(["-c", "import fmpy"])
         .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false)
+        .map_err(|e| {
+            format!("python3 cannot be run ({e}): install Python 3, then FMPy: {INSTALL}")
+        })?;
+    if o.status.success() {
+        Ok(())
+    } else {
+        Err(format!(
+            "python3 cannot import FMPy: {INSTALL}\n{}",
+            String::from_utf8_lossy(&o.stderr).trim()
+        ))
+    }
 }
 
 #[test]
@@ -172,12 +183,8 @@ fn export_refuses_what_it_cannot_do() {
 /// compared with the native run of mode none.
 #[test]
 fn fmpy_closed_loop_matches_the_native_run() {
-    if !fmpy_available() {
-        println!(
-            "skipped: FMU check in Python (python3 with FMPy not found; install with `python3 -m pip install fmpy`)"
-        );
-        eprintln!("skipped: FMU check in Python: python3 with FMPy not found");
-        return;
+    if let Err(why) = fmpy_available() {
+        panic!("the FMU check in Python needs FMPy: {why}");
     }
     let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     let fmu = export(dir.path(), &[]);

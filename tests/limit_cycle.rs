@@ -96,8 +96,15 @@ fn simulated(sets: &[String]) -> LimitCycle {
 /// Integral gain high enough that the exact linear reference is unstable (a pole at
 /// |z| = 1.0003 near 10 Hz): the brake's friction bounds the oscillation. The plant's
 /// describing function, measured open loop at each command amplitude and closed with the
-/// exact controller, crosses -1 where the simulated loop settles into its cycle; the
-/// frequency must agree within 20 %.
+/// exact controller, crosses -1 where the simulated loop settles into its cycle.
+///
+/// The describing function assumes a sinusoidal command and keeps only its fundamental.
+/// The frequency comes from where the loop's phase crosses -180 deg, which the harmonics
+/// of the stick phases barely move: it must agree within 10 % (8.56 Hz predicted against
+/// 8.06 Hz simulated, 6 %). The amplitude comes from where the gain crosses 1, and the
+/// friction's describing function changes slowly with amplitude there, so a small error in
+/// gain is a large one in amplitude: it must agree within 35 % (5.77 mrad predicted
+/// against 4.45 mrad simulated, 30 %).
 #[test]
 fn describing_function_predicts_the_cycle_of_a_high_integral_gain() {
     let sets = hunting_loop(3000.0, 1.2);
@@ -115,14 +122,14 @@ fn describing_function_predicts_the_cycle_of_a_high_integral_gain() {
     assert_eq!(stable.len(), 1, "{cycles:?}");
     let c = stable[0];
     assert!(
-        (c.frequency_hz / frequency_hz - 1.0).abs() < 0.2,
+        (c.frequency_hz / frequency_hz - 1.0).abs() < 0.1,
         "predicted {} Hz, simulated {frequency_hz} Hz",
         c.frequency_hz
     );
     // The output swing is the right size too, if less closely (the command is far from a
     // sinusoid while the brake holds).
     assert!(
-        (c.output_amplitude_mrad / amplitude_mrad - 1.0).abs() < 0.5,
+        (c.output_amplitude_mrad / amplitude_mrad - 1.0).abs() < 0.35,
         "predicted {} mrad, simulated {amplitude_mrad} mrad",
         c.output_amplitude_mrad
     );

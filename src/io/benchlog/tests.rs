@@ -323,20 +323,74 @@ fn slice_and_push_semantics() {
     assert_eq!(current[1], 2.0);
 }
 
+/// The real da Vinci logs beside the repository (`../shared/real-data/davinci`, as CI lays
+/// them out), with each log's mean jaw load from that folder's README table (N m, three
+/// decimals).
+const DAVINCI_LOGS: [(&str, f64); 11] = [
+    ("tool4_00.csv", 0.013),
+    ("tool4_02.csv", 0.037),
+    ("tool4_04.csv", 0.060),
+    ("tool4_05.csv", 0.073),
+    ("tool4_06.csv", 0.084),
+    ("tool4_08.csv", 0.107),
+    ("tool4_09.csv", 0.119),
+    ("tool4_15.csv", 0.072),
+    ("tool4_25.csv", 0.072),
+    ("tool4_35.csv", 0.072),
+    ("tool4_45.csv", 0.072),
+];
+
 #[test]
-fn reads_real_davinci_logs_if_present() {
-    let dir = Path::new("/work/shared/real-data/davinci");
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return;
-    };
-    for entry in entries.flatten() {
-        let path = entry.path();
-        if path.extension().is_some_and(|e| e == "csv") {
-            let log = read_bench_log(&path).unwrap();
-            assert!(log.len() > 10_000, "{}", path.display());
-            assert_eq!(log.extra_columns, vec!["input_torque_nm".to_string()]);
-            assert_eq!(log.comments.len(), 4);
-            assert!(log.motor_current_a.is_some());
-        }
+fn reads_the_real_davinci_logs() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/real-data/davinci");
+    let entries = std::fs::read_dir(&dir).unwrap_or_else(|e| {
+        panic!(
+            "the real da Vinci logs are missing: cannot read {} ({e}); they sit in shared/real-data/davinci beside the repository",
+            dir.display()
+        )
+    });
+    let mut found: Vec<String> = entries
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".csv"))
+        .collect();
+    found.sort();
+    let expected: Vec<String> = DAVINCI_LOGS.iter().map(|(n, _)| n.to_string()).collect();
+    assert_eq!(found, expected, "logs in {}", dir.display());
+    for (name, mean_load_nm) in DAVINCI_LOGS {
+        let path = dir.join(name);
+        let log = read_bench_log(&path).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(
+            log.extra_columns,
+            vec!["input_torque_nm".to_string()],
+            "{name}"
+        );
+        assert_eq!(log.comments.len(), 4, "{name}");
+        assert!(
+            log.comments[0].contains("da Vinci"),
+            "{name}: {:?}",
+            log.comments
+        );
+        let current = log.motor_current_a.as_ref().expect("motor current column");
+        assert!(current.iter().all(|i| i.is_finite()), "{name}");
+        // 20 s at 1 kHz from t = 0 (one log ends 24 samples early): every step is 1 ms (to
+        // the 3 decimals written), and the rows are the span's samples.
+        let n = log.len();
+        let span_s = log.t_s[n - 1] - log.t_s[0];
+        assert_eq!(log.t_s[0], 0.0, "{name}");
+        assert!((19.97..=20.0).contains(&span_s), "{name}: {span_s} s");
+        assert!(
+            log.t_s
+                .windows(2)
+                .all(|w| (w[1] - w[0] - 1e-3).abs() < 1e-9),
+            "{name}: not sampled every 1 ms"
+        );
+        assert_eq!(n, (span_s * 1e3).round() as usize + 1, "{name}");
+        // The README table's mean jaw load, rounded to 1e-3 N m: within half a unit of it.
+        let mean = log.load_nm.iter().sum::<f64>() / n as f64;
+        assert!(
+            (mean - mean_load_nm).abs() <= 0.5e-3 + 1e-9,
+            "{name}: mean load {mean} N m, README {mean_load_nm}"
+        );
     }
 }
