@@ -1,7 +1,10 @@
 //! The FMU end to end: exported through the binary, then checked by FMPy in Python
 //! (validation, the closed loop against the native run, 100 load/unload cycles, two
 //! instances, bad input). The Python check needs python3 with FMPy
-//! (`python3 -m pip install fmpy`, as CI does) and fails, saying so, without them.
+//! (`python3 -m pip install fmpy`). Under CI (`CI` set, as `.ci/run` is run), which
+//! installs FMPy, a missing FMPy fails the test with how to install it: there the check
+//! must run. On a machine with only the Rust toolchain it is skipped and says so
+//! (`cargo test -- --nocapture` shows the line).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -184,7 +187,10 @@ fn export_refuses_what_it_cannot_do() {
 #[test]
 fn fmpy_closed_loop_matches_the_native_run() {
     if let Err(why) = fmpy_available() {
-        panic!("the FMU check in Python needs FMPy: {why}");
+        let in_ci = std::env::var("CI").is_ok_and(|v| !v.is_empty() && v != "false");
+        assert!(!in_ci, "the FMU check in Python needs FMPy under CI: {why}");
+        eprintln!("skipped: the FMU check in Python needs FMPy (outside CI): {why}");
+        return;
     }
     let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
     let fmu = export(dir.path(), &[]);

@@ -49,7 +49,7 @@ pub fn size_range(e: EffectName) -> (f64, f64) {
 /// How close a size must be. Preload relaxation is sized within 20 %: the fit replays the
 /// cable at constant preloads and interpolates in time, while the truth's preload creeps
 /// inside the memory it holds, and the instrument's preload is itself up to 2 % off the
-/// scenario's; on the truth this reads about 5 % low on average, 13 % at worst in 50 draws.
+/// scenario's; on the truth it reads low, 18.4 % at worst in 50 draws.
 ///
 /// Thermal drift is sized within 25 %: the truth's output encoder also wanders as a random
 /// walk (2 µrad RMS at the end of the record), which no model can tell from a drift over
