@@ -92,7 +92,7 @@ pub fn opts_for(e: EffectName) -> DiagnoseOptions {
 pub fn size_of(e: EffectName, seed: u64) -> f64 {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed * 7919 + e as u64);
     let (lo, hi) = size_range(e);
-    let top = if seed % 2 == 0 { 2.0 * lo } else { hi };
+    let top = if seed.is_multiple_of(2) { 2.0 * lo } else { hi };
     lo * (top / lo).powf(rng.gen::<f64>())
 }
 

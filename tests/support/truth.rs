@@ -116,6 +116,25 @@ struct GridHalf {
     pulley: GridWrap,
 }
 
+/// Geometry and cable of a grid drive.
+#[derive(Clone, Copy, Debug)]
+pub struct GridSpec {
+    /// Pulley and drum radii, m.
+    pub ri_m: f64,
+    pub ro_m: f64,
+    /// Free span of each half, m.
+    pub span_m: f64,
+    /// `E*A`, N.
+    pub modulus_n: f64,
+    /// Friction coefficient.
+    pub mu: f64,
+    /// Preload, N.
+    pub preload_n: f64,
+    /// Drum wrap per half and total pulley wrap, rad.
+    pub drum_wrap_rad: f64,
+    pub pulley_wrap_rad: f64,
+}
+
 /// The cable drive on grids, quasi-static.
 #[derive(Clone, Debug)]
 pub struct GridDrive {
@@ -130,29 +149,19 @@ pub struct GridDrive {
 
 impl GridDrive {
     /// Drive with `nodes` grid nodes per wrap region.
-    pub fn new(
-        ri: f64,
-        ro: f64,
-        span_m: f64,
-        modulus_n: f64,
-        mu: f64,
-        preload_n: f64,
-        drum_wrap_rad: f64,
-        pulley_wrap_rad: f64,
-        nodes: usize,
-    ) -> Self {
+    pub fn new(g: &GridSpec, nodes: usize) -> Self {
         let half = GridHalf {
-            drum: GridWrap::new(drum_wrap_rad, mu, preload_n, nodes),
-            pulley: GridWrap::new(pulley_wrap_rad / 2.0, mu, preload_n, nodes),
+            drum: GridWrap::new(g.drum_wrap_rad, g.mu, g.preload_n, nodes),
+            pulley: GridWrap::new(g.pulley_wrap_rad / 2.0, g.mu, g.preload_n, nodes),
         };
         GridDrive {
             upper: half.clone(),
             lower: half,
-            ri,
-            ro,
-            span_m,
-            modulus_n,
-            preload_n,
+            ri: g.ri_m,
+            ro: g.ro_m,
+            span_m: g.span_m,
+            modulus_n: g.modulus_n,
+            preload_n: g.preload_n,
         }
     }
 
@@ -263,7 +272,17 @@ pub fn oracle_jump_mrad(m_nm: f64, preload_n: f64, nodes: usize) -> Result<f64, 
     let ri = 0.020;
     let l: f64 = 0.1450595;
     let span = (l * l - (ro + ri) * (ro + ri)).sqrt();
-    let mut d = GridDrive::new(ri, ro, span, 1.4e4, 0.2, preload_n, PI, 6.0 * PI, nodes);
+    let spec = GridSpec {
+        ri_m: ri,
+        ro_m: ro,
+        span_m: span,
+        modulus_n: 1.4e4,
+        mu: 0.2,
+        preload_n,
+        drum_wrap_rad: PI,
+        pulley_wrap_rad: 6.0 * PI,
+    };
+    let mut d = GridDrive::new(&spec, nodes);
     d.apply(m_nm)?;
     let e1 = d.apply(-m_nm)?;
     let e2 = d.apply(m_nm)?;
@@ -461,17 +480,17 @@ pub fn truth_log(
     });
     let (ri, ro) = (d.pulley_radius_m, d.drum_radius_m);
     let ic = ro / ri;
-    let mut cable = GridDrive::new(
-        ri,
-        ro,
-        d.free_span_m(),
-        inst.cable_modulus_n,
-        inst.friction_coefficient,
-        inst.preload_n,
-        d.drum_wrap_rad,
-        d.pulley_wrap_rad,
-        o.nodes,
-    );
+    let spec = GridSpec {
+        ri_m: ri,
+        ro_m: ro,
+        span_m: d.free_span_m(),
+        modulus_n: inst.cable_modulus_n,
+        mu: inst.friction_coefficient,
+        preload_n: inst.preload_n,
+        drum_wrap_rad: d.drum_wrap_rad,
+        pulley_wrap_rad: d.pulley_wrap_rad,
+    };
+    let mut cable = GridDrive::new(&spec, o.nodes);
 
     // The input and its direction on the fine grid.
     let tf: Vec<f64> = (0..nf).map(|i| i as f64 * dtf).collect();
