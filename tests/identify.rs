@@ -42,10 +42,11 @@ fn truth_cable_reproduces_the_oracle_reversal_jumps() {
     );
 }
 
-/// Seeds per effect: 20 for the library, 8 for the multi-wrap effects (each diagnosis
-/// searches all eleven). `cargo bench --bench identify_rates` runs 50.
-const SEEDS: u64 = 20;
-const SEEDS_EXTENDED: u64 = 8;
+/// Seeds per effect: 12 for the library, 6 for the multi-wrap effects (each diagnosis
+/// searches all eleven), the first draws of `cargo bench --bench identify_rates`, which
+/// runs 50.
+const SEEDS: u64 = 12;
+const SEEDS_EXTENDED: u64 = 6;
 
 /// Named and sized right in at least 95 % of the draws.
 fn check_effect(e: EffectName) {
