@@ -9,14 +9,15 @@ use cable_servo::identify::{diagnose, effect_value, DiagnoseOptions, EffectName}
 use cable_servo::io::benchlog::{read_bench_log, write_bench_log};
 use cable_servo::scenario::Scenario;
 use support::rates::{
-    clean_rate, opts, opts_every, opts_for, run_effect, scenario, size_range, truth,
+    claimed_rates, clean_rate, opts, opts_every, opts_for, run_effect, scenario, size_range, truth,
 };
 use support::truth::{oracle_jump_mrad, truth_log, Instrument, Ringing, TruthOptions};
 
 /// The truth's cable against the oracle table of physics.md section 6 (reversal jump, mrad,
 /// by load and preload), anchor-cut cells and the slack side included. The grid's
 /// trapezoid sum is second order in the node spacing: at 600 nodes per region (5.2 mrad of
-/// drum wrap) the kinks of the profile cost a few 1e-5 of the jump, so 2e-4 holds.
+/// drum wrap) the kinks of the profile cost a few 1e-5 of the jump (4.7e-5 at worst), so
+/// 1e-4 holds. The jump is negative: back at `+M` the output lags.
 #[test]
 fn truth_cable_reproduces_the_oracle_reversal_jumps() {
     let cells = [
@@ -31,7 +32,7 @@ fn truth_cable_reproduces_the_oracle_reversal_jumps() {
     for (m, p, want) in cells {
         let got = oracle_jump_mrad(m, p, 600).unwrap_or_else(|e| panic!("{m} N m, {p} N: {e}"));
         assert!(
-            (got / want - 1.0).abs() < 2e-4,
+            (-got / want - 1.0).abs() < 1e-4,
             "{m} N m, {p} N: {got} mrad, oracle {want}"
         );
     }
@@ -48,7 +49,8 @@ fn truth_cable_reproduces_the_oracle_reversal_jumps() {
 const SEEDS: u64 = 12;
 const SEEDS_EXTENDED: u64 = 6;
 
-/// Named and sized right in at least 95 % of the draws.
+/// Named and sized right in at least the share of the draws the README states
+/// ([`claimed_rates`]); the suite's draws are the first of the 50 measured there.
 fn check_effect(e: EffectName) {
     let seeds = if EffectName::EXTENDED.contains(&e) {
         SEEDS_EXTENDED
@@ -56,9 +58,10 @@ fn check_effect(e: EffectName) {
         SEEDS
     };
     let r = run_effect(e, seeds);
-    let need = (0.95 * seeds as f64).ceil() as usize;
+    let (named, sized) = claimed_rates(e);
+    let need = |rate: f64| (rate * seeds as f64).ceil() as usize;
     assert!(
-        r.named >= need && r.sized >= need,
+        r.named >= need(named) && r.sized >= need(sized),
         "{e}: named {}/{seeds}, sized {}/{seeds} (worst {:.1} %)",
         r.named,
         r.sized,

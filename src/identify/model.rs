@@ -160,8 +160,7 @@ pub fn replay(drive: &DriveParams, torque: &[f64]) -> Result<Vec<f64>, (usize, S
 /// Knots of a relaxing preload: the error is replayed at the preload of each knot and
 /// interpolated in time between them. Backlash is convex in the preload, so a single chord
 /// from the first to the last preload overstates the error in between and biases the fitted
-/// rate low (by about 10 % for a preload that falls by a third over the record); four
-/// chords cut that error sixteen-fold.
+/// rate low; the chord's error falls with the square of the knot spacing.
 pub const RELAXATION_KNOTS: usize = 4;
 
 /// [`replay`] with the preload falling linearly from `drive.preload_n` at rate `rate_per_s`

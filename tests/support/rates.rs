@@ -52,15 +52,27 @@ pub fn size_range(e: EffectName) -> (f64, f64) {
 /// scenario's; on the truth it reads low, 18.4 % at worst in 50 draws.
 ///
 /// Thermal drift is sized within 25 %: the truth's output encoder also wanders as a random
-/// walk (2 µrad RMS at the end of the record), which no model can tell from a drift over
-/// one record. The slope fitted to a random walk of end RMS `s` over `T` has a standard
-/// deviation of about `1.1 s / T` (0.07 µrad/s here), 7 % of the smallest drift drawn
-/// (1 µrad/s); 25 % is three and a half of those.
+/// walk (2 µrad RMS at the end of the record) and with 1/f noise (1 µrad RMS), which no
+/// model can tell from a drift over one record. The slope fitted to a random walk of end RMS
+/// `s` over `T` scatters by `1.1 s / T` (0.073 µrad/s here), the 1/f noise's slowest terms
+/// add about 0.03 µrad/s: 0.08 µrad/s together, 8 % of the smallest drift drawn (1 µrad/s);
+/// 25 % is three of those.
 pub fn size_tolerance(e: EffectName) -> f64 {
     match e {
         EffectName::PreloadRelaxation => 0.20,
         EffectName::ThermalDrift => 0.25,
         _ => 0.10,
+    }
+}
+
+/// The share of draws named right and sized within [`size_tolerance`] that the README
+/// states for each effect, as measured over 50 draws by `benches/identify_rates.rs`:
+/// 95 % for all but compliance, whose smallest sizes partly hide in the calibrated modulus
+/// (named 49/50, sized 46/50 there).
+pub fn claimed_rates(e: EffectName) -> (f64, f64) {
+    match e {
+        EffectName::LoadCompliance => (0.98, 0.92),
+        _ => (0.95, 0.95),
     }
 }
 
@@ -117,7 +129,13 @@ pub fn run_effect(e: EffectName, seeds: u64) -> Rates {
             r.named += 1;
         }
         if let Some(est) = effect_value(&d, e) {
-            let rel = (est.abs() - v).abs() / v;
+            // A runout's sign is its phase shifted by pi; every other effect is sized with
+            // its sign.
+            let signed = match e {
+                EffectName::InputPulleyRunout | EffectName::OutputDrumRunout => est.abs(),
+                _ => est,
+            };
+            let rel = (signed - v).abs() / v;
             r.worst = r.worst.max(rel);
             if rel <= size_tolerance(e) {
                 r.sized += 1;

@@ -6,16 +6,21 @@
 //! - **The cable.** Each wrap region is a grid of nodes carrying the tension (the library
 //!   keeps the exact breakpoints of the profile and integrates in closed form); the
 //!   elongation is the trapezoid sum over the grid and the two tensions come from a
-//!   bracketing root search. Nothing of `physics` is called; `oracle_jump_mrad` checks the
-//!   grid against the oracle table of physics.md.
+//!   bracketing root search. Nothing of the cable model in `physics` is called (the free
+//!   span is computed here too); `oracle_jump_mrad` checks the grid against the oracle
+//!   table of physics.md. The load the scenario declares (brake, unbalance) is evaluated
+//!   by the scenario's own load model: it is the input, which the diagnosis reads back from
+//!   the log's load column.
 //! - **Time.** The truth runs on a grid `substeps` times finer than the log and is read at
 //!   the log's instants; an encoder delay is read off that finer grid.
 //! - **The instrument.** Friction coefficient and preload a little off the scenario's
 //!   values, which are what the diagnosis is told; the cable modulus, which it calibrates,
 //!   further off.
 //! - **The effects.** Drum runout by the implicit drum kinematics; cable transport as the
-//!   continuous lag equation in input travel, integrated exactly for a piecewise-linear
-//!   input; preload relaxation as a preload that decays inside the cable's memory; friction
+//!   continuous lag equation in input travel (the fit's law, a first-order lag), integrated
+//!   exactly for a piecewise-linear input where the fit holds each sample; preload
+//!   relaxation (the fit's law, a linear decay) as a preload that decays inside the cable's
+//!   memory, scaling every stored tension; friction
 //!   memory on contacts whose thresholds lie between those of the identification grid; an
 //!   angle-dependent ratio whose shape is a cosine over the stroke, not a polynomial.
 //! - **The noise.** White noise and quantisation as before, plus 1/f noise and a random-walk
@@ -265,8 +270,9 @@ impl GridDrive {
     }
 }
 
-/// Reversal jump of physics.md section 6 (mrad): the change of transmission error when the
-/// load goes from `-M` back to `+M` after `+M, -M`, on the paper bench with `preload_n`.
+/// Reversal jump of physics.md section 6 (mrad, signed: negative, the output lags): the
+/// change of transmission error when the load goes from `-M` back to `+M` after `+M, -M`,
+/// on the paper bench with `preload_n`.
 pub fn oracle_jump_mrad(m_nm: f64, preload_n: f64, nodes: usize) -> Result<f64, String> {
     let ro = 0.1025;
     let ri = 0.020;
@@ -286,7 +292,16 @@ pub fn oracle_jump_mrad(m_nm: f64, preload_n: f64, nodes: usize) -> Result<f64, 
     d.apply(m_nm)?;
     let e1 = d.apply(-m_nm)?;
     let e2 = d.apply(m_nm)?;
-    Ok((e2 - e1).abs() * 1e3)
+    Ok((e2 - e1) * 1e3)
+}
+
+/// Free span of each half from the geometry (physics.md section 1), m.
+fn free_span_m(d: &cable_servo::physics::DriveParams) -> f64 {
+    let r = match d.routing {
+        cable_servo::physics::Routing::FigureEight => d.drum_radius_m + d.pulley_radius_m,
+        cable_servo::physics::Routing::Open => d.drum_radius_m - d.pulley_radius_m,
+    };
+    (d.center_distance_m.powi(2) - r * r).max(0.0).sqrt()
 }
 
 /// A decaying oscillation after every reversal: a resonance outside the effect library.
@@ -389,20 +404,6 @@ impl Default for TruthOptions {
     }
 }
 
-impl TruthOptions {
-    /// The white-noise-and-quantisation record of the library's synthesis, on this truth:
-    /// for tests about something other than noise.
-    pub fn quiet() -> Self {
-        TruthOptions {
-            pink_noise_rad: 0.0,
-            drift_rad: 0.0,
-            load_drift_nm: 0.0,
-            outliers: 0,
-            ..TruthOptions::default()
-        }
-    }
-}
-
 /// A log and the instrument that made it.
 #[derive(Clone, Debug)]
 pub struct TruthLog {
@@ -483,7 +484,7 @@ pub fn truth_log(
     let spec = GridSpec {
         ri_m: ri,
         ro_m: ro,
-        span_m: d.free_span_m(),
+        span_m: free_span_m(d),
         modulus_n: inst.cable_modulus_n,
         mu: inst.friction_coefficient,
         preload_n: inst.preload_n,
