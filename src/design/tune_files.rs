@@ -127,13 +127,16 @@ pub fn least_rate_text(r: &LeastRate) -> String {
         out.push_str(&format!(
             "{:>9} Hz: {} ({} verdicts, {} s){}\n",
             crate::compact(p.rate_hz),
-            if p.passes { "passes" } else { "no passing design found" },
+            if p.passes {
+                "passes"
+            } else {
+                "no passing design found"
+            },
             p.verdicts,
             crate::significant(p.elapsed_s, 3),
-            p.pick.as_ref().map_or(String::new(), |c| format!(
-                "; best {}",
-                candidate_line(c)
-            ))
+            p.pick
+                .as_ref()
+                .map_or(String::new(), |c| format!("; best {}", candidate_line(c)))
         ));
     }
     match (r.failing_hz, r.passing_hz) {
@@ -258,7 +261,8 @@ pub fn write_tune(
         "pick": r.picked(),
         "front": front,
     });
-    let body = serde_json::to_vec_pretty(&summary).map_err(|e| write_err(&at("summary.json"), e))?;
+    let body =
+        serde_json::to_vec_pretty(&summary).map_err(|e| write_err(&at("summary.json"), e))?;
     write_atomic(&at("summary.json"), &body)?;
     write_atomic(&at("summary.txt"), tune_text(r).as_bytes())?;
     figures(r, base, staged.path())?;
@@ -318,11 +322,15 @@ fn figures(r: &TuneResult, base: &Scenario, dir: &Path) -> Result<(), DesignErro
                 .unzip()
         };
         let (x, y) = xy(&signable);
-        front.series.push(
-            Series::points(format!("{word} load feedforward"), x, y).in_slot(slot),
-        );
+        front
+            .series
+            .push(Series::points(format!("{word} load feedforward"), x, y).in_slot(slot));
         let mut on: Vec<&Candidate> = signable.into_iter().filter(|c| c.on_front).collect();
-        on.sort_by(|a, b| a.margin_class.unwrap_or(0.0).total_cmp(&b.margin_class.unwrap_or(0.0)));
+        on.sort_by(|a, b| {
+            a.margin_class
+                .unwrap_or(0.0)
+                .total_cmp(&b.margin_class.unwrap_or(0.0))
+        });
         let (x, y) = xy(&on);
         front
             .series
@@ -330,16 +338,16 @@ fn figures(r: &TuneResult, base: &Scenario, dir: &Path) -> Result<(), DesignErro
     }
     if let Some(c) = r.picked() {
         if let (Some(m), Some(p)) = (c.margin_class, c.peak_mrad) {
-            front.series.push(
-                Series::points("pick", vec![100.0 * m], vec![p]).in_rgb(plot::REFERENCE_RGB),
-            );
+            front
+                .series
+                .push(Series::points("pick", vec![100.0 * m], vec![p]).in_rgb(plot::REFERENCE_RGB));
         }
     }
     if r.scenario_design.signable {
         if let (Some(m), Some(p)) = (r.scenario_design.margin_class, r.scenario_design.peak_mrad) {
-            front.series.push(
-                Series::points("scenario's design", vec![100.0 * m], vec![p]).in_slot(3),
-            );
+            front
+                .series
+                .push(Series::points("scenario's design", vec![100.0 * m], vec![p]).in_slot(3));
         }
     }
     if !front.series.is_empty() {
