@@ -148,8 +148,9 @@ enum Design {
         /// Load feedforward tried at each rate: off, on or both.
         #[arg(long, default_value = "off", value_name = "off|on|both")]
         feedforward: String,
-        /// Lower end of the search, Hz.
-        #[arg(long, default_value_t = 5000.0)]
+        /// Lower end of the search, Hz (the scenario must accept it: well above the
+        /// plant's fastest mode).
+        #[arg(long, default_value_t = 8000.0)]
         min_hz: f64,
         /// Upper end of the search, Hz.
         #[arg(long, default_value_t = 20000.0)]
@@ -1107,10 +1108,8 @@ fn tune_choices(
 fn tune_bar() -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::new(1);
     bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:40}] {pos}/{len} {msg}",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     bar
 }
