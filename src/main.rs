@@ -1148,6 +1148,7 @@ fn design_tune(
         } else {
             SearchSize::full()
         },
+        seeds_from: Vec::new(),
     };
     let bar = tune_bar();
     let result = tune(&scenario, &options, &|p| {
@@ -1215,6 +1216,7 @@ fn design_least_rate(
         } else {
             SearchSize::full()
         },
+        seeds_from: Vec::new(),
     };
     let bar = tune_bar();
     let result = least_rate(&scenario, &options, (min_hz, max_hz), tol_hz, &|rate, p| {

@@ -30,6 +30,7 @@ fn reduced(rate_hz: Option<f64>, feedforward: Feedforward) -> TuneOptions {
         mode: CompensationMode::Memory,
         feedforward,
         search: SearchSize::reduced(),
+        seeds_from: Vec::new(),
     }
 }
 

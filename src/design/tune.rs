@@ -138,6 +138,10 @@ pub struct TuneOptions {
     pub feedforward: Feedforward,
     /// How much to search.
     pub search: SearchSize,
+    /// Further designs to start the search from (gains in the scenario's units), used
+    /// when signable on the linear loop: the picks at neighbouring rates in
+    /// [`least_rate`], whose gains move little with the rate.
+    pub seeds_from: Vec<Gains>,
 }
 
 /// PID gains in the scenario's units.
@@ -924,6 +928,17 @@ pub fn tune(
         }
     }
     let finest = 0.25;
+    // Every direction to a neighbour of the 3 x 3 x 3 cube around a point.
+    let neighbours: Vec<[f64; 3]> = (0..27)
+        .filter(|&i| i != 13)
+        .map(|i| {
+            [
+                (i / 9) as f64 - 1.0,
+                ((i / 3) % 3) as f64 - 1.0,
+                (i % 3) as f64 - 1.0,
+            ]
+        })
+        .collect();
     for (k_setting, &ff) in settings.iter().enumerate() {
         limit.store(share * (k_setting + 1), Ordering::Relaxed);
         let mut starts: Vec<([f64; 3], bool)> =
@@ -932,8 +947,43 @@ pub fn tune(
         // signable on the linear loop: the design an engineer brings is a natural seed,
         // and where the linear ranking misleads it is often the better one.
         let middle = [(n - 1) as f64 / 2.0; 3];
-        if screen(middle).0.is_none() && !starts.iter().any(|(x, _)| key_of(*x) == key_of(middle)) {
-            starts.push((middle, ff));
+        let given = options.seeds_from.iter().map(|g| {
+            let at = |v: f64, c: f64, span: f64| {
+                (n - 1) as f64 / 2.0 * ((v / c).ln() / span.ln().max(1e-12) + 1.0)
+            };
+            [
+                at(g.kp, c0.kp, search.span[0]),
+                at(g.ki, c0.ki, search.span[1]),
+                at(g.kd, c0.kd, search.span[2]),
+            ]
+        });
+        for x in std::iter::once(middle).chain(given) {
+            if !x.iter().all(|v| v.is_finite()) {
+                continue;
+            }
+            // A seed the margins forbid here (a design from a faster rate) starts from
+            // its nearest signable neighbour instead: the least step, then the least
+            // compliance among all 26 directions.
+            let x = if screen(x).0.is_none() {
+                Some(x)
+            } else {
+                [0.25, 0.5, 1.0, 2.0].iter().find_map(|&step| {
+                    neighbours
+                        .iter()
+                        .map(|d| [0, 1, 2].map(|k| x[k] + d[k] * step))
+                        .filter_map(|y| {
+                            let (missed, c) = screen(y);
+                            missed.is_none().then_some((y, c))
+                        })
+                        .min_by(|a, b| a.1.total_cmp(&b.1))
+                        .map(|(y, _)| y)
+                })
+            };
+            if let Some(x) = x {
+                if !starts.iter().any(|(y, _)| key_of(*y) == key_of(x)) {
+                    starts.push((x, ff));
+                }
+            }
         }
         let scores = evaluate(&starts);
         for (k, &(x0, _)) in starts.iter().enumerate() {
@@ -969,7 +1019,11 @@ pub fn tune(
             .min_by(|a, b| score(a.1).total_cmp(&score(b.1)))
             .map(|(i, _)| i)
     };
+    // The pick and the bests are chosen among the search's candidates only: the
+    // sensitivity runs below describe the pick, they do not compete with it.
     let pick = best_of(&verified, None);
+    let best_without_feedforward = best_of(&verified, Some(false));
+    let best_with_feedforward = best_of(&verified, Some(true));
     mark_front(&mut verified);
 
     // What stops the pick from moving: the first requirement the linear screen finds
@@ -1113,8 +1167,8 @@ pub fn tune(
         ),
         linear_candidates: total,
         linear_feasible,
-        best_without_feedforward: best_of(&verified, Some(false)),
-        best_with_feedforward: best_of(&verified, Some(true)),
+        best_without_feedforward,
+        best_with_feedforward,
         pick,
         verified,
         scenario_design,
@@ -1293,8 +1347,17 @@ pub fn least_rate(
         .map_or(f64::NAN, |c| c.target_mrad);
     let mut probes: Vec<RateProbe> = Vec::new();
     let mut probe = |rate: f64| -> Result<bool, DesignError> {
+        // Continuation: every earlier probe's pick seeds this tune, so a design found at
+        // one rate is not lost to a local search at the next.
+        let mut seeds_from = options.seeds_from.clone();
+        seeds_from.extend(
+            probes
+                .iter()
+                .filter_map(|p| p.pick.as_ref().map(|c| c.gains)),
+        );
         let o = TuneOptions {
             rate_hz: Some(rate),
+            seeds_from,
             ..options.clone()
         };
         let r = tune(base, &o, &|p| progress(rate, p))?;
