@@ -422,6 +422,10 @@ fn screen_at(
 /// Grid indices of a point.
 type Idx = [usize; 3];
 
+/// The linear screen's answer for a design: the first requirement missed (none when
+/// signable) and the worst peak drum compliance, rad per N m.
+type ScreenRecord = (Option<String>, f64);
+
 /// The linear screen's record of a grid point.
 #[derive(Clone)]
 struct GridPoint {
@@ -770,7 +774,7 @@ pub fn tune(
             };
             let (missed, compliance) = screen_gains(&gains);
             let done = screened.fetch_add(1, Ordering::Relaxed) + 1;
-            if done % 256 == 0 || done == total {
+            if done.is_multiple_of(256) || done == total {
                 progress(Progress {
                     stage: "linear screen",
                     done,
@@ -826,7 +830,7 @@ pub fn tune(
         }
     };
     // The linear screen anywhere: the grid's record at a grid point, else screened anew.
-    let screen_cache: Mutex<HashMap<[i64; 3], (Option<String>, f64)>> = Mutex::new(HashMap::new());
+    let screen_cache: Mutex<HashMap<[i64; 3], ScreenRecord>> = Mutex::new(HashMap::new());
     let screen = |x: [f64; 3]| -> (Option<String>, f64) {
         if x.iter().any(|&v| v < -1e-9 || v > (n - 1) as f64 + 1e-9) {
             return (Some("beyond the searched range".into()), f64::INFINITY);
@@ -1264,6 +1268,9 @@ fn mark_front(v: &mut [Candidate]) {
     }
 }
 
+/// Most tunes one least-rate search makes (the bisection needs about ten).
+pub const MAX_RATE_PROBES: usize = 24;
+
 /// One rate probed by [`least_rate`].
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RateProbe {
@@ -1300,6 +1307,9 @@ pub struct LeastRate {
     /// Lowest rate probed with a verified passing design, Hz (`None`: even the upper
     /// end fails).
     pub passing_hz: Option<f64>,
+    /// Whether the failing end was tuned again with every design found by the search as
+    /// a seed and still failed (false when the probe limit stopped the search first).
+    pub failing_confirmed: bool,
     /// Every probe, in the order made.
     pub probes: Vec<RateProbe>,
     /// What the bracket proves, in words.
@@ -1346,7 +1356,7 @@ pub fn least_rate(
         .as_ref()
         .map_or(f64::NAN, |c| c.target_mrad);
     let mut probes: Vec<RateProbe> = Vec::new();
-    let mut probe = |rate: f64| -> Result<bool, DesignError> {
+    let probe = |probes: &mut Vec<RateProbe>, rate: f64| -> Result<bool, DesignError> {
         // Continuation: every earlier probe's pick seeds this tune, so a design found at
         // one rate is not lost to a local search at the next.
         let mut seeds_from = options.seeds_from.clone();
@@ -1373,22 +1383,41 @@ pub fn least_rate(
         Ok(passes)
     };
     // The upper end must pass and the lower end fail for a bracket; otherwise the
-    // answer is the end itself.
-    let (failing, passing) = if !probe(hi)? {
+    // answer is the end itself. The search at each rate is local, so a failing end is
+    // confirmed by tuning it again with every design found since as a seed; when that
+    // passes, the bisection goes on below it.
+    let mut confirmed = false;
+    let (failing, passing) = if !probe(&mut probes, hi)? {
         (Some(hi), None)
-    } else if probe(lo)? {
+    } else if probe(&mut probes, lo)? {
         (None, Some(lo))
     } else {
         let (mut a, mut b) = (lo, hi);
-        while b - a > tolerance_hz {
-            let mid = 0.5 * (a + b);
-            if probe(mid)? {
-                b = mid;
+        while !confirmed && probes.len() < MAX_RATE_PROBES {
+            while b - a > tolerance_hz && probes.len() < MAX_RATE_PROBES {
+                let mid = 0.5 * (a + b);
+                if probe(&mut probes, mid)? {
+                    b = mid;
+                } else {
+                    a = mid;
+                }
+            }
+            if probe(&mut probes, a)? {
+                b = a;
+                // The next failing rate below: the highest probed failure under `a`.
+                a = probes
+                    .iter()
+                    .filter(|p| !p.passes && p.rate_hz < b)
+                    .map(|p| p.rate_hz)
+                    .fold(lo, f64::max);
+                if a == lo && probes.iter().any(|p| p.rate_hz == lo && p.passes) {
+                    break;
+                }
             } else {
-                a = mid;
+                confirmed = true;
             }
         }
-        (Some(a), Some(b))
+        (Some(a).filter(|_| a < b), Some(b))
     };
     Ok(LeastRate {
         scenario: base.name().to_string(),
@@ -1399,6 +1428,7 @@ pub fn least_rate(
         tolerance_hz,
         failing_hz: failing,
         passing_hz: passing,
+        failing_confirmed: confirmed,
         probes,
         definition: format!(
             "least control rate at which design tune finds a design meeting every requirement ({} mode, pointing within {} mrad, the margins over the operating range): the passing rate carries a verified design; at the failing rate the search found none, which bounds what this search finds, not what a PID can do; bisection, assuming a faster loop never does worse",

@@ -141,9 +141,14 @@ pub fn least_rate_text(r: &LeastRate) -> String {
     }
     match (r.failing_hz, r.passing_hz) {
         (Some(f), Some(p)) => out.push_str(&format!(
-            "least rate: between {} and {} Hz\n",
+            "least rate: between {} and {} Hz{}\n",
             crate::compact(f),
-            crate::compact(p)
+            crate::compact(p),
+            if r.failing_confirmed {
+                " (the failing end tuned again with every design found as a seed)"
+            } else {
+                " (the probe limit stopped the search before the failing end was confirmed)"
+            }
         )),
         (None, Some(p)) => out.push_str(&format!(
             "least rate: at or below {} Hz (the lower end of the search passes)\n",
