@@ -961,7 +961,10 @@ pub fn tune(
                 at(g.kd, c0.kd, search.span[2]),
             ]
         });
-        for x in std::iter::once(middle).chain(given) {
+        // Designs given (found at other rates) go first, so the budget is spent on them
+        // before the linear seeds; the scenario's gains go last.
+        let (mut first, mut last) = (Vec::new(), Vec::new());
+        for (k, x) in std::iter::once(middle).chain(given).enumerate() {
             if !x.iter().all(|v| v.is_finite()) {
                 continue;
             }
@@ -984,9 +987,17 @@ pub fn tune(
                 })
             };
             if let Some(x) = x {
-                if !starts.iter().any(|(y, _)| key_of(*y) == key_of(x)) {
-                    starts.push((x, ff));
+                if k == 0 {
+                    last.push((x, ff));
+                } else {
+                    first.push((x, ff));
                 }
+            }
+        }
+        let linear = std::mem::take(&mut starts);
+        for (x, ff) in first.into_iter().chain(linear).chain(last) {
+            if !starts.iter().any(|(y, _)| key_of(*y) == key_of(x)) {
+                starts.push((x, ff));
             }
         }
         let scores = evaluate(&starts);
