@@ -1,10 +1,14 @@
 //! Closed-loop design answers: the largest load, or the fastest scan, that still meets the
-//! pointing target with a given controller and compensation. Top layer.
+//! pointing target with a given controller and compensation; and the controller itself,
+//! tuned ([`tune`]), with the least control rate a tuned design needs. Top layer.
 //!
 //! Each answer bisects on one scenario value, running the closed loop at every probe, and
 //! assumes the loop meets the target below the answer and misses it above.
 
 use serde::Serialize;
+
+pub mod tune;
+pub mod tune_files;
 
 use crate::closed_loop::{self, CompensationMode};
 use crate::scenario::Scenario;
@@ -51,6 +55,15 @@ pub enum DesignError {
     /// Not a closed-loop scenario, or the mode is not listed, or the reference is not a scan.
     #[error("{0}")]
     Unsuitable(String),
+    /// The results directory cannot be prepared or moved into place.
+    #[error(transparent)]
+    Output(#[from] crate::io::output::OutputError),
+    /// A figure cannot be drawn.
+    #[error(transparent)]
+    Plot(#[from] crate::plot::PlotError),
+    /// A result file cannot be written (path and cause).
+    #[error("cannot write {0}")]
+    Write(String),
 }
 
 fn with_value(base: &Scenario, question: Question, value: f64) -> Scenario {

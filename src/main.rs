@@ -105,6 +105,72 @@ enum Design {
     /// still meets the pointing target with the given compensation. Defaults: scenario
     /// eots_scan, range 0.05 to 5 Hz, tolerance 0.02 Hz.
     FastestScan(TargetSearch),
+    /// Tune the gains of the scenario's plain PID: a log grid screened on the exact
+    /// linear loop with the margins held over the operating range (free span and the
+    /// tangent at the operating load), then a pattern search judged by the verdict on the
+    /// nonlinear plant, with and without load feedforward. Writes tuned.toml (runnable),
+    /// candidates.csv, summary.json and figures. Exit 0 when the pick meets every
+    /// requirement, 4 when it misses the target or nothing is signable.
+    Tune {
+        /// Closed-loop scenario file or built-in name (default: eots_tracking).
+        scenario: Option<String>,
+        /// Control rate to tune at, Hz (default: the scenario's).
+        #[arg(long, value_name = "HZ")]
+        rate: Option<f64>,
+        /// Compensation mode judged: none, memoryless or memory.
+        #[arg(long, default_value = "memory")]
+        mode: String,
+        /// Load feedforward tried: off, on or both (the pick is the better).
+        #[arg(long, default_value = "both", value_name = "off|on|both")]
+        feedforward: String,
+        /// A reduced search (coarse grid, a few runs): a quick look, not an answer.
+        #[arg(long)]
+        quick: bool,
+        /// Results directory (default: results/<scenario>-tune, or the next free).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Replace an existing results directory written by this program.
+        #[arg(long)]
+        force: bool,
+        /// Override a scenario value (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+    },
+    /// Least control rate at which a tuned, signable PID meets the pointing target:
+    /// bisection over the rate with a tune at each probe. The passing end of the bracket
+    /// carries a verified design; the failing end is where the search found none.
+    LeastRate {
+        /// Closed-loop scenario file or built-in name (default: eots_tracking).
+        scenario: Option<String>,
+        /// Compensation mode judged: none, memoryless or memory.
+        #[arg(long, default_value = "memory")]
+        mode: String,
+        /// Load feedforward tried at each rate: off, on or both.
+        #[arg(long, default_value = "off", value_name = "off|on|both")]
+        feedforward: String,
+        /// Lower end of the search, Hz (the scenario must accept it: well above the
+        /// plant's fastest mode).
+        #[arg(long, default_value_t = 8000.0)]
+        min_hz: f64,
+        /// Upper end of the search, Hz.
+        #[arg(long, default_value_t = 20000.0)]
+        max_hz: f64,
+        /// Bisection tolerance, Hz.
+        #[arg(long, default_value_t = 250.0)]
+        tol_hz: f64,
+        /// A reduced search at each rate (coarse grid, a few runs).
+        #[arg(long)]
+        quick: bool,
+        /// Results directory (default: results/<scenario>-least-rate, or the next free).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Replace an existing results directory written by this program.
+        #[arg(long)]
+        force: bool,
+        /// Override a scenario value (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+    },
     /// Least preload (N) at which the +M, -M, +M backlash protocol at the given load runs
     /// with no slack span and no gross slip (drive otherwise as in the scenario).
     LeastPreload {
@@ -542,6 +608,43 @@ fn main() -> ExitCode {
         ),
         Command::Design {
             question:
+                Design::Tune {
+                    scenario,
+                    rate,
+                    mode,
+                    feedforward,
+                    quick,
+                    out,
+                    force,
+                    set,
+                },
+        } => design_tune(scenario, rate, &mode, &feedforward, quick, out, force, set),
+        Command::Design {
+            question:
+                Design::LeastRate {
+                    scenario,
+                    mode,
+                    feedforward,
+                    min_hz,
+                    max_hz,
+                    tol_hz,
+                    quick,
+                    out,
+                    force,
+                    set,
+                },
+        } => design_least_rate(
+            scenario,
+            &mode,
+            &feedforward,
+            (min_hz, max_hz, tol_hz),
+            quick,
+            out,
+            force,
+            set,
+        ),
+        Command::Design {
+            question:
                 Design::LeastPreload {
                     scenario,
                     load_nm,
@@ -971,6 +1074,181 @@ fn main() -> ExitCode {
             }
         },
     }
+}
+
+/// Mode and load-feedforward choice of a tune from their command-line words.
+fn tune_choices(
+    mode: &str,
+    feedforward: &str,
+) -> Result<
+    (
+        cable_servo::closed_loop::CompensationMode,
+        cable_servo::design::tune::Feedforward,
+    ),
+    String,
+> {
+    use cable_servo::closed_loop::CompensationMode;
+    use cable_servo::design::tune::Feedforward;
+    let mode = match mode {
+        "none" => CompensationMode::None,
+        "memoryless" => CompensationMode::Memoryless,
+        "memory" => CompensationMode::Memory,
+        other => return Err(format!("--mode {other}: use none, memoryless or memory")),
+    };
+    let ff = match feedforward {
+        "off" => Feedforward::Without,
+        "on" => Feedforward::With,
+        "both" => Feedforward::Both,
+        other => return Err(format!("--feedforward {other}: use off, on or both")),
+    };
+    Ok((mode, ff))
+}
+
+/// A progress bar on stderr for a tune's stages (hidden when stderr is not a terminal).
+fn tune_bar() -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(1);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    bar
+}
+
+/// `design tune`: tune, print the report, write the files; exit 0 when the pick meets
+/// every requirement, 4 when it does not or nothing is signable.
+#[allow(clippy::too_many_arguments)]
+fn design_tune(
+    scenario: Option<String>,
+    rate: Option<f64>,
+    mode: &str,
+    feedforward: &str,
+    quick: bool,
+    out: Option<PathBuf>,
+    force: bool,
+    set: Vec<String>,
+) -> ExitCode {
+    use cable_servo::design::tune::{tune, SearchSize, TuneOptions};
+    let (mode, feedforward) = match tune_choices(mode, feedforward) {
+        Ok(c) => c,
+        Err(msg) => {
+            tell!("error: {msg}");
+            return ExitCode::from(exit::USAGE);
+        }
+    };
+    let scenario = match load(scenario.as_deref().unwrap_or("eots_tracking"), &set) {
+        Ok(s) => s,
+        Err(code) => return code,
+    };
+    let options = TuneOptions {
+        rate_hz: rate,
+        mode,
+        feedforward,
+        search: if quick {
+            SearchSize::reduced()
+        } else {
+            SearchSize::full()
+        },
+        seeds_from: Vec::new(),
+    };
+    let bar = tune_bar();
+    let result = tune(&scenario, &options, &|p| {
+        if bar.length() != Some(p.total as u64) {
+            bar.set_length(p.total as u64);
+            bar.set_message(p.stage);
+        }
+        bar.set_position(p.done as u64);
+    });
+    bar.finish_and_clear();
+    let r = match result {
+        Ok(r) => r,
+        Err(e) => {
+            tell!("error: {e}");
+            return ExitCode::from(exit::INPUT);
+        }
+    };
+    say_raw!("{}", cable_servo::design::tune_files::tune_text(&r));
+    let dir = out.unwrap_or_else(|| {
+        run::default_results_dir(
+            &PathBuf::from("results").join(format!("{}-tune", scenario.name())),
+            force,
+        )
+    });
+    match cable_servo::design::tune_files::write_tune(&r, &scenario, &dir, force) {
+        Ok(path) => say!("results: {}", path.display()),
+        Err(e) => {
+            tell!("error: {e}");
+            return ExitCode::from(exit::OUTPUT);
+        }
+    }
+    verdict_code(r.picked().is_some_and(|c| c.passes))
+}
+
+/// `design least-rate`: bisect over the control rate with a tune at each probe.
+#[allow(clippy::too_many_arguments)]
+fn design_least_rate(
+    scenario: Option<String>,
+    mode: &str,
+    feedforward: &str,
+    (min_hz, max_hz, tol_hz): (f64, f64, f64),
+    quick: bool,
+    out: Option<PathBuf>,
+    force: bool,
+    set: Vec<String>,
+) -> ExitCode {
+    use cable_servo::design::tune::{least_rate, SearchSize, TuneOptions};
+    let (mode, feedforward) = match tune_choices(mode, feedforward) {
+        Ok(c) => c,
+        Err(msg) => {
+            tell!("error: {msg}");
+            return ExitCode::from(exit::USAGE);
+        }
+    };
+    let scenario = match load(scenario.as_deref().unwrap_or("eots_tracking"), &set) {
+        Ok(s) => s,
+        Err(code) => return code,
+    };
+    let options = TuneOptions {
+        rate_hz: None,
+        mode,
+        feedforward,
+        search: if quick {
+            SearchSize::reduced()
+        } else {
+            SearchSize::full()
+        },
+        seeds_from: Vec::new(),
+    };
+    let bar = tune_bar();
+    let result = least_rate(&scenario, &options, (min_hz, max_hz), tol_hz, &|rate, p| {
+        if bar.length() != Some(p.total as u64) {
+            bar.set_length(p.total as u64);
+        }
+        bar.set_message(format!("{} at {} Hz", p.stage, cable_servo::compact(rate)));
+        bar.set_position(p.done as u64);
+    });
+    bar.finish_and_clear();
+    let r = match result {
+        Ok(r) => r,
+        Err(e) => {
+            tell!("error: {e}");
+            return ExitCode::from(exit::INPUT);
+        }
+    };
+    say_raw!("{}", cable_servo::design::tune_files::least_rate_text(&r));
+    let dir = out.unwrap_or_else(|| {
+        run::default_results_dir(
+            &PathBuf::from("results").join(format!("{}-least-rate", scenario.name())),
+            force,
+        )
+    });
+    match cable_servo::design::tune_files::write_least_rate(&r, &dir, force) {
+        Ok(path) => say!("results: {}", path.display()),
+        Err(e) => {
+            tell!("error: {e}");
+            return ExitCode::from(exit::OUTPUT);
+        }
+    }
+    verdict_code(r.passing_hz.is_some())
 }
 
 /// Closed-loop design answer: bisect, print the value with its definition.

@@ -64,6 +64,9 @@ pub struct LinearLoop {
     law: Option<LawModel>,
     /// Gain inserted between the law and the plant (1; margin checks scale it).
     scale: f64,
+    /// Input matrix of a torque held on the drum over one period (ZOH, no delay: a load
+    /// acts at once), per N m.
+    drum_torque: DVector<f64>,
 }
 
 /// Indices of [`LinearLoop::rows`].
@@ -254,6 +257,9 @@ impl LinearLoop {
         let whole = delay.floor();
         let f = delay - whole;
         let (ad, _) = augmented_exp(&a, &b, ts);
+        let mut on_drum = DVector::<f64>::zeros(n);
+        on_drum[3] = 1.0 / jo;
+        let (_, drum_torque) = augmented_exp(&a, &on_drum, ts);
         let (phi_rest, gam_rest) = augmented_exp(&a, &b, (1.0 - f) * ts);
         let (_, gam_first) = augmented_exp(&a, &b, f * ts);
         let ic = drive.ratio();
@@ -322,7 +328,43 @@ impl LinearLoop {
             a: (-std::f64::consts::TAU * ctl.derivative_filter_hz * ts).exp(),
             law,
             scale: 1.0,
+            drum_torque,
         }
+    }
+
+    /// The same loop with the plain PID's gains replaced: `kp` (command per rad), `ki`
+    /// (command per rad s), `kd` (command s per rad); the derivative filter, the delay and
+    /// the plant are kept. `None` when the law is not a plain PID (its gains act inside a
+    /// rate loop, filters or an observer, which this does not rebuild).
+    pub fn with_pid(&self, kp: f64, ki: f64, kd: f64) -> Option<Self> {
+        self.law.is_none().then(|| LinearLoop {
+            kp: kp * self.scale,
+            ki_t: ki * self.ts * self.scale,
+            kd_t: kd / self.ts * self.scale,
+            ..self.clone()
+        })
+    }
+
+    /// Open-loop responses of the motor angle, the drum angle and the gyro's rate to a
+    /// torque held on the drum at `f_hz` (rad, or rad/s for the gyro, per N m); with
+    /// [`Self::plant_rows`] they give the loop's compliance to a load such as a brake.
+    pub fn drum_torque_rows(&self, f_hz: f64) -> [Complex<f64>; 3] {
+        let rhs = self.drum_torque.map(Complex::from);
+        let x = self.resolvent(f_hz, &rhs);
+        self.rows.clone().map(|r| dot(&r, &x))
+    }
+
+    /// Closed-loop compliance of the drum to a torque held on it, rad per N m at `f_hz`:
+    /// how far a load such as a brake's reversal pushes the line of sight, with every
+    /// path of the law closed (`u = sum k_j y_j`, so `u = sum k_j P_jd / (1 - sum k_j P_ju) d`).
+    pub fn drum_compliance(&self, f_hz: f64) -> Complex<f64> {
+        let pu = self.plant_rows(f_hz);
+        let pd = self.drum_torque_rows(f_hz);
+        let k = self.law_row(f_hz);
+        let one = Complex::from(1.0);
+        let num: Complex<f64> = (0..3).map(|j| k[j] * pd[j]).sum();
+        let den: Complex<f64> = one - (0..3).map(|j| k[j] * pu[j]).sum::<Complex<f64>>();
+        pd[ROW_DRUM] + pu[ROW_DRUM] * num / den
     }
 
     /// Whether the law is a plain PID (no rate loop, filters or observer).
@@ -339,8 +381,8 @@ impl LinearLoop {
     }
 
     /// Responses of the motor angle, the drum angle and the gyro's rate to the held
-    /// command at `f_hz`, delay included.
-    fn plant_rows(&self, f_hz: f64) -> [Complex<f64>; 3] {
+    /// command at `f_hz`, delay included (rad, or rad/s for the gyro, per A or V).
+    pub fn plant_rows(&self, f_hz: f64) -> [Complex<f64>; 3] {
         let zi = Complex::from_polar(1.0, -std::f64::consts::TAU * f_hz * self.ts);
         let rhs = self.b1.map(|v| Complex::from(v) * zi) + self.b2.map(Complex::from);
         let x = self.resolvent(f_hz, &rhs);
@@ -538,6 +580,32 @@ impl LinearLoop {
             })
             + chain(&l.command_filters)
             + l.observer.as_ref().map_or(0, |o| 4 + o.2)
+    }
+
+    /// Response of the drum to a reference step on the sampled loop of a plain PID, over
+    /// `duration_s`: the drum angle at each sample as a fraction of the step (1 when it
+    /// has followed; motor feedback reaches `1` on the motor, and the drum with it at
+    /// rest). The step is the law reading the measurement less the new reference, with
+    /// the derivative's previous measurement set to match (the derivative acts on the
+    /// measurement, so a reference step gives it no kick). `None` for any other law.
+    pub fn reference_step(&self, duration_s: f64) -> Option<Vec<f64>> {
+        if self.law.is_some() || !(duration_s.is_finite() && duration_s > 0.0) {
+            return None;
+        }
+        let samples = ((duration_s / self.ts).ceil() as usize).clamp(1, 1_000_000);
+        let n = self.ad.nrows();
+        // One motor radian, and the drum's share of it.
+        let offset = [1.0, 1.0 / self.ic, 0.0];
+        let read: f64 = (0..3).map(|j| self.c_scale[j] * offset[j]).sum();
+        let mut s = DVector::<f64>::zeros(self.closed_loop_dim());
+        s[n + 2] = -read;
+        let mut out = Vec::with_capacity(samples);
+        for _ in 0..samples {
+            let x = s.rows(0, n);
+            out.push(self.rows[ROW_DRUM].dot(&x) * self.ic);
+            s = self.step_read(&s, &offset);
+        }
+        Some(out)
     }
 
     /// One period of the sampled closed loop with zero reference: the state is
@@ -880,6 +948,7 @@ mod tests {
             a: 0.0,
             law: None,
             scale: 1.0,
+            drum_torque: DVector::zeros(2),
         };
         for f in [1.0, 17.0, 230.0] {
             let z = Complex::from_polar(1.0, std::f64::consts::TAU * f * ts);
