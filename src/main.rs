@@ -1127,28 +1127,10 @@ fn design_tune(
     force: bool,
     set: Vec<String>,
 ) -> ExitCode {
-    use cable_servo::design::tune::{tune, SearchSize, TuneOptions};
-    let (mode, feedforward) = match tune_choices(mode, feedforward) {
-        Ok(c) => c,
-        Err(msg) => {
-            tell!("error: {msg}");
-            return ExitCode::from(exit::USAGE);
-        }
-    };
-    let scenario = match load(scenario.as_deref().unwrap_or("eots_tracking"), &set) {
-        Ok(s) => s,
+    use cable_servo::design::tune::tune;
+    let (scenario, options) = match tune_setup(scenario, rate, mode, feedforward, quick, &set) {
+        Ok(v) => v,
         Err(code) => return code,
-    };
-    let options = TuneOptions {
-        rate_hz: rate,
-        mode,
-        feedforward,
-        search: if quick {
-            SearchSize::reduced()
-        } else {
-            SearchSize::full()
-        },
-        seeds_from: Vec::new(),
     };
     let bar = tune_bar();
     let result = tune(&scenario, &options, &|p| {
@@ -1183,6 +1165,39 @@ fn design_tune(
     verdict_code(r.picked().is_some_and(|c| c.passes))
 }
 
+/// The scenario and search of `design tune` and `design least-rate` from their arguments;
+/// the exit code of a usage or input error otherwise.
+fn tune_setup(
+    scenario: Option<String>,
+    rate_hz: Option<f64>,
+    mode: &str,
+    feedforward: &str,
+    quick: bool,
+    set: &[String],
+) -> Result<(Scenario, cable_servo::design::tune::TuneOptions), ExitCode> {
+    use cable_servo::design::tune::{SearchSize, TuneOptions};
+    let (mode, feedforward) = tune_choices(mode, feedforward).map_err(|msg| {
+        tell!("error: {msg}");
+        ExitCode::from(exit::USAGE)
+    })?;
+    let scenario = load(scenario.as_deref().unwrap_or("eots_tracking"), set)?;
+    let search = if quick {
+        SearchSize::reduced()
+    } else {
+        SearchSize::full()
+    };
+    Ok((
+        scenario,
+        TuneOptions {
+            rate_hz,
+            mode,
+            feedforward,
+            search,
+            seeds_from: Vec::new(),
+        },
+    ))
+}
+
 /// `design least-rate`: bisect over the control rate with a tune at each probe.
 #[allow(clippy::too_many_arguments)]
 fn design_least_rate(
@@ -1195,28 +1210,10 @@ fn design_least_rate(
     force: bool,
     set: Vec<String>,
 ) -> ExitCode {
-    use cable_servo::design::tune::{least_rate, SearchSize, TuneOptions};
-    let (mode, feedforward) = match tune_choices(mode, feedforward) {
-        Ok(c) => c,
-        Err(msg) => {
-            tell!("error: {msg}");
-            return ExitCode::from(exit::USAGE);
-        }
-    };
-    let scenario = match load(scenario.as_deref().unwrap_or("eots_tracking"), &set) {
-        Ok(s) => s,
+    use cable_servo::design::tune::least_rate;
+    let (scenario, options) = match tune_setup(scenario, None, mode, feedforward, quick, &set) {
+        Ok(v) => v,
         Err(code) => return code,
-    };
-    let options = TuneOptions {
-        rate_hz: None,
-        mode,
-        feedforward,
-        search: if quick {
-            SearchSize::reduced()
-        } else {
-            SearchSize::full()
-        },
-        seeds_from: Vec::new(),
     };
     let bar = tune_bar();
     let result = least_rate(&scenario, &options, (min_hz, max_hz), tol_hz, &|rate, p| {
