@@ -7,14 +7,12 @@ use std::path::{Path, PathBuf};
 
 use cable_servo::identify::loo::leave_one_out;
 use cable_servo::identify::startup::StartMode;
-use cable_servo::identify::EffectName;
-use cable_servo::io::benchlog::read_bench_log;
 use cable_servo::scenario::Scenario;
 use criterion::{criterion_group, criterion_main, Criterion};
 
-const LOGS: [&str; 11] = [
-    "00", "02", "04", "05", "06", "08", "09", "15", "25", "35", "45",
-];
+#[path = "../tests/support/davinci.rs"]
+mod davinci;
+use davinci::{eleven_logs, EXTENSION};
 
 fn data_dir() -> Option<PathBuf> {
     std::env::var_os("CABLE_SERVO_DAVINCI")
@@ -31,21 +29,19 @@ fn bench(c: &mut Criterion) {
     };
     let scenario = Scenario::load("scenarios/davinci_tool4.toml", &[]).expect("scenario");
     let ident = scenario.identify.clone().unwrap_or_default();
-    let logs: Vec<_> = LOGS
-        .iter()
-        .map(|k| read_bench_log(&dir.join(format!("tool4_{k}.csv"))).expect("log"))
-        .collect();
-    let effects = [
-        EffectName::AngleDependentRatio,
-        EffectName::LoadCompliance,
-        EffectName::DistributedFrictionMemory,
-    ];
+    let logs = eleven_logs(&dir);
     let mut group = c.benchmark_group("davinci_eleven_logs");
     group.sample_size(10);
     group.bench_function("joint_calibration_and_leave_one_out", |b| {
         b.iter(|| {
-            leave_one_out(&scenario.drive, &ident, &logs, &effects, StartMode::Detect)
-                .expect("leave-one-out")
+            leave_one_out(
+                &scenario.drive,
+                &ident,
+                &logs,
+                &EXTENSION,
+                StartMode::Detect,
+            )
+            .expect("leave-one-out")
         })
     });
     group.finish();

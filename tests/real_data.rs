@@ -7,13 +7,11 @@ use std::path::{Path, PathBuf};
 
 use cable_servo::identify::loo::leave_one_out;
 use cable_servo::identify::startup::StartMode;
-use cable_servo::identify::EffectName;
-use cable_servo::io::benchlog::read_bench_log;
 use cable_servo::scenario::Scenario;
 
-const LOGS: [&str; 11] = [
-    "00", "02", "04", "05", "06", "08", "09", "15", "25", "35", "45",
-];
+#[path = "support/davinci.rs"]
+mod davinci;
+use davinci::{eleven_logs, EXTENSION};
 
 fn repo() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -101,17 +99,15 @@ fn leave_one_out_on_the_shipped_logs_gives_the_readme_table() {
     )
     .expect("scenario");
     let ident = scenario.identify.clone().unwrap_or_default();
-    let logs: Vec<_> = LOGS
-        .iter()
-        .map(|k| read_bench_log(&dir.join(format!("tool4_{k}.csv"))).expect("log"))
-        .collect();
-    let effects = [
-        EffectName::AngleDependentRatio,
-        EffectName::LoadCompliance,
-        EffectName::DistributedFrictionMemory,
-    ];
-    let t = leave_one_out(&scenario.drive, &ident, &logs, &effects, StartMode::Detect)
-        .expect("leave-one-out");
+    let logs = eleven_logs(&dir);
+    let t = leave_one_out(
+        &scenario.drive,
+        &ident,
+        &logs,
+        &EXTENSION,
+        StartMode::Detect,
+    )
+    .expect("leave-one-out");
     let readme = readme_rows();
     assert_eq!(readme.len(), 11, "README table rows: {readme:?}");
     assert_eq!(t.rows.len(), 11, "leave-one-out rows");

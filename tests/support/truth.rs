@@ -553,7 +553,7 @@ pub fn truth_log(
         (mean, slope, v / rms)
     });
 
-    let mut th_out = Vec::with_capacity(nf);
+    let mut th_out: Vec<TruthSample> = Vec::with_capacity(nf);
     let mut load = Vec::with_capacity(nf);
     let mut y_tr = 0.0;
     let mut plays = [th[0]; 3];
@@ -571,7 +571,7 @@ pub fn truth_log(
         let e_tr = match transport {
             Some(tc) if i > 0 => {
                 let dx = (x - th[i - 1]).abs();
-                let e0 = e_prev_of(&th_out, i);
+                let e0 = th_out[i - 1].e;
                 if dx > 0.0 {
                     let beta = (-dx / tc).exp();
                     let slope = (e - e0) / dx;
@@ -700,8 +700,4 @@ struct TruthSample {
     out: f64,
     /// Cable transmission error before transport, rad.
     e: f64,
-}
-
-fn e_prev_of(samples: &[TruthSample], i: usize) -> f64 {
-    samples[i - 1].e
 }
