@@ -123,6 +123,11 @@ enum Design {
         /// Load feedforward tried: off, on or both (the pick is the better).
         #[arg(long, default_value = "both", value_name = "off|on|both")]
         feedforward: String,
+        /// Filters searched besides the gains, comma-separated: derivative, notch,
+        /// lead-lag, or none (each variant screened on the linear loop, the best two
+        /// and the scenario's own searched in full; a few minutes).
+        #[arg(long, default_value = "none", value_name = "LIST")]
+        filters: String,
         /// A reduced search (coarse grid, a few runs): a quick look, not an answer.
         #[arg(long)]
         quick: bool,
@@ -613,12 +618,21 @@ fn main() -> ExitCode {
                     rate,
                     mode,
                     feedforward,
+                    filters,
                     quick,
                     out,
                     force,
                     set,
                 },
-        } => design_tune(scenario, rate, &mode, &feedforward, quick, out, force, set),
+        } => design_tune(
+            scenario,
+            rate,
+            (&mode, &feedforward, &filters),
+            quick,
+            out,
+            force,
+            set,
+        ),
         Command::Design {
             question:
                 Design::LeastRate {
@@ -1104,6 +1118,25 @@ fn tune_choices(
     Ok((mode, ff))
 }
 
+/// `--filters derivative,notch,lead-lag` (or `none`).
+fn filter_choices(list: &str) -> Result<cable_servo::design::tune::FilterSearch, String> {
+    let mut f = cable_servo::design::tune::FilterSearch::default();
+    for word in list.split(',').map(str::trim) {
+        match word {
+            "none" | "" => {}
+            "derivative" => f.derivative = true,
+            "notch" => f.notch = true,
+            "lead-lag" => f.lead_lag = true,
+            other => {
+                return Err(format!(
+                    "--filters {list}: `{other}` is not a filter; use derivative, notch, lead-lag (comma-separated) or none"
+                ))
+            }
+        }
+    }
+    Ok(f)
+}
+
 /// A progress bar on stderr for a tune's stages (hidden when stderr is not a terminal).
 fn tune_bar() -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::new(1);
@@ -1120,18 +1153,25 @@ fn tune_bar() -> indicatif::ProgressBar {
 fn design_tune(
     scenario: Option<String>,
     rate: Option<f64>,
-    mode: &str,
-    feedforward: &str,
+    (mode, feedforward, filters): (&str, &str, &str),
     quick: bool,
     out: Option<PathBuf>,
     force: bool,
     set: Vec<String>,
 ) -> ExitCode {
     use cable_servo::design::tune::tune;
-    let (scenario, options) = match tune_setup(scenario, rate, mode, feedforward, quick, &set) {
+    let filters = match filter_choices(filters) {
+        Ok(f) => f,
+        Err(msg) => {
+            tell!("error: {msg}");
+            return ExitCode::from(exit::USAGE);
+        }
+    };
+    let (scenario, mut options) = match tune_setup(scenario, rate, mode, feedforward, quick, &set) {
         Ok(v) => v,
         Err(code) => return code,
     };
+    options.filters = filters;
     let bar = tune_bar();
     let result = tune(&scenario, &options, &|p| {
         if bar.length() != Some(p.total as u64) {
@@ -1194,6 +1234,7 @@ fn tune_setup(
             feedforward,
             search,
             seeds_from: Vec::new(),
+            filters: Default::default(),
         },
     ))
 }

@@ -10,9 +10,10 @@ use std::process::Command;
 
 use cable_servo::analysis::linear::LinearLoop;
 use cable_servo::analysis::verdict;
+use cable_servo::closed_loop::filters::FilterSpec;
 use cable_servo::closed_loop::{ClosedLoopSource, CompensationMode};
 use cable_servo::design::tune::{
-    least_rate, tune, Feedforward, SearchSize, TuneOptions, TuneResult,
+    least_rate, tune, Feedforward, FilterSearch, SearchSize, TuneOptions, TuneResult,
 };
 use cable_servo::design::tune_files::write_tune;
 use cable_servo::design::DesignError;
@@ -31,6 +32,7 @@ fn reduced(rate_hz: Option<f64>, feedforward: Feedforward) -> TuneOptions {
         feedforward,
         search: SearchSize::reduced(),
         seeds_from: Vec::new(),
+        filters: Default::default(),
     }
 }
 
@@ -146,6 +148,68 @@ fn unsuitable_questions_are_refused_with_their_reason() {
         e.to_string().contains("lower end of the search, 1000 Hz"),
         "{e}"
     );
+}
+
+#[test]
+fn a_filter_search_screens_every_variant_and_keeps_the_best_pick_with_its_filters() {
+    let base = short_tracking();
+    let mut o = reduced(Some(10_000.0), Feedforward::Without);
+    o.filters = FilterSearch {
+        derivative: false,
+        notch: true,
+        lead_lag: false,
+    };
+    let r = tune(&base, &o, &|_| {}).unwrap();
+    // No notch and a notch at three centres about the cable resonance.
+    assert_eq!(r.filter_variants.len(), 4, "{:#?}", r.filter_variants);
+    let own = &r.filter_variants[0];
+    assert!(own.command_filters.is_empty() && own.searched);
+    let searched: Vec<_> = r.filter_variants.iter().filter(|v| v.searched).collect();
+    assert!((1..=3).contains(&searched.len()));
+    // The pick is the best searched variant's, and its scenario carries that variant's
+    // filters.
+    let best = searched
+        .iter()
+        .filter_map(|v| v.best_peak_mrad)
+        .fold(f64::INFINITY, f64::min);
+    let pick = r.picked().expect("a signable design");
+    assert_eq!(pick.peak_mrad, Some(best));
+    let tuned = r.tuned.as_ref().unwrap().closed_loop.as_ref().unwrap();
+    let from = searched
+        .iter()
+        .find(|v| v.best_peak_mrad == Some(best))
+        .unwrap();
+    assert_eq!(tuned.controller.command_filters, from.command_filters);
+    // Every notch sits in the band of the cable's resonance.
+    for v in &r.filter_variants[1..] {
+        match v.command_filters.as_slice() {
+            [FilterSpec::Notch { center_hz, .. }] => {
+                assert!((20.0..400.0).contains(center_hz), "{center_hz}")
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+}
+
+#[test]
+fn the_gains_swapped_into_a_filtered_loop_equal_the_loop_built_with_them() {
+    let mut s = Scenario::load("eots_tracking", &[]).unwrap();
+    s.closed_loop.as_mut().unwrap().controller.command_filters = vec![FilterSpec::Notch {
+        center_hz: 60.0,
+        depth_db: 20.0,
+        width_hz: 30.0,
+    }];
+    let setup = s.closed_loop_setup().unwrap();
+    let lin = LinearLoop::new(setup.params, setup.drive);
+    let mut p = setup.params.clone();
+    (p.controller.kp, p.controller.ki, p.controller.kd) = (150.0, 9000.0, 1.5);
+    let rebuilt = LinearLoop::new(&p, setup.drive);
+    let swapped = lin.with_pid(150.0, 9000.0, 1.5);
+    assert!((swapped.spectral_radius() - rebuilt.spectral_radius()).abs() < 1e-12);
+    for f in [1.0, 30.0, 60.0, 300.0, 3000.0] {
+        let (a, b) = (swapped.loop_gain(f), rebuilt.loop_gain(f));
+        assert!((a - b).norm() <= 1e-12 * b.norm(), "{f} Hz: {a} {b}");
+    }
 }
 
 #[test]

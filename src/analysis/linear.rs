@@ -332,17 +332,21 @@ impl LinearLoop {
         }
     }
 
-    /// The same loop with the plain PID's gains replaced: `kp` (command per rad), `ki`
-    /// (command per rad s), `kd` (command s per rad); the derivative filter, the delay and
-    /// the plant are kept. `None` when the law is not a plain PID (its gains act inside a
-    /// rate loop, filters or an observer, which this does not rebuild).
-    pub fn with_pid(&self, kp: f64, ki: f64, kd: f64) -> Option<Self> {
-        self.law.is_none().then(|| LinearLoop {
-            kp: kp * self.scale,
-            ki_t: ki * self.ts * self.scale,
-            kd_t: kd / self.ts * self.scale,
+    /// The same loop with the position PID's gains replaced: `kp` (command per rad), `ki`
+    /// (command per rad s), `kd` (command s per rad); the derivative filter, the rest of
+    /// the law (filters, rate loop, observer), the delay and the plant are kept. Every
+    /// path of the law reads the PID's gains from this loop, so nothing else needs
+    /// rebuilding.
+    pub fn with_pid(&self, kp: f64, ki: f64, kd: f64) -> Self {
+        // A plain PID carries a margin check's gain in its gains; a law applies it at
+        // its output.
+        let g = if self.law.is_none() { self.scale } else { 1.0 };
+        LinearLoop {
+            kp: kp * g,
+            ki_t: ki * self.ts * g,
+            kd_t: kd / self.ts * g,
             ..self.clone()
-        })
+        }
     }
 
     /// Open-loop responses of the motor angle, the drum angle and the gyro's rate to a

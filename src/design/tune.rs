@@ -89,7 +89,7 @@ impl SearchSize {
         SearchSize {
             grid: 25,
             span: [10.0, 30.0, 10.0],
-            seeds: 2,
+            seeds: 4,
             first_step: 4,
             max_verdicts: 150,
             sensitivity_step: 0.05,
@@ -142,6 +142,71 @@ pub struct TuneOptions {
     /// when signable on the linear loop: the picks at neighbouring rates in
     /// [`least_rate`], whose gains move little with the rate.
     pub seeds_from: Vec<Gains>,
+    /// Filters searched besides the gains (none by default: the scenario's own filters
+    /// are kept).
+    pub filters: FilterSearch,
+}
+
+/// Filters a tune may search besides the gains. Each asked filter multiplies the
+/// variants: the derivative filter's corner at 0.5, 1 and 2 times the scenario's; no notch
+/// or a notch 20 dB deep and half its centre wide at 0.8, 1 and 1.25 times the cable
+/// resonance; no lead-lag or a lead of 4:1 (about 37 deg) centred at 0.67, 1 and 1.5
+/// times the scenario's design's crossover. Every variant is screened on the exact linear
+/// loop; the best two by their linear ranking and the scenario's own filters are then
+/// searched on the nonlinear plant, each with the whole budget.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct FilterSearch {
+    /// Search the derivative filter's corner.
+    pub derivative: bool,
+    /// Search a notch on the feedback command at the cable resonance.
+    pub notch: bool,
+    /// Search a lead-lag on the feedback command at the crossover.
+    pub lead_lag: bool,
+}
+
+impl FilterSearch {
+    /// Whether any filter is searched.
+    pub fn any(&self) -> bool {
+        self.derivative || self.notch || self.lead_lag
+    }
+
+    /// The filters asked in words: `derivative, notch` or `none`.
+    pub fn words(&self) -> String {
+        let v: Vec<&str> = [
+            (self.derivative, "derivative filter"),
+            (self.notch, "notch"),
+            (self.lead_lag, "lead-lag"),
+        ]
+        .iter()
+        .filter(|(on, _)| *on)
+        .map(|(_, w)| *w)
+        .collect();
+        if v.is_empty() {
+            "none".into()
+        } else {
+            v.join(", ")
+        }
+    }
+}
+
+/// One filter setting a tune screened: its filters, its best linear ranking and, when it
+/// was searched on the nonlinear plant, its best peak.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FilterVariant {
+    /// The filters in words (`derivative 1000 Hz, notch 52.3 Hz 20 dB 26.2 Hz wide`).
+    pub label: String,
+    /// Derivative filter corner, Hz.
+    pub derivative_filter_hz: f64,
+    /// Filters on the feedback command (`closed_loop.controller.command_filters`).
+    pub command_filters: Vec<closed_loop::filters::FilterSpec>,
+    /// Grid points signable on the exact linear loop at every stiffness.
+    pub linear_feasible: usize,
+    /// Least peak drum compliance among those, mrad per N m (`None`: none signable).
+    pub best_linear_compliance_mrad_per_nm: Option<f64>,
+    /// Whether it was searched on the nonlinear plant.
+    pub searched: bool,
+    /// Its best signable peak there, mrad (`None`: not searched, or nothing signable).
+    pub best_peak_mrad: Option<f64>,
 }
 
 /// PID gains in the scenario's units.
@@ -283,6 +348,9 @@ pub struct TuneResult {
     pub blocked_moves: Vec<String>,
     /// Wall time, s.
     pub elapsed_s: f64,
+    /// Filter settings screened when filters were searched (empty otherwise); the result
+    /// above is the search of the variant whose pick is best.
+    pub filter_variants: Vec<FilterVariant>,
     /// The tuned scenario (complete and runnable), when there is a pick.
     #[serde(skip)]
     pub tuned: Option<Scenario>,
@@ -327,19 +395,27 @@ impl Stiffness {
     /// The plant's responses at `lin`'s stiffness; `measured` weighs the motor and drum
     /// angles into the position loop's measurement (`[1, 0]` on the motor encoder,
     /// `[0, ic]` on the output encoder).
-    fn new(condition: String, lin: &LinearLoop, measured: [f64; 2]) -> Self {
+    fn new(
+        condition: String,
+        lin: &LinearLoop,
+        measured: [f64; 2],
+        command_filters: &closed_loop::filters::FilterChain,
+    ) -> Self {
         let (lo, hi) = (0.1_f64, lin.nyquist_hz() * 0.9999);
         let ts = 0.5 / lin.nyquist_hz();
+        let fs = 1.0 / ts;
         let samples = (0..SCREEN_POINTS)
             .map(|i| lo * (hi / lo).powf(i as f64 / (SCREEN_POINTS - 1) as f64))
             .map(|f| {
                 let rows = lin.plant_rows(f);
                 let drows = lin.drum_torque_rows(f);
+                // Filters on the command act in series with the PID on every path.
+                let fc = command_filters.response(f, fs);
                 PlantSample {
                     zi: Complex::from_polar(1.0, -std::f64::consts::TAU * f * ts),
-                    pu: rows[0] * measured[0] + rows[1] * measured[1],
+                    pu: (rows[0] * measured[0] + rows[1] * measured[1]) * fc,
                     du: rows[1],
-                    pd: drows[0] * measured[0] + drows[1] * measured[1],
+                    pd: (drows[0] * measured[0] + drows[1] * measured[1]) * fc,
                     dd: drows[1],
                 }
             })
@@ -660,9 +736,15 @@ fn prepared(base: &Scenario, options: &TuneOptions) -> Result<Scenario, DesignEr
             options.mode.name()
         ));
     }
-    if !cl.controller.is_plain_pid() || cl.controller.feedback == closed_loop::Feedback::GyroAngle {
+    let c = &cl.controller;
+    let beyond_pid = c.rate_loop.is_some()
+        || !c.measurement_filters.is_empty()
+        || !c.rate_command_filters.is_empty()
+        || !c.rate_measurement_filters.is_empty()
+        || c.disturbance_observer.is_some();
+    if beyond_pid || c.feedback == closed_loop::Feedback::GyroAngle {
         return unsuitable(
-            "design tune searches the gains of a plain PID on an encoder; this controller has a rate loop, filters, an observer or gyro-angle feedback".into(),
+            "design tune searches a PID on an encoder with filters on its command; this controller has a rate loop, measurement filters, an observer or gyro-angle feedback".into(),
         );
     }
     if let Some(rate) = options.rate_hz {
@@ -687,6 +769,280 @@ pub fn tune(
     options: &TuneOptions,
     progress: &(dyn Fn(Progress) + Sync),
 ) -> Result<TuneResult, DesignError> {
+    if !options.filters.any() {
+        return match tune_gains(base, options, progress, false)? {
+            Stage::Searched(r) => Ok(*r),
+            Stage::Screened { .. } => Err(DesignError::Unsuitable(
+                "the tune stopped after its linear screen".into(),
+            )),
+        };
+    }
+    tune_filters(base, options, progress)
+}
+
+/// What [`tune_gains`] returns: the linear screen alone, or the whole search.
+enum Stage {
+    /// Signable grid points and the least peak compliance among them, rad per N m.
+    Screened {
+        feasible: usize,
+        best_compliance: Option<f64>,
+    },
+    /// The whole search.
+    Searched(Box<TuneResult>),
+}
+
+/// Searches filter variants (see [`FilterSearch`]): every variant screened on the linear
+/// loop, the best two and the scenario's own searched in full, the best pick kept.
+fn tune_filters(
+    base: &Scenario,
+    options: &TuneOptions,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<TuneResult, DesignError> {
+    let started = std::time::Instant::now();
+    let s = prepared(base, options)?;
+    let (resonance_hz, crossover_hz) = resonance_and_crossover(&s)?;
+    let ctl = s
+        .closed_loop
+        .as_ref()
+        .map(|c| c.controller.clone())
+        .ok_or_else(|| DesignError::Unsuitable("not a closed-loop study".into()))?;
+    let fs = ctl.sample_rate_hz;
+    let f = &options.filters;
+    let corners: Vec<f64> = if f.derivative {
+        [0.5, 1.0, 2.0]
+            .iter()
+            .map(|k| k * ctl.derivative_filter_hz)
+            .filter(|&c| c < 0.45 * fs)
+            .collect()
+    } else {
+        vec![ctl.derivative_filter_hz]
+    };
+    use closed_loop::filters::FilterSpec;
+    let mut notches: Vec<Option<FilterSpec>> = vec![None];
+    if f.notch {
+        for k in [0.8, 1.0, 1.25] {
+            let centre = k * resonance_hz;
+            if centre < 0.4 * fs {
+                notches.push(Some(FilterSpec::Notch {
+                    center_hz: centre,
+                    depth_db: 20.0,
+                    width_hz: 0.5 * centre,
+                }));
+            }
+        }
+    }
+    let mut leads: Vec<Option<FilterSpec>> = vec![None];
+    if f.lead_lag {
+        for k in [1.0 / 1.5, 1.0, 1.5] {
+            let centre = k * crossover_hz;
+            if 2.0 * centre < 0.4 * fs {
+                leads.push(Some(FilterSpec::LeadLag {
+                    zero_hz: 0.5 * centre,
+                    pole_hz: 2.0 * centre,
+                }));
+            }
+        }
+    }
+    let mut variants: Vec<(FilterVariant, Scenario)> = Vec::new();
+    for &corner in &corners {
+        for notch in &notches {
+            for lead in &leads {
+                let mut v = s.clone();
+                let Some(cl) = v.closed_loop.as_mut() else {
+                    continue;
+                };
+                cl.controller.derivative_filter_hz = corner;
+                cl.controller.command_filters = ctl.command_filters.clone();
+                cl.controller.command_filters.extend(notch.iter().cloned());
+                cl.controller.command_filters.extend(lead.iter().cloned());
+                let command_filters = cl.controller.command_filters.clone();
+                let label = filter_label(corner, &command_filters);
+                // A variant the scenario refuses (a filter beyond its rate) is left out.
+                if v.validate("filter variant").is_err() {
+                    continue;
+                }
+                variants.push((
+                    FilterVariant {
+                        label,
+                        derivative_filter_hz: corner,
+                        command_filters,
+                        linear_feasible: 0,
+                        best_linear_compliance_mrad_per_nm: None,
+                        searched: false,
+                        best_peak_mrad: None,
+                    },
+                    v,
+                ));
+            }
+        }
+    }
+    let total = variants.len();
+    for (k, (row, v)) in variants.iter_mut().enumerate() {
+        if let Stage::Screened {
+            feasible,
+            best_compliance,
+        } = tune_gains(v, options, &|_| {}, true)?
+        {
+            row.linear_feasible = feasible;
+            row.best_linear_compliance_mrad_per_nm = best_compliance.map(|c| c * 1e3);
+        }
+        progress(Progress {
+            stage: "filter screen",
+            done: k + 1,
+            total,
+        });
+    }
+    // The scenario's own filters are searched whatever their ranking: the design an
+    // engineer brings is the comparison every other variant must beat.
+    let own = variants
+        .iter()
+        .position(|(r, _)| {
+            r.derivative_filter_hz == ctl.derivative_filter_hz
+                && r.command_filters == ctl.command_filters
+        })
+        .unwrap_or(0);
+    let mut order: Vec<usize> = (0..variants.len())
+        .filter(|&i| variants[i].0.best_linear_compliance_mrad_per_nm.is_some())
+        .collect();
+    order.sort_by(|&a, &b| {
+        let c = |i: usize| variants[i].0.best_linear_compliance_mrad_per_nm;
+        c(a).unwrap_or(f64::INFINITY)
+            .total_cmp(&c(b).unwrap_or(f64::INFINITY))
+    });
+    let mut chosen: Vec<usize> = order.into_iter().filter(|&i| i != own).take(2).collect();
+    chosen.push(own);
+    let mut best: Option<TuneResult> = None;
+    let peak_of = |r: &TuneResult| {
+        r.picked()
+            .and_then(|c| c.peak_mrad)
+            .unwrap_or(f64::INFINITY)
+    };
+    for i in chosen {
+        let plain = TuneOptions {
+            filters: FilterSearch::default(),
+            ..options.clone()
+        };
+        let Stage::Searched(r) = tune_gains(&variants[i].1, &plain, progress, false)? else {
+            continue;
+        };
+        variants[i].0.searched = true;
+        variants[i].0.best_peak_mrad = r.picked().and_then(|c| c.peak_mrad);
+        if best.as_ref().is_none_or(|b| peak_of(&r) < peak_of(b)) {
+            best = Some(*r);
+        }
+    }
+    let Some(mut r) = best else {
+        return Err(DesignError::Unsuitable(
+            "no filter variant could be searched".into(),
+        ));
+    };
+    r.searched = format!(
+        "{} filter settings ({}) screened on the exact linear loop; the best two and the scenario's own searched in full; the pick's: {}",
+        total,
+        f.words(),
+        r.searched
+    );
+    r.filter_variants = variants.into_iter().map(|(row, _)| row).collect();
+    r.elapsed_s = started.elapsed().as_secs_f64();
+    Ok(r)
+}
+
+/// A filter setting in words.
+fn filter_label(derivative_hz: f64, filters: &[closed_loop::filters::FilterSpec]) -> String {
+    use closed_loop::filters::FilterSpec;
+    let mut parts = vec![format!(
+        "derivative filter {} Hz",
+        crate::significant(derivative_hz, 3)
+    )];
+    for f in filters {
+        parts.push(match f {
+            FilterSpec::Notch {
+                center_hz,
+                depth_db,
+                width_hz,
+            } => format!(
+                "notch {} Hz, {} dB, {} Hz wide",
+                crate::significant(*center_hz, 3),
+                crate::significant(*depth_db, 3),
+                crate::significant(*width_hz, 3)
+            ),
+            FilterSpec::LeadLag { zero_hz, pole_hz } => format!(
+                "lead-lag zero {} Hz, pole {} Hz",
+                crate::significant(*zero_hz, 3),
+                crate::significant(*pole_hz, 3)
+            ),
+            other => format!("{other:?}"),
+        });
+    }
+    parts.join(", ")
+}
+
+/// The cable resonance seen by the position loop at the free span (the peak of the
+/// measured response times the frequency squared, which takes out the rigid body's
+/// slope), and the lowest gain crossover of the scenario's own design there, Hz.
+fn resonance_and_crossover(s: &Scenario) -> Result<(f64, f64), DesignError> {
+    let setup = s
+        .closed_loop_setup()
+        .map_err(|e| DesignError::Unsuitable(e.to_string()))?;
+    let p = setup.params;
+    let ctl = &p.controller;
+    let measured = match ctl.feedback {
+        closed_loop::Feedback::Output => [0.0, setup.drive.ratio()],
+        _ => [1.0, 0.0],
+    };
+    let (range, _) = verdict::operating_range(&setup);
+    let free = range
+        .first()
+        .map(|pt| pt.half_stiffness_n_per_m)
+        .ok_or_else(|| {
+            DesignError::Unsuitable("the operating range has no free-span stiffness".into())
+        })?;
+    let lin = LinearLoop::with_half_stiffness(p, setup.drive, free);
+    let st = Stiffness::new(
+        "free span".into(),
+        &lin,
+        measured,
+        &closed_loop::filters::FilterChain::new(&ctl.command_filters, ctl.sample_rate_hz),
+    );
+    let (lo, hi) = (0.1_f64, lin.nyquist_hz() * 0.9999);
+    let freq = |i: usize| lo * (hi / lo).powf(i as f64 / (SCREEN_POINTS - 1) as f64);
+    let resonance = st
+        .samples
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| (5.0..0.45 * hi).contains(&freq(*i)))
+        .map(|(i, smp)| (freq(i), smp.pu.norm() * freq(i) * freq(i)))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(f, _)| f);
+    let ts = 1.0 / ctl.sample_rate_hz;
+    let a = (-std::f64::consts::TAU * ctl.derivative_filter_hz * ts).exp();
+    let g = Gains {
+        kp: ctl.kp,
+        ki: ctl.ki,
+        kd: ctl.kd,
+    };
+    let crossover = st
+        .samples
+        .iter()
+        .enumerate()
+        .find(|(_, smp)| (pid_response(&g, ts, a, smp.zi) * smp.pu).norm() < 1.0)
+        .map(|(i, _)| freq(i));
+    match (resonance, crossover) {
+        (Some(r), Some(c)) => Ok((r, c)),
+        _ => Err(DesignError::Unsuitable(
+            "the filter search needs the cable resonance and the scenario's design's crossover on the free span; the design as given has no gain crossover".into(),
+        )),
+    }
+}
+
+/// The gains' search of [`tune`] for the filters of `base` as they are; with
+/// `linear_only`, the linear screen alone.
+fn tune_gains(
+    base: &Scenario,
+    options: &TuneOptions,
+    progress: &(dyn Fn(Progress) + Sync),
+    linear_only: bool,
+) -> Result<Stage, DesignError> {
     let started = std::time::Instant::now();
     options.search.validate()?;
     let s = prepared(base, options)?;
@@ -710,10 +1066,12 @@ pub fn tune(
         .iter()
         .map(|pt| LinearLoop::with_half_stiffness(p, setup.drive, pt.half_stiffness_n_per_m))
         .collect();
+    let command_filters =
+        closed_loop::filters::FilterChain::new(&ctl.command_filters, ctl.sample_rate_hz);
     let stiffness: Vec<Stiffness> = range
         .par_iter()
         .zip(loops.par_iter())
-        .map(|(pt, lin)| Stiffness::new(pt.condition.clone(), lin, measured))
+        .map(|(pt, lin)| Stiffness::new(pt.condition.clone(), lin, measured, &command_filters))
         .collect();
     let Some(c0) = centre(ctl.kp, ctl.ki, ctl.kd) else {
         return Err(DesignError::Unsuitable(format!(
@@ -753,9 +1111,7 @@ pub fn tune(
         // Margins on the grid do not prove stability: the poles do.
         if missed.is_none() {
             for (lin, st) in loops.iter().zip(&stiffness) {
-                let stable = lin
-                    .with_pid(gains.kp, gains.ki, gains.kd)
-                    .is_some_and(|l| l.spectral_radius() < 1.0);
+                let stable = lin.with_pid(gains.kp, gains.ki, gains.kd).spectral_radius() < 1.0;
                 if !stable {
                     missed = Some(format!("unstable at {}", st.condition));
                     break;
@@ -794,6 +1150,12 @@ pub fn tune(
             .total_cmp(&grid.points[y].compliance)
     });
     let linear_feasible = feasible.len();
+    if linear_only {
+        return Ok(Stage::Screened {
+            feasible: linear_feasible,
+            best_compliance: feasible.first().map(|&i| grid.points[i].compliance),
+        });
+    }
 
     // Seeds: the best linear candidates, at least a few grid steps apart so the search
     // starts in distinct places.
@@ -1001,11 +1363,20 @@ pub fn tune(
             }
         }
         let scores = evaluate(&starts);
-        for (k, &(x0, _)) in starts.iter().enumerate() {
-            let mut best = (x0, scores[k]);
+        // The budget goes to the most promising starts first: a design found at another
+        // rate can be far from the best here, and searching from it in the order given
+        // would spend the budget before the good starts are reached.
+        let mut ranked: Vec<([f64; 3], f64)> = starts.iter().map(|(x, _)| *x).zip(scores).collect();
+        ranked.sort_by(|a, b| a.1.total_cmp(&b.1));
+        for (x0, score0) in ranked {
+            let mut best = (x0, score0);
             let mut step = search.first_step as f64;
             while step >= finest && judged.load(Ordering::Relaxed) < limit.load(Ordering::Relaxed) {
-                let around: Vec<([f64; 3], bool)> = moves
+                // At the finest step every neighbour of the cube is tried: the best
+                // designs sit where the margin requirements meet, and a ridge that runs
+                // along all three gains is followed only by a three-axis diagonal.
+                let dirs = if step > finest { &moves } else { &neighbours };
+                let around: Vec<([f64; 3], bool)> = dirs
                     .iter()
                     .map(|m| [0, 1, 2].map(|d| best.0[d] + m[d] * step))
                     .filter(|&x| screen(x).0.is_none())
@@ -1150,15 +1521,23 @@ pub fn tune(
         ));
         t
     });
-    Ok(TuneResult {
+    Ok(Stage::Searched(Box::new(TuneResult {
         scenario: s.name().to_string(),
         rate_hz,
         mode: options.mode,
         feedforward: options.feedforward,
         target_mrad: p.target_mrad,
         searched: format!(
-            "PID gains of the plain PID (derivative filter {} Hz kept) on a {n} x {n} x {n} log grid: kp {} to {}, ki {} to {}, kd {} to {}; linear screen at {} frequencies per stiffness over {}; pattern search on the nonlinear plant ({} mode, load feedforward {}) from {} seed(s) of the linear ranking and the scenario's own gains where signable, at most {} verdicts",
+            "PID gains (derivative filter {} Hz{} kept) on a {n} x {n} x {n} log grid: kp {} to {}, ki {} to {}, kd {} to {}; linear screen at {} frequencies per stiffness over {}; pattern search on the nonlinear plant ({} mode, load feedforward {}) from {} seed(s) of the linear ranking and the scenario's own gains where signable, at most {} verdicts",
             crate::compact(ctl.derivative_filter_hz),
+            if ctl.command_filters.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " and the command filters {}",
+                    filter_label(ctl.derivative_filter_hz, &ctl.command_filters)
+                )
+            },
             crate::significant(kps[0], 3),
             crate::significant(kps[n - 1], 3),
             crate::significant(kis[0], 3),
@@ -1191,8 +1570,9 @@ pub fn tune(
         active_constraint,
         blocked_moves,
         elapsed_s: started.elapsed().as_secs_f64(),
+        filter_variants: Vec::new(),
         tuned,
-    })
+    })))
 }
 
 /// Relative margin under which a requirement counts as active at the pick (5 %: a grid
@@ -1278,6 +1658,10 @@ fn mark_front(v: &mut [Candidate]) {
         c.on_front = f;
     }
 }
+
+/// Passing designs with the most margin that each least-rate probe hands to the later
+/// tunes as seeds, besides its pick.
+const CARRIED_PER_PROBE: usize = 3;
 
 /// Most tunes one least-rate search makes (the bisection needs about ten).
 pub const MAX_RATE_PROBES: usize = 24;
@@ -1367,21 +1751,40 @@ pub fn least_rate(
         .as_ref()
         .map_or(f64::NAN, |c| c.target_mrad);
     let mut probes: Vec<RateProbe> = Vec::new();
+    // Continuation: designs that passed at earlier probes seed every later tune, so a
+    // design found at one rate is not lost to a local search at the next. Besides each
+    // pick, the passing designs with the most margin are carried: the pick sits on a
+    // margin limit that a slower loop crosses, while a design with margin to spare
+    // often still passes there.
+    let carried: Mutex<Vec<Gains>> = Mutex::new(Vec::new());
     let probe = |probes: &mut Vec<RateProbe>, rate: f64| -> Result<bool, DesignError> {
-        // Continuation: every earlier probe's pick seeds this tune, so a design found at
-        // one rate is not lost to a local search at the next.
         let mut seeds_from = options.seeds_from.clone();
         seeds_from.extend(
             probes
                 .iter()
                 .filter_map(|p| p.pick.as_ref().map(|c| c.gains)),
         );
+        seeds_from.extend(carried.lock().unwrap_or_else(|e| e.into_inner()).iter());
         let o = TuneOptions {
             rate_hz: Some(rate),
             seeds_from,
             ..options.clone()
         };
         let r = tune(base, &o, &|p| progress(rate, p))?;
+        {
+            let mut passing: Vec<&Candidate> = r.verified.iter().filter(|c| c.passes).collect();
+            passing.sort_by(|a, b| {
+                b.margin_class
+                    .unwrap_or(f64::NEG_INFINITY)
+                    .total_cmp(&a.margin_class.unwrap_or(f64::NEG_INFINITY))
+            });
+            let mut c = carried.lock().unwrap_or_else(|e| e.into_inner());
+            for cand in passing.into_iter().take(CARRIED_PER_PROBE) {
+                if !c.contains(&cand.gains) {
+                    c.push(cand.gains);
+                }
+            }
+        }
         let pick = r.picked().cloned();
         let passes = pick.as_ref().is_some_and(|c| c.passes);
         probes.push(RateProbe {

@@ -63,6 +63,32 @@ pub fn tune_text(r: &TuneResult) -> String {
         r.mode.name(),
         crate::significant(r.elapsed_s, 3)
     ));
+    if !r.filter_variants.is_empty() {
+        out.push_str("filter settings (linear ranking: least peak drum compliance of a signable grid design):\n");
+        for v in &r.filter_variants {
+            out.push_str(&format!(
+                "  {}: {} signable, {}{}\n",
+                v.label,
+                v.linear_feasible,
+                v.best_linear_compliance_mrad_per_nm
+                    .map_or("none signable".into(), |c| format!(
+                        "{} mrad/N m",
+                        crate::significant(c, 4)
+                    )),
+                if v.searched {
+                    format!(
+                        "; searched: best peak {}",
+                        v.best_peak_mrad.map_or("none signable".into(), |p| format!(
+                            "{} mrad",
+                            crate::significant(p, 4)
+                        ))
+                    )
+                } else {
+                    String::new()
+                }
+            ));
+        }
+    }
     out.push_str(&format!(
         "scenario's design: {}\n",
         candidate_line(&r.scenario_design)
