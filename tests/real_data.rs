@@ -88,7 +88,7 @@ fn guide_rows() -> Vec<GuideRow> {
 }
 
 #[test]
-fn leave_one_out_on_the_shipped_logs_gives_the_readme_table() {
+fn leave_one_out_on_the_shipped_logs_gives_the_table_of_the_guide() {
     let dir = data_dir();
     let scenario = Scenario::load(
         repo()
