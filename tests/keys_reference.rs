@@ -1085,7 +1085,7 @@ fn keys_reference_is_current_and_complete() {
             .lines()
             .zip(text.lines())
             .position(|(a, b)| a != b)
-            .map_or_else(|| current.lines().count().min(text.lines().count()), |k| k);
+            .unwrap_or_else(|| current.lines().count().min(text.lines().count()));
         panic!(
             "docs/keys.md is out of date with the source (first difference at line {}): regenerate it with `UPDATE_KEYS=1 cargo test --test keys_reference`",
             line + 1

@@ -9,7 +9,8 @@
 
 use serde::{Deserialize, Serialize};
 
-/// Settings (`[closed_loop.los]`).
+/// Line-of-sight statistics (`[closed_loop.los]`): the exposure that jitter is judged over
+/// and the segment of the error's spectrum.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LosParams {

@@ -41,8 +41,9 @@ impl std::fmt::Display for Routing {
     }
 }
 
-/// Geometry and material of the cable drive. Field names carry their units; the defaults
-/// are the published bench (physics.md section 6).
+/// Geometry and material of the cable drive. Field names carry their units; the values
+/// in parentheses are the published bench (physics.md section 6), which is also what
+/// `DriveParams::default()` gives.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DriveParams {
