@@ -54,6 +54,7 @@ pub enum Signal {
         period_s: f64,
         /// Steps before the staircase turns back.
         /// Allowed: at least 1.
+        /// Unit: steps.
         #[serde(default = "default_steps")]
         steps_per_sweep: u32,
     },
@@ -126,6 +127,7 @@ pub enum Signal {
         /// Number of sines (bands), 10 to 2000 (200 resolves a PSD table to a few percent
         /// per band while costing little per sample).
         /// Allowed: 10 to 2000.
+        /// Unit: sines.
         #[serde(default = "default_psd_components")]
         components: u32,
         /// The realised sines, computed on first use from the table and the seed.

@@ -27,6 +27,7 @@ pub enum FilterSpec {
         corner_hz: f64,
         /// Damping ratio (0.707: Butterworth).
         /// Allowed: > 0 and at most 10.
+        /// Unit: 1.
         #[serde(default = "default_damping")]
         damping: f64,
     },

@@ -130,6 +130,7 @@ pub struct DisturbanceObserverParams {
     pub bandwidth_hz: f64,
     /// Q-filter damping ratio (0.7).
     /// Allowed: > 0 and at most 10.
+    /// Unit: 1.
     #[serde(default = "default_q_damping")]
     pub damping: f64,
     /// Nominal inertia at the motor, kg m^2; default: rotor plus the output inertia
@@ -156,6 +157,7 @@ pub struct GyroParams {
     pub bandwidth_hz: f64,
     /// Damping ratio of that response (0.7).
     /// Allowed: > 0 and at most 10.
+    /// Unit: 1.
     #[serde(default = "default_q_damping")]
     pub damping: f64,
     /// Rate noise density, rad/s/sqrt(Hz), one-sided (a tactical FOG: 5e-6; a MEMS gyro:

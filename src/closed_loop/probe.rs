@@ -166,11 +166,13 @@ pub struct FreqRespParams {
     pub f_max_hz: Option<f64>,
     /// Frequencies in the log range (20).
     /// Allowed: 2 to 500.
+    /// Unit: frequencies.
     pub points: usize,
     /// Injection amplitudes in the point's unit (A or V at the plant input, output mrad
     /// elsewhere); empty = 0.1 %, 1 % and 10 % of the amplifier limit at the plant input,
     /// 0.01, 0.1 and 1 mrad elsewhere.
     /// Allowed: each > 0; at the command, below the amplifier's limit.
+    /// Unit: A (V with a voltage amplifier) at the command points, output mrad elsewhere.
     pub amplitudes: Vec<f64>,
     /// Periods left to settle before measuring (3), at least `settle_min_s`.
     /// Allowed: 0 to 1000.
@@ -183,6 +185,7 @@ pub struct FreqRespParams {
     pub measure_periods: u32,
     /// Fewest samples measured (2000): bounds the frequency snap to 1/2000.
     /// Allowed: 16 to 1e7.
+    /// Unit: control samples.
     pub min_samples: u32,
     /// Harmonics (2nd to this) in the distortion figure (5).
     /// Allowed: 0 to 50.

@@ -23,6 +23,7 @@ pub struct Requirements {
     pub min_gain_margin_db: f64,
     /// Largest sensitivity peak `max |S|` (2).
     /// Allowed: 1 to 100.
+    /// Unit: 1.
     pub max_ms: f64,
     /// Transmitted torque, N m, whose tangent stiffness (first loading from the preload)
     /// the margins must also hold at; `None` (the default) takes the largest torque the

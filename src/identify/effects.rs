@@ -176,22 +176,27 @@ pub struct IdentifyParams {
     pub unknown: Vec<String>,
     /// Bounds on the friction coefficient.
     /// Allowed: `[low, high]` with 0 < low < high <= 1.
+    /// Unit: 1.
     #[serde(default = "default_mu_bounds")]
     pub friction_bounds: [f64; 2],
     /// Bounds on the cable modulus as factors of `drive.cable_modulus_n`.
     /// Allowed: `[low, high]` with 0 < low < high.
+    /// Unit: 1 (factors of the scenario's value).
     #[serde(default = "default_factor_bounds")]
     pub modulus_factor_bounds: [f64; 2],
     /// Bounds on the preload as factors of `drive.preload_n`.
     /// Allowed: `[low, high]` with 0 < low < high.
+    /// Unit: 1 (factors of the scenario's value).
     #[serde(default = "default_factor_bounds")]
     pub preload_factor_bounds: [f64; 2],
     /// Bounds on the ratio as factors of the scenario's `drum_radius_m/pulley_radius_m`.
     /// Allowed: `[low, high]` with 0 < low < high.
+    /// Unit: 1 (factors of the scenario's ratio).
     #[serde(default = "default_ratio_bounds")]
     pub ratio_factor_bounds: [f64; 2],
     /// Contiguous held-out blocks per log for cross-validation (4 typical).
     /// Allowed: 2 to 20.
+    /// Unit: blocks per log.
     #[serde(default = "default_blocks")]
     pub holdout_blocks: usize,
     /// Smallest relative held-out RMSE gain, percent, for an effect to count (3 typical).
@@ -214,6 +219,7 @@ pub struct IdentifyParams {
     /// qualifies, `unexplained` (1.25 typical; 2 for real logs, whose floor from encoder
     /// steps understates their other noise).
     /// Allowed: 1 to 10.
+    /// Unit: noise floors.
     #[serde(default = "default_none_within_floor")]
     pub none_within_floor: f64,
     /// Effects searched; empty means the whole library.
@@ -221,6 +227,7 @@ pub struct IdentifyParams {
     pub candidates: Vec<EffectName>,
     /// Most effects named at once (greedy forward selection).
     /// Allowed: 1 to 8.
+    /// Unit: effects.
     #[serde(default = "default_max_effects")]
     pub max_effects: usize,
     /// Logs are block-averaged down to this rate first, Hz (200 typical).

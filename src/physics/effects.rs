@@ -33,6 +33,7 @@ pub struct EffectsParams {
     pub encoder_delay_s: Option<f64>,
     /// Output encoder scale error `s` (reading = (1+s) angle).
     /// Allowed: -0.5 to 0.5.
+    /// Unit: 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub encoder_scale_error: Option<f64>,
     /// Preload loss rate, fraction per second.
@@ -85,6 +86,7 @@ pub struct EffectsParams {
     /// Exponent `p` of that growth: the load-scaled weights multiply `|M|^p` (absent: 1,
     /// growth proportional to the torque).
     /// Allowed: 0.5 to 8.
+    /// Unit: 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction_memory_load_exponent: Option<f64>,
 }

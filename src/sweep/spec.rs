@@ -140,11 +140,13 @@ pub struct SweepParameter {
     pub std: Option<f64>,
     /// Standard deviation as a fraction of the base value (`normal_relative`; 0.05 = 5 %).
     /// Allowed: > 0.
+    /// Unit: 1 (fraction of the scenario's value).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rel_std: Option<f64>,
     /// Half-width as a fraction of the base value (`uniform_relative`; bound of
     /// `normal_relative`); in (0, 1).
     /// Allowed: above 0 and below 1.
+    /// Unit: 1 (fraction of the scenario's value).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rel_tol: Option<f64>,
     /// Column name in `sweep.csv`; defaults to the last part of the key (`preload_n`).
@@ -253,6 +255,7 @@ pub struct SweepSpec {
     /// Number of cases drawn (random and latin_hypercube modes).
     /// Allowed: at least 1; required by, and only used by, `"random"` and
     /// `"latin_hypercube"`.
+    /// Unit: cases.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub samples: Option<usize>,
     /// Master seed of the draws (random and latin_hypercube modes; default 0). Case `k`
