@@ -1,6 +1,6 @@
 //! `compare` of four designs of the stabilised gimbal, 20 s each at 20 kHz, with every
 //! design's files and the overlay figures, into a fresh directory each time. The
-//! designs are the README's walk: the encoder loop, the gyro rate loop without its notch
+//! designs are the walk of `docs/stabilise.md`: the encoder loop, the gyro rate loop without its notch
 //! (it stops as unstable, which costs a fraction of a run), the rate loop with the notch,
 //! and the same with memory compensation. See benches/README.md.
 

@@ -1,7 +1,7 @@
 //! The identification statistics on the independent truth of `tests/support/truth.rs`:
 //! every effect hidden at 50 random sizes and phases (half of them within a factor 2 of the
 //! smallest size), clean logs with the library and with every effect searched. Prints the
-//! table the README cites; `IDENTIFY_RATE_SEEDS` sets another count.
+//! table `docs/diagnose.md` cites; `IDENTIFY_RATE_SEEDS` sets another count.
 
 #[path = "../tests/support/mod.rs"]
 mod support;

@@ -42,7 +42,7 @@ except ImportError:
     sys.exit(2)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from fmu_example import closed_loop  # noqa: E402  (the README's example is what runs here)
+from fmu_example import closed_loop  # noqa: E402  (the example of docs/fmu.md is what runs here)
 
 
 class Log:

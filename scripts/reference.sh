@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Regenerate the small reference results and README plots under results/reference/.
+# Regenerate the small reference results and the figures of README.md and docs/ under results/reference/.
 # Usage: scripts/reference.sh   (from the repository root; needs only cargo)
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -337,7 +337,7 @@ enum Command {
         /// Scenario giving drive, load and motion.
         #[arg(long)]
         scenario: String,
-        /// Hidden effect NAME=VALUE (units: see the README), repeatable.
+        /// Hidden effect NAME=VALUE (units: see docs/diagnose.md), repeatable.
         #[arg(long = "effect", value_name = "NAME=VALUE")]
         effect: Vec<String>,
         /// Random seed (noise and runout phases).

@@ -19,21 +19,27 @@ pub enum Signal {
     /// `offset + amplitude*sin(2 pi f t + phase)`.
     Sine {
         /// Amplitude, rad (0.1 for the paper bench's input).
+        /// Allowed: -1e6 to 1e6.
         amplitude_rad: f64,
         /// Frequency, Hz (0.1 on the bench).
+        /// Allowed: >= 0.
         frequency_hz: f64,
         /// Phase at t = 0, rad.
+        /// Allowed: any finite number.
         #[serde(default)]
         phase_rad: f64,
         /// Constant offset, rad.
+        /// Allowed: -1e6 to 1e6.
         #[serde(default)]
         offset_rad: f64,
     },
     /// Step of `amplitude_rad` at `time_s` (0 before).
     Step {
         /// Step height, rad (e.g. 0.005 for a 5 mrad step-and-stare).
+        /// Allowed: -1e6 to 1e6.
         amplitude_rad: f64,
         /// Step time, s.
+        /// Allowed: any finite number.
         #[serde(default)]
         time_s: f64,
     },
@@ -41,21 +47,28 @@ pub enum Signal {
     /// alternating direction after `steps_per_sweep` steps.
     StepStare {
         /// Height of each step, rad.
+        /// Allowed: -1e6 to 1e6.
         amplitude_rad: f64,
         /// Dwell between steps, s.
+        /// Allowed: > 0.
         period_s: f64,
         /// Steps before the staircase turns back.
+        /// Allowed: at least 1.
+        /// Unit: steps.
         #[serde(default = "default_steps")]
         steps_per_sweep: u32,
     },
     /// Slew at constant rate from `start_s`, optionally stopping at `stop_s`.
     Ramp {
         /// Rate, rad/s.
+        /// Allowed: -1e6 to 1e6.
         rate_rad_s: f64,
         /// Start time, s.
+        /// Allowed: any finite number.
         #[serde(default)]
         start_s: f64,
         /// End of the slew, s (holds afterwards).
+        /// Allowed: not before `start_s`.
         #[serde(default)]
         stop_s: Option<f64>,
     },
@@ -64,24 +77,30 @@ pub enum Signal {
     /// stays twice differentiable in the mean.
     Triangle {
         /// Amplitude, rad.
+        /// Allowed: -1e6 to 1e6.
         amplitude_rad: f64,
         /// Scan frequency, Hz.
+        /// Allowed: > 0.
         frequency_hz: f64,
         /// Fraction of each half period spent turning around, [0.001, 1).
+        /// Allowed: 0.001 to below 1.
         #[serde(default = "default_turn")]
         turn_fraction: f64,
     },
     /// Sum of several signals.
     Sum {
         /// Components.
+        /// Allowed: at least one.
         parts: Vec<Signal>,
     },
     /// Tabulated trajectory (time s, value rad), linear interpolation, held at the ends.
     /// Built from a CSV file by the I/O layer.
     Table {
         /// Path of the CSV file (columns `t_s` and a value column) as given in the scenario.
+        /// Allowed: a CSV file, relative to the scenario file's folder.
         path: String,
         /// Name of the value column.
+        /// Allowed: a column of that file.
         #[serde(default = "default_table_column")]
         column: String,
         /// Samples, filled by the loader (not part of the file format).
@@ -97,12 +116,18 @@ pub enum Signal {
     Psd {
         /// Rows `[frequency Hz, PSD rad^2/Hz]`, frequencies strictly increasing, PSD > 0;
         /// interpolated linearly in log-log coordinates (straight lines on a PSD plot).
+        /// Allowed: at least two rows; frequencies > 0 and strictly increasing; PSD above 0
+        /// and at most 1.
+        /// Unit: rows of `[Hz, rad^2/Hz]`.
         psd: Vec<[f64; 2]>,
         /// Seed of the random frequencies and phases (the same seed gives the same motion).
+        /// Allowed: any whole number from 0.
         #[serde(default = "default_psd_seed")]
         seed: u64,
         /// Number of sines (bands), 10 to 2000 (200 resolves a PSD table to a few percent
         /// per band while costing little per sample).
+        /// Allowed: 10 to 2000.
+        /// Unit: sines.
         #[serde(default = "default_psd_components")]
         components: u32,
         /// The realised sines, computed on first use from the table and the seed.

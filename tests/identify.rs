@@ -49,7 +49,7 @@ fn truth_cable_reproduces_the_oracle_reversal_jumps() {
 const SEEDS: u64 = 12;
 const SEEDS_EXTENDED: u64 = 6;
 
-/// Named and sized right in at least the share of the draws the README states
+/// Named and sized right in at least the share of the draws `docs/diagnose.md` states
 /// ([`claimed_rates`]); the suite's draws are the first of the 50 measured there.
 fn check_effect(e: EffectName) {
     let seeds = if EffectName::EXTENDED.contains(&e) {

@@ -1,6 +1,6 @@
 //! The shipped da Vinci logs (`../shared/real-data/davinci`, beside the repository) against
-//! the figures the README reports for them: the leave-one-log-out table over the eleven
-//! logs is recomputed and every number of the README's table is checked, so the README
+//! the figures `docs/diagnose.md` reports for them: the leave-one-log-out table over the
+//! eleven logs is recomputed and every number of that table is checked, so the guide
 //! cannot drift from the code.
 
 use std::path::{Path, PathBuf};
@@ -27,9 +27,9 @@ fn data_dir() -> PathBuf {
     dir
 }
 
-/// One row of the README's eleven-log table: log, base, extended, play operator, pull (%).
+/// One row of the guide's eleven-log table (`docs/diagnose.md`): log, base, extended, play operator, pull (%).
 #[derive(Debug)]
-struct ReadmeRow {
+struct GuideRow {
     log: String,
     base: f64,
     extended: f64,
@@ -46,20 +46,20 @@ fn number(cell: &str) -> f64 {
         .filter(|c| c.is_ascii_digit() || *c == '.' || *c == '-')
         .collect();
     s.parse()
-        .unwrap_or_else(|_| panic!("README table cell `{cell}` is not a number"))
+        .unwrap_or_else(|_| panic!("docs/diagnose.md table cell `{cell}` is not a number"))
 }
 
 /// "input velocity (7.9 mrad)" or "input angle (1.1)": the signal and the number.
 fn follows(cell: &str) -> (String, f64) {
     let (name, rest) = cell
         .split_once('(')
-        .unwrap_or_else(|| panic!("README cell `{cell}`: expected `signal (N mrad)`"));
+        .unwrap_or_else(|| panic!("docs/diagnose.md cell `{cell}`: expected `signal (N mrad)`"));
     (name.trim().to_string(), number(rest))
 }
 
-/// The rows of the README table headed "| log left out | base capstan model |".
-fn readme_rows() -> Vec<ReadmeRow> {
-    let text = std::fs::read_to_string(repo().join("README.md")).expect("README.md");
+/// The rows of the `docs/diagnose.md` table headed "| log left out | base capstan model |".
+fn guide_rows() -> Vec<GuideRow> {
+    let text = std::fs::read_to_string(repo().join("docs/diagnose.md")).expect("docs/diagnose.md");
     let mut lines = text
         .lines()
         .skip_while(|l| !l.starts_with("| log left out | base capstan model |"))
@@ -70,7 +70,7 @@ fn readme_rows() -> Vec<ReadmeRow> {
             break;
         }
         let c: Vec<&str> = l.split('|').map(str::trim).collect();
-        rows.push(ReadmeRow {
+        rows.push(GuideRow {
             log: c[1]
                 .split_whitespace()
                 .next()
@@ -88,7 +88,7 @@ fn readme_rows() -> Vec<ReadmeRow> {
 }
 
 #[test]
-fn leave_one_out_on_the_shipped_logs_gives_the_readme_table() {
+fn leave_one_out_on_the_shipped_logs_gives_the_table_of_the_guide() {
     let dir = data_dir();
     let scenario = Scenario::load(
         repo()
@@ -108,15 +108,15 @@ fn leave_one_out_on_the_shipped_logs_gives_the_readme_table() {
         StartMode::Detect,
     )
     .expect("leave-one-out");
-    let readme = readme_rows();
-    assert_eq!(readme.len(), 11, "README table rows: {readme:?}");
+    let readme = guide_rows();
+    assert_eq!(readme.len(), 11, "docs/diagnose.md table rows: {readme:?}");
     assert_eq!(t.rows.len(), 11, "leave-one-out rows");
-    // The README prints two decimals (one for the pull): a figure that moves by more than
+    // The guide prints two decimals (one for the pull): a figure that moves by more than
     // its last printed digit must be re-measured there.
     for (row, want) in t.rows.iter().zip(&readme) {
         assert!(
             row.log.contains(&want.log),
-            "row order: {} against README {}",
+            "row order: {} against docs/diagnose.md {}",
             row.log,
             want.log
         );
@@ -130,12 +130,12 @@ fn leave_one_out_on_the_shipped_logs_gives_the_readme_table() {
         ] {
             assert!(
                 (got - readme).abs() <= tol,
-                "{}: {what} {got:.4} against the README's {readme}",
+                "{}: {what} {got:.4} against docs/diagnose.md's {readme}",
                 want.log
             );
         }
         // The code says "unexplained: follows the input velocity (7.93 mrad RMS of binned
-        // means)"; the README prints the signal and one decimal.
+        // means)"; the guide prints the signal and one decimal.
         let (signal, size) = &want.follows;
         let said = row
             .residual
@@ -143,12 +143,12 @@ fn leave_one_out_on_the_shipped_logs_gives_the_readme_table() {
             .map(|(_, rest)| number(rest.split_whitespace().next().unwrap_or("")));
         assert!(
             said.is_some_and(|v| (v - size).abs() <= 0.051),
-            "{}: the residual follows `{}`, the README says {signal} ({size})",
+            "{}: the residual follows `{}`, docs/diagnose.md says {signal} ({size})",
             want.log,
             row.residual
         );
     }
-    // The README's claims in words: 11/11 over the base model, 9/11 over the play
+    // The guide's claims in words: 11/11 over the base model, 9/11 over the play
     // operator, losing on tool4_00 and tool4_02, and tool4_00 named as disagreeing.
     assert_eq!(t.wins_over_base, 11);
     assert_eq!(t.wins_over_play, 9);

@@ -17,13 +17,17 @@ pub enum FilterSpec {
     /// First-order low-pass `w/(s + w)` (a gyro's anti-noise filter at 500 Hz).
     LowPass1 {
         /// Corner frequency, Hz.
+        /// Allowed: > 0 and below the Nyquist frequency.
         corner_hz: f64,
     },
     /// Second-order low-pass `w^2/(s^2 + 2 zeta w s + w^2)`.
     LowPass2 {
         /// Corner (natural) frequency, Hz.
+        /// Allowed: > 0 and below the Nyquist frequency.
         corner_hz: f64,
         /// Damping ratio (0.707: Butterworth).
+        /// Allowed: > 0 and at most 10.
+        /// Unit: 1.
         #[serde(default = "default_damping")]
         damping: f64,
     },
@@ -33,30 +37,40 @@ pub enum FilterSpec {
     /// resonance at 40 Hz: centre 40, depth 20, width 20).
     Notch {
         /// Centre frequency, Hz.
+        /// Allowed: > 0 and below the Nyquist frequency.
         center_hz: f64,
         /// Attenuation at the centre, dB (> 0; 20 to 40).
+        /// Allowed: above 0 and at most 120.
         depth_db: f64,
         /// Width between the -3 dB frequencies of the deep notch, Hz (about half the
         /// centre frequency; below twice the centre).
+        /// Allowed: above 0 and below twice `center_hz`.
         width_hz: f64,
     },
     /// Lead-lag `(s/wz + 1)/(s/wp + 1)`, unity gain at DC: phase lead between a zero below
     /// a pole (20 and 80 Hz give about 37 deg at 40 Hz), lag the other way round.
     LeadLag {
         /// Zero, Hz.
+        /// Allowed: > 0 and below the Nyquist frequency.
         zero_hz: f64,
         /// Pole, Hz.
+        /// Allowed: > 0 and below the Nyquist frequency.
         pole_hz: f64,
     },
     /// General continuous biquad `(b2 s^2 + b1 s + b0)/(a2 s^2 + a1 s + a0)`: `b = [b0,
     /// b1, b2]`, `a = [a0, a1, a2]` (ascending powers of `s`).
     Biquad {
         /// Numerator coefficients, ascending powers of `s`.
+        /// Unit: 1 (ascending powers of `s`, with `s` in rad/s).
+        /// Allowed: finite; degree in `s` at most that of `a`.
         b: [f64; 3],
         /// Denominator coefficients, ascending powers of `s`.
+        /// Unit: 1 (ascending powers of `s`, with `s` in rad/s).
+        /// Allowed: finite, not all zero, one sign (a stable filter).
         a: [f64; 3],
         /// Frequency where the discrete response equals the continuous one, Hz; none:
         /// plain Tustin (`K = 2/T`).
+        /// Allowed: > 0 and below the Nyquist frequency.
         #[serde(default)]
         prewarp_hz: Option<f64>,
     },

@@ -99,11 +99,16 @@ pub struct RateLoopParams {
     pub measurement: RateSource,
     /// Proportional gain, command per output rad/s (about 5 A s/rad for a 0.05 kg m^2
     /// payload at 60 Hz rate bandwidth).
+    /// Unit: A s/rad (V s/rad with a voltage amplifier), per output rad/s.
+    /// Allowed: 0 to 1e9.
     pub kp: f64,
     /// Integral gain, command per output rad (about 500 A/rad).
+    /// Unit: A/rad (V/rad with a voltage amplifier), per output rad.
+    /// Allowed: 0 to 1e12.
     #[serde(default)]
     pub ki: f64,
     /// Corner of the low-pass on the motor-velocity estimate, Hz (500); unused with the gyro.
+    /// Allowed: > 0 and below the Nyquist frequency (half of `controller.sample_rate_hz`).
     #[serde(default = "default_velocity_filter")]
     pub velocity_filter_hz: f64,
 }
@@ -121,12 +126,16 @@ fn default_velocity_filter() -> f64 {
 #[serde(deny_unknown_fields)]
 pub struct DisturbanceObserverParams {
     /// Q-filter bandwidth, Hz (a fifth to a half of the drive resonance; 20 to 200).
+    /// Allowed: > 0 and below the Nyquist frequency; needs `motor.amplifier = "current"`.
     pub bandwidth_hz: f64,
     /// Q-filter damping ratio (0.7).
+    /// Allowed: > 0 and at most 10.
+    /// Unit: 1.
     #[serde(default = "default_q_damping")]
     pub damping: f64,
     /// Nominal inertia at the motor, kg m^2; default: rotor plus the output inertia
     /// reflected through `ic^2` (the rigid drive).
+    /// Allowed: > 0.
     #[serde(default)]
     pub inertia_kg_m2: Option<f64>,
 }
@@ -143,27 +152,35 @@ fn default_q_damping() -> f64 {
 #[serde(deny_unknown_fields)]
 pub struct GyroParams {
     /// Bandwidth of the second-order response, Hz (a MEMS or FOG gyro: 200 to 1000).
+    /// Allowed: > 0 and below the Nyquist frequency (half of `controller.sample_rate_hz`).
     #[serde(default = "default_gyro_bandwidth")]
     pub bandwidth_hz: f64,
     /// Damping ratio of that response (0.7).
+    /// Allowed: > 0 and at most 10.
+    /// Unit: 1.
     #[serde(default = "default_q_damping")]
     pub damping: f64,
     /// Rate noise density, rad/s/sqrt(Hz), one-sided (a tactical FOG: 5e-6; a MEMS gyro:
     /// 5e-5). Each sample carries white noise of standard deviation
     /// `density * sqrt(sample_rate / 2)`.
+    /// Allowed: 0 to 1.
     #[serde(default)]
     pub noise_density_rad_s_per_sqrt_hz: f64,
     /// Constant bias, rad/s (1e-6 for a FOG, 1e-4 for a MEMS gyro).
+    /// Allowed: -1 to 1.
     #[serde(default)]
     pub bias_rad_s: f64,
     /// Output resolution, rad/s per count (0 = continuous; 1e-6 typical).
+    /// Allowed: 0 to 1.
     #[serde(default)]
     pub quantization_rad_s: f64,
     /// Sample rate, Hz; the control rate divided by a whole number. Default: the control
     /// rate.
+    /// Allowed: > 0 and at most the control rate, which it must divide by a whole number.
     #[serde(default)]
     pub sample_rate_hz: Option<f64>,
     /// Seed of the gyro's noise (kept apart from the encoders').
+    /// Allowed: any whole number from 0.
     #[serde(default = "default_gyro_seed")]
     pub seed: u64,
 }
@@ -208,32 +225,42 @@ pub struct MotorParams {
     #[serde(default)]
     pub amplifier: Amplifier,
     /// Winding resistance, ohm (1 to 3 for a frameless torque motor).
+    /// Allowed: 1e-3 to 1e3.
     pub resistance_ohm: f64,
     /// Winding inductance, H (about 1e-3).
+    /// Allowed: 1e-7 to 10.
     pub inductance_h: f64,
     /// Torque constant `Kt`, N m/A (0.1 to 0.3).
+    /// Allowed: 1e-4 to 100.
     pub torque_constant_nm_per_a: f64,
     /// Back-EMF constant `Ke`, V s/rad; defaults to `Kt` (equal in SI units).
+    /// Allowed: 1e-4 to 100.
     #[serde(default)]
     pub back_emf_v_s_per_rad: Option<f64>,
     /// Rotor plus input pulley inertia, kg m^2 (about 1e-4).
+    /// Allowed: 1e-9 to 10.
     pub inertia_kg_m2: f64,
     /// Viscous friction of the motor bearings, N m s/rad (about 1e-4).
+    /// Allowed: 0 to 100.
     #[serde(default)]
     pub viscous_nm_s_per_rad: f64,
     /// Coulomb friction of the motor bearings and seals, N m (0.002 to 0.02).
+    /// Allowed: 0 to 1e3.
     #[serde(default)]
     pub coulomb_nm: f64,
     /// Speed below which motor Coulomb friction is linear in speed, rad/s (0.01). Keeps the
     /// friction Lipschitz so the fixed-step integrator cannot chatter at zero speed.
+    /// Allowed: 1e-6 to 10.
     #[serde(default = "default_coulomb_smoothing")]
     pub coulomb_smoothing_rad_s: f64,
     /// Largest current the amplifier delivers, A (5 to 10); also the controller's output
     /// limit with a current amplifier. None = unlimited.
+    /// Allowed: 1e-3 to 1e4.
     #[serde(default)]
     pub current_limit_a: Option<f64>,
     /// Largest voltage the amplifier delivers, V (24 to 48); the controller's output limit
     /// with a voltage amplifier. None = unlimited.
+    /// Allowed: 1e-3 to 1e5.
     #[serde(default)]
     pub voltage_limit_v: Option<f64>,
 }
@@ -282,8 +309,10 @@ impl Default for MotorParams {
 #[serde(deny_unknown_fields)]
 pub struct OutputParams {
     /// Drum plus payload inertia about the axis, kg m^2 (0.02 to 0.1).
+    /// Allowed: 1e-6 to 1e4.
     pub inertia_kg_m2: f64,
     /// Viscous friction of the output bearings, N m s/rad (about 1e-3).
+    /// Allowed: 0 to 1e3.
     #[serde(default)]
     pub viscous_nm_s_per_rad: f64,
 }
@@ -302,20 +331,25 @@ impl Default for OutputParams {
 #[serde(deny_unknown_fields)]
 pub struct SensorParams {
     /// Motor encoder counts per revolution (2^20 = 1048576 is a common absolute encoder).
+    /// Allowed: at least 4 when `quantize` is true.
     pub motor_counts_per_rev: u64,
     /// Output encoder counts per revolution (2^20 or more; 0.1 mrad needs well under
     /// 0.01 mrad per count, i.e. more than 6.3e5 counts).
+    /// Allowed: at least 4 when `quantize` is true.
     pub output_counts_per_rev: u64,
     /// Standard deviation of white motor-encoder noise, rad (0 to 2e-6).
+    /// Allowed: 0 to 0.1.
     #[serde(default)]
     pub motor_noise_rad: f64,
     /// Standard deviation of white output-encoder noise, rad (0 to 2e-6).
+    /// Allowed: 0 to 0.1.
     #[serde(default)]
     pub output_noise_rad: f64,
     /// Whether readings are quantised to whole counts (false gives continuous readings).
     #[serde(default = "default_true")]
     pub quantize: bool,
     /// Seed of the noise generator; the same seed is used for every mode.
+    /// Allowed: any whole number from 0.
     #[serde(default = "default_seed")]
     pub seed: u64,
 }
@@ -346,27 +380,41 @@ impl Default for SensorParams {
 #[serde(deny_unknown_fields)]
 pub struct ControllerParams {
     /// Sample rate with zero-order hold, Hz (10000 on the bench loop).
+    /// Allowed: 10 to 1e6, at least ten times the plant's fastest mode (the message gives
+    /// it), and 2 to 1e9 periods over `duration_s`.
     pub sample_rate_hz: f64,
     /// Encoder that closes the loop.
     #[serde(default)]
     pub feedback: Feedback,
     /// Proportional gain, command per rad (about 1000 A/rad for a 50 Hz loop).
+    /// Unit: A/rad (V/rad with a voltage amplifier; with a rate loop, output rad/s per
+    /// motor rad).
+    /// Allowed: 0 to 1e9.
     pub kp: f64,
     /// Integral gain, command per rad s (about 5e4 A/(rad s)).
+    /// Unit: A/(rad s) (V/(rad s) with a voltage amplifier).
+    /// Allowed: 0 to 1e12.
     #[serde(default)]
     pub ki: f64,
     /// Derivative gain, command s per rad (about 5 A s/rad); acts on the measurement.
+    /// Unit: A s/rad (V s/rad with a voltage amplifier).
+    /// Allowed: 0 to 1e6.
     #[serde(default)]
     pub kd: f64,
     /// Corner of the first-order derivative filter, Hz (about 1000).
+    /// Allowed: > 0.
     #[serde(default = "default_derivative_filter")]
     pub derivative_filter_hz: f64,
     /// Velocity feedforward, command per rad/s of motor reference rate (viscous and
     /// back-EMF terms; about 5e-4 A s/rad).
+    /// Unit: A s/rad (V s/rad with a voltage amplifier).
+    /// Allowed: 0 to 1e3.
     #[serde(default)]
     pub velocity_feedforward: f64,
     /// Acceleration feedforward, command per rad/s^2 of motor reference acceleration
     /// (total reflected inertia over `Kt`, about 0.01 A s^2/rad).
+    /// Unit: A s^2/rad (V s^2/rad with a voltage amplifier).
+    /// Allowed: 0 to 1e3.
     #[serde(default)]
     pub acceleration_feedforward: f64,
     /// Whether the predicted transmitted torque (load model plus output inertia) is fed
@@ -376,12 +424,15 @@ pub struct ControllerParams {
     /// Time over which the predicted brake torque reverses after the reference turns, s
     /// (0.02). The real brake reverses only as the cable winds up; a gradual prediction
     /// keeps the shifted reference free of steps.
+    /// Allowed: 0 to 100.
     #[serde(default = "default_brake_transition")]
     pub brake_transition_s: f64,
     /// Computation delay from sampling the sensors to applying the new command, in control
     /// periods (1 = the command computed from the samples at `t_k` is applied at
     /// `t_{k+1}`, as a drive that computes during the period does; fractions switch the
     /// held command inside the period). 0 to 4; default 1.
+    /// Allowed: 0 to 4.
+    /// Unit: control periods.
     #[serde(default = "default_computation_delay")]
     pub computation_delay_samples: f64,
     /// Inner rate loop; none: the PID commands the motor directly.
@@ -392,9 +443,11 @@ pub struct ControllerParams {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub measurement_filters: Vec<FilterSpec>,
     /// Filters on the rate command (the position loop's output; rate loop only).
+    /// Allowed: only with a `rate_loop`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub rate_command_filters: Vec<FilterSpec>,
     /// Filters on the rate measurement (rate loop only; e.g. a low-pass above the gyro).
+    /// Allowed: only with a `rate_loop`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub rate_measurement_filters: Vec<FilterSpec>,
     /// Filters on the feedback command, before the feedforward is added and before the
@@ -465,27 +518,35 @@ pub struct DriveOverride {
     #[serde(default)]
     pub routing: Option<Routing>,
     /// Motor pulley radius, m.
+    /// Allowed: as `drive.pulley_radius_m`: 1e-4 to 10.
     #[serde(default)]
     pub pulley_radius_m: Option<f64>,
     /// Drum radius, m.
+    /// Allowed: as `drive.drum_radius_m`: 1e-4 to 10.
     #[serde(default)]
     pub drum_radius_m: Option<f64>,
     /// Centre distance, m.
+    /// Allowed: as `drive.center_distance_m`.
     #[serde(default)]
     pub center_distance_m: Option<f64>,
     /// Cable tensile stiffness `E*A`, N (1.4e4 nominal).
+    /// Allowed: as `drive.cable_modulus_n`: 1 to 1e10.
     #[serde(default)]
     pub cable_modulus_n: Option<f64>,
     /// Friction coefficient (0.2 nominal).
+    /// Allowed: as `drive.friction_coefficient`: > 0 and at most 1.
     #[serde(default)]
     pub friction_coefficient: Option<f64>,
     /// Preload, N (100 nominal).
+    /// Allowed: as `drive.preload_n`: > 0 and at most 5 % of the cable modulus.
     #[serde(default)]
     pub preload_n: Option<f64>,
     /// Drum wrap per half, rad.
+    /// Allowed: as `drive.drum_wrap_rad`: > 0 and at most 20 pi.
     #[serde(default)]
     pub drum_wrap_rad: Option<f64>,
     /// Total pulley wrap, rad.
+    /// Allowed: as `drive.pulley_wrap_rad`: > 0 and at most 200 pi.
     #[serde(default)]
     pub pulley_wrap_rad: Option<f64>,
 }
@@ -514,18 +575,23 @@ impl DriveOverride {
 #[serde(deny_unknown_fields)]
 pub struct ClosedLoopParams {
     /// Simulated time, s (20 for two periods of a 0.1 Hz sine).
+    /// Allowed: > 0 and at most 1e5.
     pub duration_s: f64,
     /// Start of the metrics window, s; excludes start-up transients (2).
+    /// Allowed: >= 0 and below `duration_s`.
     #[serde(default = "default_metrics_start")]
     pub metrics_start_s: f64,
     /// Pointing requirement on the output, mrad (0.1 for EOTS line of sight).
+    /// Allowed: > 0.
     #[serde(default = "default_target")]
     pub target_mrad: f64,
     /// Band around the final value that counts as settled after a step, mrad; defaults to
     /// `target_mrad`.
+    /// Allowed: > 0.
     #[serde(default)]
     pub settle_band_mrad: Option<f64>,
     /// Compensation modes to simulate side by side.
+    /// Allowed: at least one of `"none"`, `"memoryless"`, `"memory"`, each once.
     #[serde(default = "default_modes")]
     pub modes: Vec<CompensationMode>,
     /// What the design must meet besides `target_mrad` (`[closed_loop.requirements]`):
@@ -534,6 +600,7 @@ pub struct ClosedLoopParams {
     #[serde(default)]
     pub requirements: super::requirements::Requirements,
     /// Desired output (drum) angle `r_out` against time, rad.
+    /// Allowed: any signal kind; it must stay within 100 rad of zero over the run.
     pub reference: Signal,
     /// Cable law of the plant.
     #[serde(default)]
@@ -541,15 +608,19 @@ pub struct ClosedLoopParams {
     /// Damping ratio of the cable's structural damping on the first drive mode (0.02 to
     /// 0.1); converted to a viscous term per half by
     /// [`ClosedLoopParams::cable_damping_n_s_per_m`].
+    /// Allowed: 0 to below 1.
     #[serde(default = "default_cable_damping")]
     pub cable_damping_ratio: f64,
     /// Fixed RK4 steps per control period (1 suffices when the fastest mode is well below
     /// the sample rate; the validation says when more are needed).
+    /// Allowed: 1 to 1000, and enough for the plant's fastest rate (the message gives the
+    /// least).
     #[serde(default = "default_substeps")]
     pub rk4_substeps: u32,
     /// Rows per second kept in the time series, Hz (1000: a row every millisecond, which
     /// resolves the loop's 30 Hz bandwidth; at most the control rate, which keeps every
     /// sample). Metrics always use every control sample.
+    /// Allowed: > 0 (above the control rate keeps every sample).
     #[serde(default = "default_timeseries_rate")]
     pub timeseries_rate_hz: f64,
     /// Torque motor.
@@ -570,6 +641,7 @@ pub struct ClosedLoopParams {
     /// they subtract the predicted kinematic error (runouts, thermal drift; rad) from the
     /// shifted motor reference and add the bearing friction (N m) to the predicted brake
     /// torque. Needs `[closed_loop.compensator_effects]` or the scenario's `[effects]`.
+    /// Allowed: `true` needs `[effects]` or `[closed_loop.compensator_effects]`.
     #[serde(default)]
     pub compensate_effects: bool,
     /// The compensator's copy of the effects where it differs from the plant's `[effects]`
@@ -580,12 +652,14 @@ pub struct ClosedLoopParams {
     /// (`sine`, `sum` of sines, a CSV `table`, or a random motion from a `psd` table).
     /// Bearing friction, drag and the motor act relative to the base; the line of sight is
     /// the base angle plus the drum's angle, and the pointing error is its inertial error.
+    /// Allowed: any signal kind, with content below a tenth of the control rate.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base_motion: Option<Signal>,
     /// How the axis stands at t = 0 (matters only under base motion).
     #[serde(default)]
     pub start: StartState,
     /// Rate gyro on the payload; needed by a gyro rate loop or gyro-angle feedback.
+    /// Allowed: needed by a gyro rate loop or `feedback = "gyro_angle"`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gyro: Option<GyroParams>,
     /// Line-of-sight statistics: exposure time for jitter, PSD segment length.

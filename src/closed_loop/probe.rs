@@ -146,50 +146,71 @@ impl OperatingPoint {
 
 /// Settings of a frequency-response measurement (`[closed_loop.freqresp]`, every key
 /// optional).
+/// The ranges are checked when `cable-servo freqresp` runs, against the loop it measures.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct FreqRespParams {
     /// Loop point (`plant_input`).
     pub point: LoopPoint,
     /// Frequencies, Hz; empty = `points` log-spaced from `f_min_hz` to `f_max_hz`.
+    /// Allowed: each > 0 and below the Nyquist frequency (`base_motion`: below a tenth of
+    /// the control rate).
     pub frequencies_hz: Vec<f64>,
     /// Lowest frequency of the log range, Hz (1).
+    /// Allowed: > 0, below `f_max_hz` and the Nyquist frequency.
     pub f_min_hz: f64,
     /// Highest frequency of the log range, Hz; `None` = 0.4 x Nyquist (base motion: just
     /// under a tenth of the control rate, the highest the base is simulated at).
+    /// Allowed: above `f_min_hz` and below the Nyquist frequency (`base_motion`: below a
+    /// tenth of the control rate).
     pub f_max_hz: Option<f64>,
     /// Frequencies in the log range (20).
+    /// Allowed: 2 to 500.
+    /// Unit: frequencies.
     pub points: usize,
     /// Injection amplitudes in the point's unit (A or V at the plant input, output mrad
     /// elsewhere); empty = 0.1 %, 1 % and 10 % of the amplifier limit at the plant input,
     /// 0.01, 0.1 and 1 mrad elsewhere.
+    /// Allowed: each > 0; at the command, below the amplifier's limit.
+    /// Unit: A (V with a voltage amplifier) at the command points, output mrad elsewhere.
     pub amplitudes: Vec<f64>,
     /// Periods left to settle before measuring (3), at least `settle_min_s`.
+    /// Allowed: 0 to 1000.
     pub settle_periods: f64,
     /// Shortest settling time, s (0.2: the integral action's transient).
+    /// Allowed: 0 to 100.
     pub settle_min_s: f64,
     /// Whole periods measured (4), more at high frequency to reach `min_samples`.
+    /// Allowed: 1 to 10000.
     pub measure_periods: u32,
     /// Fewest samples measured (2000): bounds the frequency snap to 1/2000.
+    /// Allowed: 16 to 1e7.
+    /// Unit: control samples.
     pub min_samples: u32,
     /// Harmonics (2nd to this) in the distortion figure (5).
+    /// Allowed: 0 to 50.
     pub harmonics: u32,
     /// Extra measurements per margin, peak and bandwidth to refine them between grid
     /// frequencies (6; 0 = interpolate only).
+    /// Allowed: 0 to 50.
     pub refine_iterations: u32,
     /// Transmitted torque, N m, at whose tangent stiffness (first loading from the
     /// preload) the exact linear reference takes its cable; `None` (the default) takes the
     /// free-span stiffness, the small-amplitude limit. The two bracket the drive: small
     /// motions see the free span, large monotone ones the tangent.
+    /// Allowed: >= 0 and within what the drive carries (about `2 preload_n drum_radius_m`;
+    /// the message gives the preload that would).
     pub reference_load_nm: Option<f64>,
     /// Operating point (`rest` or `slewing`); `None` (the default) slews where a brake,
     /// motor Coulomb friction or bearing friction would hold the axis, and rests
     /// otherwise. The `plant` point (loop open) is measured at rest.
+    /// Allowed: `"rest"`, `"slewing"` (not `"slewing"` with `point = "plant"`).
     pub operating_point: Option<OperatingPoint>,
     /// Slew rate of the `slewing` operating point, output rad/s; `None` (the default)
     /// chooses it per amplitude: twice the largest output velocity the injection gives on
     /// the exact linear reference over the frequencies measured (at least 0.01 rad/s), so
     /// the drum never reverses and the friction never sticks.
+    /// Allowed: > 0 and at most 10.
     pub slew_rate_rad_s: Option<f64>,
 }
 

@@ -16,32 +16,44 @@ use super::mode::CompensationMode;
 #[serde(deny_unknown_fields, default)]
 pub struct Requirements {
     /// Least phase margin over every gain crossover, deg (35).
+    /// Allowed: 0 to 90.
     pub min_phase_margin_deg: f64,
     /// Least gain margin over every phase crossover, upward and downward, dB (6).
+    /// Allowed: 0 to 60.
     pub min_gain_margin_db: f64,
     /// Largest sensitivity peak `max |S|` (2).
+    /// Allowed: 1 to 100.
+    /// Unit: 1.
     pub max_ms: f64,
     /// Transmitted torque, N m, whose tangent stiffness (first loading from the preload)
     /// the margins must also hold at; `None` (the default) takes the largest torque the
     /// scenario's load can put on the drum (`[load]`: breakaway + unbalance + constant +
     /// sine + table peak). 0 judges the free span alone.
+    /// Allowed: 0 to 1e4.
     pub operating_load_nm: Option<f64>,
     /// Compensation mode whose pointing error is judged; `None` (the default) takes the
     /// last mode `closed_loop.modes` lists (the others are shown for comparison).
+    /// Allowed: one of `closed_loop.modes`.
     pub mode: Option<CompensationMode>,
     /// Largest RMS pointing error over the metrics window, mrad; `None`: not required.
+    /// Allowed: > 0 and at most 1e6.
     pub max_rms_mrad: Option<f64>,
     /// Largest line-of-sight jitter (RMS about each exposure's mean, worst exposure),
     /// mrad; `None`: not required (0.01 to 0.05 for a long-exposure imager).
+    /// Allowed: > 0 and at most 1e6.
     pub max_jitter_mrad: Option<f64>,
     /// Longest settling time of a reference step into `closed_loop.settle_band_mrad`, s;
     /// `None`: not required.
+    /// Allowed: 0 to 1e5.
     pub max_settling_s: Option<f64>,
     /// Least base-motion rejection, dB (line of sight over base angle, `-20 log10 |LOS/base|`)
     /// at `base_rejection_hz`, on the exact linear reference; `None`: not required.
+    /// Allowed: -60 to 200, given with `base_rejection_hz`.
     pub min_base_rejection_db: Option<f64>,
     /// Frequency the base-motion rejection is judged at, Hz (needed with
     /// `min_base_rejection_db`; 1 to 10 for aircraft vibration).
+    /// Allowed: > 0 and below the Nyquist frequency (below a tenth of the control rate for
+    /// `freqresp --point base_motion`), given with `min_base_rejection_db`.
     pub base_rejection_hz: Option<f64>,
 }
 

@@ -170,48 +170,68 @@ pub const CALIBRATABLE: [&str; 4] = [
 pub struct IdentifyParams {
     /// Base parameters to calibrate: any of `friction_coefficient`, `cable_modulus_n`,
     /// `preload_n`, `ratio` (the radius ratio, when the geometry is unknown).
+    /// Allowed: any of `"friction_coefficient"`, `"cable_modulus_n"`, `"preload_n"`,
+    /// `"ratio"`.
     #[serde(default = "default_unknown")]
     pub unknown: Vec<String>,
     /// Bounds on the friction coefficient.
+    /// Allowed: `[low, high]` with 0 < low < high <= 1.
+    /// Unit: 1.
     #[serde(default = "default_mu_bounds")]
     pub friction_bounds: [f64; 2],
     /// Bounds on the cable modulus as factors of `drive.cable_modulus_n`.
+    /// Allowed: `[low, high]` with 0 < low < high.
+    /// Unit: 1 (factors of the scenario's value).
     #[serde(default = "default_factor_bounds")]
     pub modulus_factor_bounds: [f64; 2],
     /// Bounds on the preload as factors of `drive.preload_n`.
+    /// Allowed: `[low, high]` with 0 < low < high.
+    /// Unit: 1 (factors of the scenario's value).
     #[serde(default = "default_factor_bounds")]
     pub preload_factor_bounds: [f64; 2],
     /// Bounds on the ratio as factors of the scenario's `drum_radius_m/pulley_radius_m`.
+    /// Allowed: `[low, high]` with 0 < low < high.
+    /// Unit: 1 (factors of the scenario's ratio).
     #[serde(default = "default_ratio_bounds")]
     pub ratio_factor_bounds: [f64; 2],
     /// Contiguous held-out blocks per log for cross-validation (4 typical).
+    /// Allowed: 2 to 20.
+    /// Unit: blocks per log.
     #[serde(default = "default_blocks")]
     pub holdout_blocks: usize,
     /// Smallest relative held-out RMSE gain, percent, for an effect to count (3 typical).
+    /// Allowed: 0 to below 100.
     #[serde(default = "default_min_gain")]
     pub min_gain_percent: f64,
     /// Fraction of the structured residual variance (above the noise floor) an effect must
     /// explain to be named (0.5 typical); keeps unrelated structure from being forced onto
     /// the nearest name.
+    /// Allowed: 0 to 1.
     #[serde(default = "default_explained")]
     pub min_explained_fraction: f64,
     /// Smallest absolute held-out RMSE gain, mrad, for an effect to count (0: the relative
     /// gain alone decides; 0.3 for real logs, whose errors are tens of mrad and whose
     /// percent gains can be large while worth nothing).
+    /// Allowed: 0 to 100.
     #[serde(default)]
     pub min_gain_mrad: f64,
     /// A residual within this many noise floors is `none`; above it, with no effect that
     /// qualifies, `unexplained` (1.25 typical; 2 for real logs, whose floor from encoder
     /// steps understates their other noise).
+    /// Allowed: 1 to 10.
+    /// Unit: noise floors.
     #[serde(default = "default_none_within_floor")]
     pub none_within_floor: f64,
     /// Effects searched; empty means the whole library.
     #[serde(default)]
     pub candidates: Vec<EffectName>,
     /// Most effects named at once (greedy forward selection).
+    /// Allowed: 1 to 8.
+    /// Unit: effects.
     #[serde(default = "default_max_effects")]
     pub max_effects: usize,
     /// Logs are block-averaged down to this rate first, Hz (200 typical).
+    /// Allowed: at least 10.
     #[serde(default = "default_rate")]
     pub max_rate_hz: f64,
 }

@@ -9,15 +9,18 @@
 
 use serde::{Deserialize, Serialize};
 
-/// Settings (`[closed_loop.los]`).
+/// Line-of-sight statistics (`[closed_loop.los]`): the exposure that jitter is judged over
+/// and the segment of the error's spectrum.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LosParams {
     /// Camera exposure, s (0.01: jitter is judged within each 10 ms exposure).
+    /// Allowed: > 0 and at most 1e4.
     #[serde(default = "default_exposure")]
     pub exposure_s: f64,
     /// Welch segment length, s (1.0: 1 Hz resolution); rounded down to a power of two
     /// samples and capped to the record.
+    /// Allowed: > 0 and at most 1e4.
     #[serde(default = "default_segment")]
     pub psd_segment_s: f64,
 }

@@ -41,8 +41,9 @@ impl std::fmt::Display for Routing {
     }
 }
 
-/// Geometry and material of the cable drive. Field names carry their units; the defaults
-/// are the published bench (physics.md section 6).
+/// Geometry and material of the cable drive. Field names carry their units; the values
+/// in parentheses are the published bench (physics.md section 6), which is also what
+/// `DriveParams::default()` gives.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DriveParams {
@@ -50,21 +51,31 @@ pub struct DriveParams {
     #[serde(default)]
     pub routing: Routing,
     /// Motor pulley radius `ri`, m (0.020 on the bench).
+    /// Allowed: 1e-4 to 10.
     pub pulley_radius_m: f64,
     /// Output drum radius `ro`, m (0.1025 on the bench).
+    /// Allowed: 1e-4 to 10.
     pub drum_radius_m: f64,
     /// Distance between pulley and drum axes `L`, m (0.1450595 on the bench).
+    /// Allowed: > 0 and at most 100; above `drum_radius_m + pulley_radius_m`
+    /// (`figure_eight`) or `|drum_radius_m - pulley_radius_m|` (`open`), so the spans have
+    /// a length.
     pub center_distance_m: f64,
     /// Tensile stiffness `E*A` of the cable, N (1.4e4 on the bench).
+    /// Allowed: 1 to 1e10.
     pub cable_modulus_n: f64,
     /// Coulomb friction coefficient between cable and pulley surfaces (0.2 on the bench).
+    /// Allowed: > 0 and at most 1.
     pub friction_coefficient: f64,
     /// Cable preload set by the turnbuckle, N (100 on the bench).
+    /// Allowed: > 0 and at most 5 % of `cable_modulus_n` (a strain of 5 %).
     pub preload_n: f64,
     /// Wrap on the drum per half, from contact point to anchor, rad (pi on the bench).
+    /// Allowed: > 0 and at most 20 pi (ten turns).
     pub drum_wrap_rad: f64,
     /// Total wrap around the pulley, rad (6*pi, three turns, on the bench); each half owns
     /// half of it.
+    /// Allowed: > 0 and at most 200 pi (a hundred turns).
     pub pulley_wrap_rad: f64,
 }
 

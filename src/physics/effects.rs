@@ -12,60 +12,81 @@ use serde::{Deserialize, Serialize};
 #[serde(deny_unknown_fields)]
 pub struct EffectsParams {
     /// Input pulley eccentricity over radius.
+    /// Allowed: 0 to 0.5.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub input_pulley_runout: Option<f64>,
     /// Phase `phi` of the input runout, rad.
+    /// Allowed: -10 to 10.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub input_pulley_runout_phase_rad: Option<f64>,
     /// Output drum eccentricity over radius.
+    /// Allowed: 0 to 0.5.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub output_drum_runout: Option<f64>,
     /// Phase `phi` of the drum runout, rad.
+    /// Allowed: -10 to 10.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub output_drum_runout_phase_rad: Option<f64>,
     /// Output encoder lag, s.
+    /// Allowed: -1 to 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub encoder_delay_s: Option<f64>,
     /// Output encoder scale error `s` (reading = (1+s) angle).
+    /// Allowed: -0.5 to 0.5.
+    /// Unit: 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub encoder_scale_error: Option<f64>,
     /// Preload loss rate, fraction per second.
+    /// Allowed: 0 to 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub preload_relaxation_per_s: Option<f64>,
     /// Unmeasured Coulomb torque at the drum, N m.
+    /// Allowed: 0 to 1e4.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bearing_friction_nm: Option<f64>,
     /// Input travel over which the error settles after a reversal, rad.
+    /// Allowed: 0 to 100.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cable_transport_rad: Option<f64>,
     /// Drift of the error with time, rad/s.
+    /// Allowed: -1 to 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub thermal_drift_rad_per_s: Option<f64>,
     /// Ratio shape: Legendre coefficients of `P_2, P_3, P_4` of the input angle scaled to
     /// `angle_dependent_ratio_stroke_rad`, rad of output error.
+    /// Allowed: three numbers, each -1 to 1; needs `angle_dependent_ratio_stroke_rad`.
+    /// Unit: rad.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub angle_dependent_ratio_coefs: Option<Vec<f64>>,
     /// Input stroke `[low, high]` the ratio shape is defined over, rad.
+    /// Allowed: `[low, high]`, finite, low below high.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub angle_dependent_ratio_stroke_rad: Option<[f64; 2]>,
     /// Output deflection per transmitted torque `M` beyond the spans, rad/(N m): `+c M`
     /// on the output angle (3.1 for the da Vinci jaw). The closed loop puts it, with the
     /// friction memory, in a massless link between the drum and the output sensor.
+    /// Allowed: 0 to 100.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub load_compliance_rad_per_nm: Option<f64>,
     /// Play thresholds of the distributed friction memory, rad of input.
+    /// Allowed: each > 0; as many as `friction_memory_weights`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction_memory_thresholds_rad: Option<Vec<f64>>,
     /// Their weights, output rad per input rad (non-negative).
+    /// Allowed: each 0 to 10; as many as `friction_memory_thresholds_rad`.
+    /// Unit: rad/rad.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction_memory_weights: Option<Vec<f64>>,
     /// Growth of the weights with the transmitted torque's magnitude `|M|^p`, per (N m)^p
     /// with `p` = `friction_memory_load_exponent` (non-negative; friction at a contact
     /// grows with the tension pressing on it).
+    /// Allowed: each 0 to 1e9; one per threshold.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction_memory_load_weights_per_nm: Option<Vec<f64>>,
     /// Exponent `p` of that growth: the load-scaled weights multiply `|M|^p` (absent: 1,
     /// growth proportional to the torque).
+    /// Allowed: 0.5 to 8.
+    /// Unit: 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction_memory_load_exponent: Option<f64>,
 }

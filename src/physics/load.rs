@@ -18,20 +18,25 @@ pub const MAX_TORQUE_NM: f64 = 1e6;
 #[serde(deny_unknown_fields)]
 pub struct LoadParams {
     /// Sliding torque of the magnetic powder brake, N m (about 0.7 on the paper bench).
+    /// Allowed: 0 to 1e6.
     #[serde(default)]
     pub brake_nm: f64,
     /// Breakaway (static) torque of the brake, N m; defaults to `brake_nm`. The brake holds
     /// the drum until the net driving torque exceeds it.
+    /// Allowed: `brake_nm` to 1e6.
     #[serde(default)]
     pub brake_breakaway_nm: Option<f64>,
     /// Amplitude of the mass-unbalance torque `m*g*l`, N m (0.1 to 1 for a camera payload).
+    /// Allowed: 0 to 1e6.
     #[serde(default)]
     pub unbalance_nm: f64,
     /// Angle of the unbalance at `theta_out = 0`, rad: `Ml = -unbalance_nm*sin(theta_out + phase)`;
     /// `pi/2` puts the centre of mass level, giving a nearly constant torque.
+    /// Allowed: any finite number.
     #[serde(default)]
     pub unbalance_phase_rad: f64,
     /// Constant external torque, N m.
+    /// Allowed: -1e6 to 1e6.
     #[serde(default)]
     pub constant_nm: f64,
     /// Whether the constant torque is a declared model the compensator is given (a set
@@ -41,15 +46,21 @@ pub struct LoadParams {
     pub constant_declared: bool,
     /// Time over which the constant torque rises linearly from zero, s (0: a step at
     /// t = 0; 0.5 for a grasp that closes over half a second).
+    /// Allowed: 0 (a step) to 1e5.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub constant_ramp_s: f64,
     /// Amplitude of a sinusoidal disturbance torque, N m.
+    /// Allowed: -1e6 to 1e6.
     #[serde(default)]
     pub sine_nm: f64,
     /// Frequency of the sinusoidal disturbance, Hz.
+    /// Allowed: >= 0; in a quasi-static study with `sine_nm` set, at most a tenth of
+    /// `quasi_static.sample_rate_hz`.
     #[serde(default)]
     pub sine_frequency_hz: f64,
     /// External torque time series (CSV with `t_s` and `torque_nm`), added to the rest.
+    /// Allowed: a CSV file, relative to the scenario file's folder, with increasing `t_s`
+    /// and a `torque_nm` column.
     #[serde(default)]
     pub disturbance_csv: Option<String>,
     /// Samples of the external torque series `(t_s, N m)`, filled by the I/O layer.

@@ -20,6 +20,7 @@ use crate::sweep::SweepSpec;
 
 mod builtin;
 mod errors;
+mod keys;
 mod overrides;
 #[cfg(test)]
 mod tests;
@@ -28,6 +29,7 @@ mod validate;
 pub use builtin::{builtin, BUILTIN, DEFAULT_SCENARIO};
 pub use errors::ScenarioError;
 use errors::{line_col, parse_error, plain_message, with_suggestion};
+pub use keys::accepted_keys;
 pub use overrides::{parse_assignment, set_path};
 
 /// What a scenario computes.
@@ -55,9 +57,11 @@ pub const SAMPLES_PER_PERIOD: f64 = 10.0;
 #[serde(deny_unknown_fields)]
 pub struct Scenario {
     /// Name used for the results folder; defaults to the file stem.
+    /// Allowed: letters, digits, `_`, `-` and `.`, not starting with `.` (a folder name).
     #[serde(default)]
     pub name: Option<String>,
     /// One-line description for reports.
+    /// Allowed: any text.
     #[serde(default)]
     pub description: Option<String>,
     /// What the scenario computes.

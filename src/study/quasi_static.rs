@@ -13,16 +13,21 @@ use crate::signal::Signal;
 #[serde(deny_unknown_fields)]
 pub struct QuasiStaticParams {
     /// Simulated time, s (20 for two periods of the bench's 0.1 Hz sine).
+    /// Allowed: > 0 and at most 1e6; `duration_s` x `sample_rate_hz` at most 2e6 samples.
     pub duration_s: f64,
     /// Samples per second, Hz (200 is plenty at 0.1 Hz).
+    /// Allowed: > 0; at least 10 samples per period of the motion and of the load's sine;
+    /// `duration_s` x `sample_rate_hz` at most 2e6 samples.
     #[serde(default = "default_qs_rate")]
     pub sample_rate_hz: f64,
     /// Input (motor pulley) angle against time.
     pub motion: Signal,
     /// Models to run side by side.
+    /// Allowed: at least one of `"memory"`, `"memoryless"`.
     #[serde(default = "default_models")]
     pub models: Vec<HysteresisModel>,
     /// Instants at which tension profiles along the wraps are recorded and plotted, s.
+    /// Allowed: each within 0 to `duration_s`.
     #[serde(default)]
     pub profile_times_s: Vec<f64>,
 }
@@ -40,6 +45,7 @@ fn default_models() -> Vec<HysteresisModel> {
 #[serde(deny_unknown_fields)]
 pub struct BacklashParams {
     /// Magnitude of the transmitted torque `M`, N m (0.72 on the bench).
+    /// Allowed: > 0 and at most 1e6.
     pub load_nm: f64,
     /// History model.
     #[serde(default)]

@@ -108,34 +108,49 @@ impl DistKind {
 #[serde(deny_unknown_fields)]
 pub struct SweepParameter {
     /// Dotted scenario key, e.g. `drive.preload_n`.
+    /// Allowed: a dotted scenario key, varied by one parameter only.
     pub key: String,
     /// Values the key takes (grid and list modes; in sampled modes one is picked per case,
     /// each equally likely).
+    /// Allowed: values of the key's type, each making a valid scenario.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub values: Vec<toml::Value>,
     /// Distribution the key is drawn from (sampled modes only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dist: Option<DistKind>,
     /// Lower bound, in the key's unit (`uniform`, `truncated_normal`).
+    /// Allowed: finite, below `max`.
+    /// Unit: the swept key's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub min: Option<f64>,
     /// Upper bound, in the key's unit (`uniform`, `truncated_normal`).
+    /// Allowed: finite, above `min`.
+    /// Unit: the swept key's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max: Option<f64>,
     /// Mean, in the key's unit (`normal`, `truncated_normal`).
+    /// Allowed: finite.
+    /// Unit: the swept key's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mean: Option<f64>,
     /// Standard deviation, in the key's unit (`normal`, `truncated_normal`).
+    /// Allowed: > 0.
+    /// Unit: the swept key's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub std: Option<f64>,
     /// Standard deviation as a fraction of the base value (`normal_relative`; 0.05 = 5 %).
+    /// Allowed: > 0.
+    /// Unit: 1 (fraction of the scenario's value).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rel_std: Option<f64>,
     /// Half-width as a fraction of the base value (`uniform_relative`; bound of
     /// `normal_relative`); in (0, 1).
+    /// Allowed: above 0 and below 1.
+    /// Unit: 1 (fraction of the scenario's value).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rel_tol: Option<f64>,
     /// Column name in `sweep.csv`; defaults to the last part of the key (`preload_n`).
+    /// Allowed: any name.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub column: Option<String>,
 }
@@ -238,14 +253,19 @@ pub struct SweepSpec {
     #[serde(default)]
     pub mode: SweepMode,
     /// Number of cases drawn (random and latin_hypercube modes).
+    /// Allowed: at least 1; required by, and only used by, `"random"` and
+    /// `"latin_hypercube"`.
+    /// Unit: cases.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub samples: Option<usize>,
     /// Master seed of the draws (random and latin_hypercube modes; default 0). Case `k`
     /// draws from a stream seeded by `(seed, k, parameter)`, so rows do not depend on the
     /// thread count or the shard.
+    /// Allowed: 0 to 2^63 - 1; only with `"random"` and `"latin_hypercube"`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub seed: Option<u64>,
     /// The varied keys.
+    /// Allowed: at least one (or `--vary` on the command line).
     #[serde(default)]
     pub parameters: Vec<SweepParameter>,
 }

@@ -1,5 +1,5 @@
-//! The eleven shipped da Vinci logs and the extension the README's leave-one-out table
-//! uses, shared by `tests/real_data.rs` and `benches/leave_one_out.rs`.
+//! The eleven shipped da Vinci logs and the extension the leave-one-out table of
+//! `docs/diagnose.md` uses, shared by `tests/real_data.rs` and `benches/leave_one_out.rs`.
 
 use std::path::Path;
 

@@ -65,8 +65,8 @@ pub fn size_tolerance(e: EffectName) -> f64 {
     }
 }
 
-/// The share of draws named right and sized within [`size_tolerance`] that the README
-/// states for each effect, as measured over 50 draws by `benches/identify_rates.rs`:
+/// The share of draws named right and sized within [`size_tolerance`] that
+/// `docs/diagnose.md` states for each effect, as measured over 50 draws by `benches/identify_rates.rs`:
 /// 95 % for all but compliance, whose smallest sizes partly hide in the calibrated modulus
 /// (named 49/50, sized 46/50 there).
 pub fn claimed_rates(e: EffectName) -> (f64, f64) {
