@@ -110,6 +110,8 @@ struct Row {
 /// A table of rows under a heading.
 #[derive(Debug, Default)]
 struct Table {
+    /// Names the table for readers of the page's source (`verdict`, `design:NAME`).
+    key: String,
     heading: String,
     rows: Vec<Row>,
 }
@@ -302,6 +304,7 @@ fn describe(
         let passes = record["verdict"]["passes"].as_bool().unwrap_or(false);
         page.outcome = verdict_outcome(passes, &rows, &mut page.reasons);
         page.tables.push(Table {
+            key: "verdict".into(),
             heading: format!(
                 "Requirements (judged mode: {})",
                 text(&record["verdict"]["judged_mode"])
@@ -346,6 +349,7 @@ fn describe(
         }
         if !rows.is_empty() {
             page.tables.push(Table {
+                key: "figures".into(),
                 heading: "Key figures".into(),
                 rows,
             });
@@ -431,6 +435,7 @@ fn describe_compare(designs: &[Value], record: &Value, page: &mut Page) {
             ));
         }
         page.tables.push(Table {
+            key: format!("design:{}", text(&d["name"])),
             heading: format!(
                 "Design {}: {} ({} mode) \u{2014} {}",
                 text(&d["name"]),
@@ -546,6 +551,7 @@ fn describe_sweep(dir: &Path, record: &Value, page: &mut Page) -> Result<(), Rep
         }
     }
     page.tables.push(Table {
+        key: "cases".into(),
         heading: "Cases per mode".into(),
         rows,
     });
@@ -630,6 +636,7 @@ fn describe_freqresp(record: &Value, page: &mut Page) {
         None => Outcome::NotJudged,
     };
     page.tables.push(Table {
+        key: "freqresp".into(),
         heading: "Measured margins per amplitude, and the exact linear reference".into(),
         rows,
     });
@@ -697,6 +704,7 @@ fn describe_tune(record: &Value, page: &mut Page) {
             Outcome::NotMet(format!("the pick ({}) misses a requirement", gains(pick)))
         };
         page.tables.push(Table {
+            key: "pick".into(),
             heading: format!("The pick: {}", gains(pick)),
             rows: candidate_rows(pick, req, target, "pick"),
         });
@@ -706,6 +714,7 @@ fn describe_tune(record: &Value, page: &mut Page) {
     let own = &t["scenario_design"];
     if own.is_object() {
         page.tables.push(Table {
+            key: "scenario_design".into(),
             heading: format!("The scenario's own design: {}", gains(own)),
             rows: candidate_rows(own, req, target, "scenario"),
         });
@@ -735,6 +744,7 @@ fn describe_least_rate(r: &Value, page: &mut Page) {
         None => Outcome::NotMet("no rate in the searched range meets the target".into()),
     };
     page.tables.push(Table {
+        key: "least_rate".into(),
         heading: "Search".into(),
         rows,
     });
@@ -1015,7 +1025,13 @@ fn render_table(h: &mut String, t: &Table) {
         return;
     }
     let judged = t.rows.iter().any(|r| r.limit.is_some());
-    h.push_str("<table class=\"requirements\">\n<thead><tr><th>requirement</th><th>condition</th><th>measured</th>");
+    let _ = write!(
+        h,
+        "<table class=\"requirements\" data-key=\"{}\">\n<thead><tr><th>{}</th><th>condition</th><th>{}</th>",
+        esc(&t.key),
+        if judged { "requirement" } else { "figure" },
+        if judged { "measured" } else { "value" }
+    );
     if judged {
         h.push_str("<th>limit</th><th>margin</th><th>unit</th><th></th>");
     }
