@@ -808,10 +808,8 @@ fn svg_paths(dir: &Path, depth: usize, out: &mut Vec<PathBuf>) {
         let hidden = e.file_name().to_string_lossy().starts_with('.');
         match e.file_type() {
             Ok(t) if t.is_dir() && !hidden => svg_paths(&path, depth + 1, out),
-            Ok(t) if t.is_file() && !hidden => {
-                if path.extension().is_some_and(|x| x == "svg") {
-                    out.push(path);
-                }
+            Ok(t) if t.is_file() && !hidden && path.extension().is_some_and(|x| x == "svg") => {
+                out.push(path)
             }
             _ => {}
         }
