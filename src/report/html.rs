@@ -320,7 +320,7 @@ fn describe(
         page.title = format!("Frequency response: {name}");
         describe_freqresp(record, page);
     } else if record["tune"].is_object() {
-        describe_tune(record, page);
+        describe_tune(dir, record, page);
     } else if record["least_rate"].is_object() {
         describe_least_rate(&record["least_rate"], page);
     } else if record_name.is_empty() {
@@ -355,6 +355,12 @@ fn describe(
             });
         }
         if let Ok(t) = std::fs::read_to_string(dir.join("report.txt")) {
+            // Its first line names the logs: `Diagnosis of 2 log(s): a.csv, b.csv`.
+            if name.is_empty() {
+                if let Some(first) = t.lines().next().filter(|l| !l.trim().is_empty()) {
+                    page.title = first.trim().to_string();
+                }
+            }
             page.texts.push(("Diagnosis".into(), t));
         }
         if let Some(fault) = record["result"]["fault"].as_str() {
@@ -673,12 +679,21 @@ fn candidate_rows(c: &Value, requirements: &Value, target: Option<f64>, who: &st
     rows
 }
 
-fn describe_tune(record: &Value, page: &mut Page) {
+/// The requirements a tune judged against: those of the tuned scenario it wrote (the
+/// tune changes gains only), `Null` when nothing was picked.
+fn tuned_requirements(dir: &Path) -> Value {
+    std::fs::read_to_string(dir.join("tuned.toml"))
+        .ok()
+        .and_then(|t| toml::from_str::<toml::Value>(&t).ok())
+        .and_then(|t| serde_json::to_value(t).ok())
+        .map_or(Value::Null, |v| v["closed_loop"]["requirements"].clone())
+}
+
+fn describe_tune(dir: &Path, record: &Value, page: &mut Page) {
     let t = &record["tune"];
-    let scenario = &t["scenario"];
-    let req = &scenario["closed_loop"]["requirements"];
+    let req = &tuned_requirements(dir);
     let target = num(&t["target_mrad"]);
-    page.title = format!("Tuned PID: {}", text(&scenario["name"]));
+    page.title = format!("Tuned PID: {}", text(&t["scenario"]));
     page.subtitle.clear();
     page.subtitle.push(format!(
         "{} mode at {} Hz, load feedforward {}",
@@ -1037,13 +1052,23 @@ fn render_table(h: &mut String, t: &Table) {
     for r in &t.rows {
         let _ = write!(
             h,
-            "<tr data-requirement=\"{}\" data-condition=\"{}\"><td>{}</td><td>{}</td><td class=\"num measured\">{}</td>",
+            "<tr data-requirement=\"{}\" data-condition=\"{}\"><td>{}</td><td>{}</td>",
             esc(&r.requirement),
             esc(&r.condition),
             esc(&r.requirement.replace('_', " ")),
             esc(&r.condition),
-            esc(&fmt_opt(r.measured))
         );
+        // A recorded word (a regime, a cause) is the value itself where nothing is judged.
+        let word = !judged && r.measured.is_none() && !r.note.is_empty();
+        if word {
+            let _ = write!(h, "<td class=\"word\">{}</td>", esc(&r.note));
+        } else {
+            let _ = write!(
+                h,
+                "<td class=\"num measured\">{}</td>",
+                esc(&fmt_opt(r.measured))
+            );
+        }
         if judged {
             let (rel, limit) = r
                 .limit
@@ -1063,7 +1088,8 @@ fn render_table(h: &mut String, t: &Table) {
                 esc(&r.unit)
             );
         }
-        let _ = writeln!(h, "<td>{}</td></tr>", esc(&r.note));
+        let note = if word { "" } else { r.note.as_str() };
+        let _ = writeln!(h, "<td>{}</td></tr>", esc(note));
     }
     h.push_str("</tbody>\n</table>\n");
 }
@@ -1079,7 +1105,7 @@ fn render_provenance(h: &mut String, page: &Page, record: &Value, record_name: &
     let name = [
         &record["scenario_name"],
         &scenario["name"],
-        &record["tune"]["scenario"]["name"],
+        &record["tune"]["scenario"],
     ]
     .into_iter()
     .map(text)
@@ -1125,8 +1151,6 @@ fn render_provenance(h: &mut String, page: &Page, record: &Value, record_name: &
             .iter()
             .map(|d| (format!(" of design {}", text(&d["name"])), &d["scenario"]))
             .collect()
-    } else if record["tune"]["scenario"].is_object() {
-        vec![(String::new(), &record["tune"]["scenario"])]
     } else {
         Vec::new()
     };
