@@ -1090,6 +1090,17 @@ fn main() -> ExitCode {
     }
 }
 
+/// `report.html` into a design command's results directory, already in place; like a
+/// plot it never breaks the command: a failure is a warning.
+fn html_report(dir: &std::path::Path) {
+    if let Err(e) = cable_servo::report::html::write_report(dir) {
+        tell!(
+            "warning: {} not written: {e}",
+            cable_servo::report::html::REPORT_FILE
+        );
+    }
+}
+
 /// Mode and load-feedforward choice of a tune from their command-line words.
 fn tune_choices(
     mode: &str,
@@ -1196,7 +1207,10 @@ fn design_tune(
         )
     });
     match cable_servo::design::tune_files::write_tune(&r, &scenario, &dir, force) {
-        Ok(path) => say!("results: {}", path.display()),
+        Ok(path) => {
+            say!("results: {}", path.display());
+            html_report(&path);
+        }
         Err(e) => {
             tell!("error: {e}");
             return ExitCode::from(exit::OUTPUT);
@@ -1280,7 +1294,10 @@ fn design_least_rate(
         )
     });
     match cable_servo::design::tune_files::write_least_rate(&r, &dir, force) {
-        Ok(path) => say!("results: {}", path.display()),
+        Ok(path) => {
+            say!("results: {}", path.display());
+            html_report(&path);
+        }
         Err(e) => {
             tell!("error: {e}");
             return ExitCode::from(exit::OUTPUT);

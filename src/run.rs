@@ -115,8 +115,9 @@ fn finish(
     staged: StagedDir,
     table: String,
     failure: Option<String>,
-    warnings: Vec<String>,
+    mut warnings: Vec<String>,
 ) -> Result<RunReport, RunError> {
+    html_report(staged.path(), &mut warnings, failure.as_deref());
     let dir = match &failure {
         None => staged.commit()?,
         Some(reason) => staged.commit_incomplete(reason)?,
@@ -130,6 +131,14 @@ fn finish(
         signal: None,
         requirements_met: None,
     })
+}
+
+/// `report.html`, written last into the staged directory so it shows every file and
+/// warning of the run; like the plots it never breaks a run: a failure becomes a warning.
+fn html_report(dir: &Path, warnings: &mut Vec<String>, stopped: Option<&str>) {
+    if let Err(e) = report::html::write_report_with(dir, warnings, stopped) {
+        warnings.push(format!("{} not written: {e}", report::html::REPORT_FILE));
+    }
 }
 
 /// Plots never break a run: a failure becomes a warning.
@@ -1009,6 +1018,7 @@ pub fn run_freqresp(
     let mut warnings = scenario.warnings();
     let lin = crate::analysis::linear::LinearLoop::new(p, &scenario.drive);
     plots(report::freqresp::plot(&dir, &r, &lin), &mut warnings);
+    html_report(&dir, &mut warnings, None);
     let dir = staged.commit()?;
     Ok(FreqRespReport {
         dir,
