@@ -376,6 +376,12 @@ enum Command {
         /// N m (large monotone motion), instead of the free span (small motion).
         #[arg(long = "load-nm", value_name = "M")]
         load_nm: Option<f64>,
+        /// Results directory (default: results/<scenario name>-margins, or the next free).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Replace an existing results directory written by this program.
+        #[arg(long)]
+        force: bool,
     },
     /// Frequency response of the simulated (nonlinear) loop by sinusoidal injection at one
     /// loop point and one or more amplitudes; margins, sensitivity peak and bandwidth of
@@ -865,6 +871,8 @@ fn main() -> ExitCode {
             scenario,
             set,
             load_nm,
+            out,
+            force,
         } => {
             let name = scenario.as_deref().unwrap_or(DEFAULT_SCENARIO);
             let mut set = set;
@@ -886,7 +894,24 @@ fn main() -> ExitCode {
                 cable_servo::compact(p.controller.computation_delay_samples),
                 cable_servo::compact(p.controller.sample_rate_hz)
             );
-            verdict_exit(&scenario, None, true)
+            let dir = out.unwrap_or_else(|| {
+                run::default_results_dir(
+                    &PathBuf::from("results").join(format!("{}-margins", scenario.name())),
+                    force,
+                )
+            });
+            match run::run_margins(&scenario, &OutputOptions { dir, force }) {
+                Ok(r) => {
+                    for w in &r.warnings {
+                        tell!("warning: {w}");
+                    }
+                    say_raw!("{}", r.verdict.range_table());
+                    say_raw!("{}", r.verdict.table());
+                    say!("results: {}", r.dir.display());
+                    verdict_code(r.verdict.passes)
+                }
+                Err(e) => report(Err(e)),
+            }
         }
         Command::Freqresp {
             scenario,

@@ -6,6 +6,7 @@ pub mod closed_loop;
 pub mod compare;
 pub mod diagnosis;
 pub mod freqresp;
+pub mod margins;
 pub mod quasi_static;
 pub mod sweep;
 
