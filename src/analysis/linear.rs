@@ -1038,7 +1038,9 @@ impl LinearLoop {
     pub fn plant_zeros(&self) -> Vec<Complex<f64>> {
         let (a, b, c) = self.sampled_plant();
         let cb = c.dot(&b);
-        if !(cb.abs() > 1e-12 * c.norm() * b.norm()) {
+        // NaN fails the comparison too: no zeros then.
+        if cb.abs().partial_cmp(&(1e-12 * c.norm() * b.norm())) != Some(std::cmp::Ordering::Greater)
+        {
             return Vec::new();
         }
         let n = a.nrows();

@@ -320,7 +320,8 @@ fn delay_words(p: &PlantModel) -> String {
     let m = p.delay_whole_samples;
     if p.delay_fraction == 0.0 {
         format!(
-            "{m} whole period(s): the command computed from y_k is applied over [t_k+{m}, t_k+{m}+1), z^-{m} in numerator_z_inv; plant.sampled is the plain zero-order hold"
+            "{m} whole period(s): the command computed from y_k is held from t_(k+{m}) to t_(k+{}), which is z^-{m} in numerator_z_inv; plant.sampled is the plain zero-order hold",
+            m + 1
         )
     } else {
         format!(

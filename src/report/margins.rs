@@ -310,14 +310,15 @@ fn bode(name: &str, models: &LoopModels) -> Option<AnnotatedFigure> {
             mag.marks
                 .push(point_mark(g.frequency_hz, 0.0, Shape::Circle, c, ""));
             phase.traces.push(bar(g.frequency_hz, crit, at, c));
-            phase.marks.push(point_mark(
+            let mut mk = point_mark(
                 g.frequency_hz,
                 at,
                 Shape::Circle,
                 c,
                 &format!("PM {:.1}°", g.phase_margin_deg),
-            ));
-            phase.marks.last_mut().map(|mk| mk.text_offset = (8, dy));
+            );
+            mk.text_offset = (8, dy);
+            phase.marks.push(mk);
             notes.push(format!(
                 "  gain crossover {}: PM {:.1} deg",
                 hz(g.frequency_hz),
@@ -335,14 +336,15 @@ fn bode(name: &str, models: &LoopModels) -> Option<AnnotatedFigure> {
                 GainDirection::Down => "down",
             };
             mag.traces.push(bar(pc.frequency_hz, 0.0, level, c));
-            mag.marks.push(point_mark(
+            let mut mk = point_mark(
                 pc.frequency_hz,
                 level,
                 Shape::Diamond,
                 c,
                 &format!("GM {word} {:.1} dB", pc.gain_margin_db),
-            ));
-            mag.marks.last_mut().map(|mk| mk.text_offset = (8, dy));
+            );
+            mk.text_offset = (8, dy);
+            mag.marks.push(mk);
             phase.marks.push(point_mark(
                 pc.frequency_hz,
                 nearest_critical(ph[k]),
