@@ -218,8 +218,11 @@ pub struct PointModel {
     pub loop_response: LoopResponse,
     /// Poles of the sampled closed loop (every state: plant, delay, PID).
     pub closed_loop_poles: Vec<ZPoint>,
-    /// Zeros of `L` (the controller's and the plant's), which `T = L/(1+L)` shares.
+    /// Zeros of `L` (the controller's and the plant's), which `T = L/(1+L)` shares; empty
+    /// for a law beyond the plain PID, with `loop_zeros_note`.
     pub loop_zeros: Vec<ZPoint>,
+    /// Why there are no zeros.
+    pub loop_zeros_note: Option<String>,
     /// The reference step; `None` with `step_note` when it is not computed.
     pub step: Option<StepResponse>,
     /// Why there is no step.
@@ -270,10 +273,19 @@ fn point_model(setup: &ClosedLoopSetup<'_>, op: &OperatingLoop) -> PointModel {
     });
     let margins = op.point().margins;
     let poles: Vec<Complex<f64>> = lin.closed_loop_poles();
-    let mut zeros: Vec<Complex<f64>> = lin.plant_zeros();
-    if let Some((num, _)) = lin.pid_coefficients() {
-        zeros.extend(quadratic_roots(num));
-    }
+    // The zeros of L are the plant's and the PID's; a law with a rate loop, filters or
+    // an observer mixes several measured paths, whose zeros these are not.
+    let (zeros, zeros_note) = match lin.pid_coefficients() {
+        Some((num, _)) => {
+            let mut z = lin.plant_zeros();
+            z.extend(quadratic_roots(num));
+            (z, None)
+        }
+        None => (
+            Vec::new(),
+            Some("zeros of L are computed for a plain PID only (this law has a rate loop, filters or an observer)".to_string()),
+        ),
+    };
     let (step, step_note) = if !margins.stable {
         (
             None,
@@ -310,6 +322,7 @@ fn point_model(setup: &ClosedLoopSetup<'_>, op: &OperatingLoop) -> PointModel {
         loop_response: lin.loop_response(),
         closed_loop_poles: poles.iter().map(|&z| ZPoint::new(z, ts)).collect(),
         loop_zeros: zeros.iter().map(|&z| ZPoint::new(z, ts)).collect(),
+        loop_zeros_note: zeros_note,
         step,
         step_note,
     }

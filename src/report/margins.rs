@@ -80,6 +80,7 @@ fn point_json(path: &Path, p: &PointModel) -> Result<serde_json::Value, ReportEr
         "bandwidth_hz": m.bandwidth_hz,
         "closed_loop_poles": encode(path, &p.closed_loop_poles)?,
         "loop_zeros": encode(path, &p.loop_zeros)?,
+        "loop_zeros_note": p.loop_zeros_note,
         "step": step,
         "step_note": p.step_note,
     }))
@@ -371,6 +372,20 @@ fn bode(name: &str, models: &LoopModels) -> Option<AnnotatedFigure> {
         360.0,
         15.0,
     );
+    // A margin beyond the view keeps its label, at the edge it leaves by.
+    for panel in [&mut mag, &mut phase] {
+        let (lo, hi) = panel.y_range;
+        let pad = 0.03 * (hi - lo);
+        for mk in &mut panel.marks {
+            if mk.y < lo || mk.y > hi {
+                mk.y = mk.y.clamp(lo + pad, hi - pad);
+                mk.shape = Shape::Triangle;
+                if !mk.text.is_empty() {
+                    mk.text.push_str(" (off scale)");
+                }
+            }
+        }
+    }
     mag.traces.push(guide("", vec![f0, f1], vec![0.0, 0.0]));
     let (lo, hi) = phase.y_range;
     let mut k = nearest_critical(lo) - 360.0;
@@ -737,6 +752,9 @@ fn zplane(name: &str, models: &LoopModels) -> Option<AnnotatedFigure> {
                 text: String::new(),
                 text_offset: (0, 0),
             });
+        }
+        if let Some(note) = &m.loop_zeros_note {
+            notes.push(format!("{}: {note}", m.condition));
         }
         let largest = m
             .closed_loop_poles
