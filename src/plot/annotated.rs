@@ -602,3 +602,91 @@ fn side_marker<DB: DrawingBackend>(
     }
     .map_err(err)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn panel() -> Panel {
+        Panel {
+            x_label: "frequency [Hz]".into(),
+            y_label: "|L| [dB]".into(),
+            x_range: (0.1, 1000.0),
+            y_range: (-40.0, 40.0),
+            log_x: true,
+            traces: vec![
+                Trace::line(
+                    "with a gap",
+                    vec![0.1, 1.0, f64::NAN, 100.0, 1000.0],
+                    vec![30.0, 20.0, 0.0, f64::INFINITY, -60.0],
+                    [0, 0, 255],
+                    Dash::Dashed,
+                ),
+                Trace {
+                    width: 0,
+                    marker: Some(Shape::Circle),
+                    ..Trace::line(
+                        "measured",
+                        vec![1.0, 10.0],
+                        vec![5.0, 50.0],
+                        [255, 0, 0],
+                        Dash::Solid,
+                    )
+                },
+            ],
+            marks: vec![Mark {
+                x: 10.0,
+                y: 0.0,
+                shape: Shape::Diamond,
+                rgb: [0, 0, 0],
+                size: 5,
+                label: "crossing".into(),
+                text: "PM 40°".into(),
+                text_offset: (8, -12),
+            }],
+            arrows: vec![Arrowhead {
+                at: (10.0, 0.0),
+                from: (1.0, 20.0),
+                rgb: [0, 0, 0],
+            }],
+            ..Panel::default()
+        }
+    }
+
+    /// Non-finite samples and points beyond the ranges are left out, never drawn wild;
+    /// both files appear.
+    #[test]
+    fn a_figure_with_gaps_and_off_scale_points_is_written() {
+        let tmp = tempfile::tempdir().unwrap();
+        let fig = AnnotatedFigure {
+            title: "test".into(),
+            panels: vec![panel(), Panel { equal_aspect: true, log_x: false, x_range: (-2.0, 1.0), ..panel() }],
+            notes: vec!["a note long enough to be wrapped onto a second line in the side column of the figure".into()],
+            panel_height: 400,
+        };
+        let files = save_annotated(&fig, &tmp.path().join("f")).unwrap();
+        assert_eq!(files.len(), 2);
+        assert!(files.iter().all(|f| f.is_file()));
+    }
+
+    #[test]
+    fn bad_ranges_and_panel_counts_are_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let stem = tmp.path().join("f");
+        let mut p = panel();
+        p.x_range = (0.0, 10.0); // log axis from zero
+        let fig = AnnotatedFigure {
+            panels: vec![p],
+            ..AnnotatedFigure::default()
+        };
+        assert!(matches!(
+            save_annotated(&fig, &stem),
+            Err(PlotError::InvalidInput(_))
+        ));
+        let none = AnnotatedFigure::default();
+        assert!(matches!(
+            save_annotated(&none, &stem),
+            Err(PlotError::InvalidInput(_))
+        ));
+    }
+}
