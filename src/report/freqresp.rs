@@ -254,7 +254,9 @@ pub fn plot(
             .in_rgb(colour(k)),
         );
     }
-    mag.series.push(
+    // The reference first, so the measured markers are drawn over it.
+    mag.series.insert(
+        0,
         Series::line(
             "exact linear reference",
             dense.clone(),
@@ -262,7 +264,8 @@ pub fn plot(
         )
         .in_rgb(REFERENCE_RGB),
     );
-    phase.series.push(
+    phase.series.insert(
+        0,
         Series::line(
             "exact linear reference",
             dense.clone(),
