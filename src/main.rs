@@ -370,7 +370,11 @@ enum Command {
         partial: bool,
     },
     /// Margins of a closed-loop design on its exact linear reference (cable as its linear
-    /// spring, zero-order hold, PID and computation delay as implemented).
+    /// spring, zero-order hold, PID and computation delay as implemented), then the
+    /// design's verdict. Writes margins.json (every crossing, Ms, closed-loop poles, step
+    /// figures), linear_model.json (the plant's matrices and the discrete controller for
+    /// python-control or MATLAB: docs/linear-model.md), summary.json and Bode, Nyquist,
+    /// Nichols, z-plane and step figures.
     Margins {
         /// Scenario file or built-in name (default: eots_tracking).
         scenario: Option<String>,
@@ -381,6 +385,12 @@ enum Command {
         /// N m (large monotone motion), instead of the free span (small motion).
         #[arg(long = "load-nm", value_name = "M")]
         load_nm: Option<f64>,
+        /// Results directory (default: results/<scenario name>-margins, or the next free).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Replace an existing results directory written by this program.
+        #[arg(long)]
+        force: bool,
     },
     /// Frequency response of the simulated (nonlinear) loop by sinusoidal injection at one
     /// loop point and one or more amplitudes; margins, sensitivity peak and bandwidth of
@@ -879,6 +889,8 @@ fn main() -> ExitCode {
             scenario,
             set,
             load_nm,
+            out,
+            force,
         } => {
             let name = scenario.as_deref().unwrap_or(DEFAULT_SCENARIO);
             let mut set = set;
@@ -900,7 +912,24 @@ fn main() -> ExitCode {
                 cable_servo::compact(p.controller.computation_delay_samples),
                 cable_servo::compact(p.controller.sample_rate_hz)
             );
-            verdict_exit(&scenario, None, true)
+            let dir = out.unwrap_or_else(|| {
+                run::default_results_dir(
+                    &PathBuf::from("results").join(format!("{}-margins", scenario.name())),
+                    force,
+                )
+            });
+            match run::run_margins(&scenario, &OutputOptions { dir, force }) {
+                Ok(r) => {
+                    for w in &r.warnings {
+                        tell!("warning: {w}");
+                    }
+                    say_raw!("{}", r.verdict.range_table());
+                    say_raw!("{}", r.verdict.table());
+                    say!("results: {}", r.dir.display());
+                    verdict_code(r.verdict.passes)
+                }
+                Err(e) => report(Err(e)),
+            }
         }
         Command::Freqresp {
             scenario,

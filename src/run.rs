@@ -1017,7 +1017,10 @@ pub fn run_freqresp(
     report::freqresp::write_outputs(&dir, scenario, &r)?;
     let mut warnings = scenario.warnings();
     let lin = crate::analysis::linear::LinearLoop::new(p, &scenario.drive);
-    plots(report::freqresp::plot(&dir, &r, &lin), &mut warnings);
+    plots(
+        report::freqresp::plot(&dir, &r, &lin, p.requirements.max_ms),
+        &mut warnings,
+    );
     html_report(&dir, &mut warnings, None);
     let dir = staged.commit()?;
     Ok(FreqRespReport {
@@ -1037,6 +1040,47 @@ pub fn run_freqresp(
             .sum(),
         warnings,
         runs: (r.runs, r.simulated_s),
+    })
+}
+
+/// What `margins` computed and where it went.
+#[derive(Debug)]
+pub struct MarginsReport {
+    /// Results directory.
+    pub dir: PathBuf,
+    /// The design's verdict (its crossings and requirements).
+    pub verdict: crate::analysis::verdict::Verdict,
+    /// Non-fatal problems (a plot that could not be drawn).
+    pub warnings: Vec<String>,
+}
+
+/// `margins`: the exact linear reference over the operating range, the verdict, and
+/// their files (`margins.json`, `linear_model.json`, `summary.json`, figures).
+pub fn run_margins(scenario: &Scenario, out: &OutputOptions) -> Result<MarginsReport, RunError> {
+    let p = scenario.closed_loop.as_ref().ok_or_else(|| {
+        RunError::Unsupported(format!(
+            "{} is not a closed-loop scenario (study = \"closed_loop\"): margins need a loop",
+            scenario.name()
+        ))
+    })?;
+    let setup = closed_loop::ClosedLoopSource::closed_loop_setup(scenario)?;
+    // The verdict (which simulates the judged mode) before a results directory exists.
+    let verdict = crate::analysis::verdict::evaluate(&setup)?;
+    let models = crate::analysis::linear_model::loop_models(&setup);
+    let staged = StagedDir::create(&out.dir, out.force)?;
+    let dir = staged.path().to_path_buf();
+    report::margins::write_outputs(&dir, scenario, p, &models, &verdict)?;
+    let mut warnings = scenario.warnings();
+    plots(
+        report::margins::plot(&dir, scenario, p, &models),
+        &mut warnings,
+    );
+    html_report(&dir, &mut warnings, None);
+    let dir = staged.commit()?;
+    Ok(MarginsReport {
+        dir,
+        verdict,
+        warnings,
     })
 }
 

@@ -288,6 +288,8 @@ fn the_files_are_complete_and_the_tuned_scenario_runs_as_it_is() {
     let out = Command::new(exe)
         .args(["margins"])
         .arg(dir.join("tuned.toml"))
+        .arg("--out")
+        .arg(dir.join("margins"))
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);

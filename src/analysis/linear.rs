@@ -24,6 +24,7 @@
 //! the margins.
 
 use nalgebra::{Complex, DMatrix, DVector};
+use serde::Serialize;
 
 use crate::closed_loop::filters::{Biquad, FilterSpec};
 use crate::closed_loop::params::{Amplifier, ClosedLoopParams, Feedback, RateSource};
@@ -35,6 +36,10 @@ use crate::physics::DriveParams;
 pub struct LinearLoop {
     /// Continuous state matrix (for the base motion's forcing).
     a_cont: DMatrix<f64>,
+    /// Continuous input matrix of the held command (A or V).
+    b_cont: DVector<f64>,
+    /// Whether the command is a voltage (a fifth state: the winding current).
+    voltage: bool,
     /// State transition over one period.
     ad: DMatrix<f64>,
     /// Input matrix of the command held over the first `fraction` of the period.
@@ -54,6 +59,8 @@ pub struct LinearLoop {
     ic: f64,
     /// Whole periods of computation delay.
     whole: usize,
+    /// The fraction of a period beyond `whole` (0 to 1).
+    fraction: f64,
     /// Sample period, s.
     ts: f64,
     kp: f64,
@@ -312,6 +319,8 @@ impl LinearLoop {
         });
         LinearLoop {
             a_cont: a,
+            b_cont: b,
+            voltage,
             ad,
             b1: phi_rest * gam_first,
             b2: gam_rest,
@@ -321,6 +330,7 @@ impl LinearLoop {
             base_rate,
             ic,
             whole: whole as usize,
+            fraction: f,
             ts,
             kp: ctl.kp,
             ki_t: ctl.ki * ts,
@@ -814,6 +824,269 @@ impl LinearLoop {
     }
 }
 
+/// A state, input or output of the linear model, with its unit.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Signal {
+    /// Short name, e.g. `theta_m`.
+    pub name: &'static str,
+    /// Unit, e.g. `rad`.
+    pub unit: &'static str,
+    /// What it is.
+    pub meaning: &'static str,
+}
+
+/// A discrete state-space realisation `x_{k+1} = A x_k + B u_k`, `y_k = C x_k + D u_k`
+/// (single input, single output), matrices as rows.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DiscreteRealisation {
+    /// States, in the order of the rows of `a`.
+    pub states: Vec<Signal>,
+    /// State transition, n x n.
+    pub a: Vec<Vec<f64>>,
+    /// Input matrix, n x 1.
+    pub b: Vec<Vec<f64>>,
+    /// Output matrix, 1 x n.
+    pub c: Vec<Vec<f64>>,
+    /// Feedthrough, 1 x 1 (zero: the held command moves no angle at once).
+    pub d: Vec<Vec<f64>>,
+}
+
+/// The plant of the loop as matrices: the continuous model, its zero-order-hold
+/// discretisation at the control period, and the computation delay.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlantModel {
+    /// States, in the order of the rows of `a`.
+    pub states: Vec<Signal>,
+    /// The held command.
+    pub input: Signal,
+    /// The position loop's measurement.
+    pub output: Signal,
+    /// Continuous state matrix, n x n, 1/s and mixed units (`dx/dt = A x + B u`).
+    pub a: Vec<Vec<f64>>,
+    /// Continuous input matrix, n x 1.
+    pub b: Vec<Vec<f64>>,
+    /// Output matrix, 1 x n.
+    pub c: Vec<Vec<f64>>,
+    /// Feedthrough, 1 x 1.
+    pub d: Vec<Vec<f64>>,
+    /// Control period, s (5e-5 at 20 kHz).
+    pub sample_period_s: f64,
+    /// Zero-order-hold transition `exp(A T)`, n x n.
+    pub ad: Vec<Vec<f64>>,
+    /// Zero-order-hold input matrix `int_0^T exp(A s) ds B`, n x 1, no delay.
+    pub bd: Vec<Vec<f64>>,
+    /// Computation delay, control periods (1: the command computed at `t_k` acts from
+    /// `t_k+1`).
+    pub delay_samples: f64,
+    /// Whole periods of it, `m`: the loop carries `z^-m`.
+    pub delay_whole_samples: usize,
+    /// The fraction beyond them, `f`: `u_{k-m-1}` is held over the first `f T` of a
+    /// period and `u_{k-m}` over the rest.
+    pub delay_fraction: f64,
+    /// The sampled plant with the fractional part of the delay and without the whole
+    /// periods: the plain ZOH model when `delay_fraction` is 0, else extended by the state
+    /// `u_{k-1}`.
+    pub sampled: DiscreteRealisation,
+}
+
+fn rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
+    (0..m.nrows())
+        .map(|i| m.row(i).iter().copied().collect())
+        .collect()
+}
+
+fn column(v: &DVector<f64>) -> Vec<Vec<f64>> {
+    v.iter().map(|&x| vec![x]).collect()
+}
+
+impl LinearLoop {
+    /// The states of the plant model, in order.
+    pub fn state_signals(&self) -> Vec<Signal> {
+        let mut s = vec![
+            Signal {
+                name: "theta_m",
+                unit: "rad",
+                meaning: "motor angle",
+            },
+            Signal {
+                name: "omega_m",
+                unit: "rad/s",
+                meaning: "motor rate",
+            },
+            Signal {
+                name: "theta_o",
+                unit: "rad",
+                meaning: "drum (output) angle",
+            },
+            Signal {
+                name: "omega_o",
+                unit: "rad/s",
+                meaning: "drum (output) rate",
+            },
+        ];
+        if self.voltage {
+            s.push(Signal {
+                name: "i",
+                unit: "A",
+                meaning: "winding current",
+            });
+        }
+        if s.len() < self.ad.nrows() {
+            s.push(Signal {
+                name: "gyro_rate",
+                unit: "rad/s",
+                meaning: "gyro's rate reading (second-order sensor)",
+            });
+            s.push(Signal {
+                name: "gyro_rate_dot",
+                unit: "rad/s^2",
+                meaning: "derivative of the gyro's rate reading",
+            });
+        }
+        s
+    }
+
+    /// The plant as matrices: continuous, sampled with a zero-order hold at the control
+    /// period, and with the computation delay's fractional part (see [`PlantModel`]).
+    pub fn plant_model(&self) -> PlantModel {
+        let (_, bd) = augmented_exp(&self.a_cont, &self.b_cont, self.ts);
+        let states = self.state_signals();
+        let input = if self.voltage {
+            Signal {
+                name: "u",
+                unit: "V",
+                meaning: "winding voltage command, held over the period",
+            }
+        } else {
+            Signal {
+                name: "u",
+                unit: "A",
+                meaning: "current command, held over the period",
+            }
+        };
+        let output = if self.c_scale[1] == 0.0 && self.c_scale[2] == 0.0 {
+            Signal {
+                name: "y",
+                unit: "rad",
+                meaning: "measured motor angle (motor encoder)",
+            }
+        } else if self.c_scale[2] == 0.0 {
+            Signal {
+                name: "y",
+                unit: "rad",
+                meaning: "drum encoder angle times ro/ri, in motor radians",
+            }
+        } else {
+            Signal {
+                name: "y",
+                unit: "rad/s",
+                meaning: "gyro rate times ro/ri (the law integrates it)",
+            }
+        };
+        let (a, b, c) = self.sampled_plant();
+        let mut sampled_states = states.clone();
+        if a.nrows() > states.len() {
+            sampled_states.push(Signal {
+                name: "u_prev",
+                unit: input.unit,
+                meaning: "command of the previous period (fractional delay)",
+            });
+        }
+        PlantModel {
+            states,
+            input,
+            output,
+            a: rows(&self.a_cont),
+            b: column(&self.b_cont),
+            c: vec![self.c.iter().copied().collect()],
+            d: vec![vec![0.0]],
+            sample_period_s: self.ts,
+            ad: rows(&self.ad),
+            bd: column(&bd),
+            delay_samples: self.whole as f64 + self.fraction,
+            delay_whole_samples: self.whole,
+            delay_fraction: self.fraction,
+            sampled: DiscreteRealisation {
+                states: sampled_states,
+                a: rows(&a),
+                b: column(&b),
+                c: vec![c.iter().copied().collect()],
+                d: vec![vec![0.0]],
+            },
+        }
+    }
+
+    /// `(A, B, C)` of the sampled plant with the fractional delay and without the whole
+    /// periods: `P(z) z^m = C (zI - A)^-1 B`.
+    fn sampled_plant(&self) -> (DMatrix<f64>, DVector<f64>, DVector<f64>) {
+        if self.fraction == 0.0 {
+            return (self.ad.clone(), self.b2.clone(), self.c.clone());
+        }
+        // x_{k+1} = Ad x_k + B1 u_{k-1} + B2 u_k, with u_{k-1} a state of its own.
+        let n = self.ad.nrows();
+        let mut a = DMatrix::<f64>::zeros(n + 1, n + 1);
+        a.view_mut((0, 0), (n, n)).copy_from(&self.ad);
+        a.view_mut((0, n), (n, 1)).copy_from(&self.b1);
+        let mut b = DVector::<f64>::zeros(n + 1);
+        b.rows_mut(0, n).copy_from(&self.b2);
+        b[n] = 1.0;
+        let mut c = DVector::<f64>::zeros(n + 1);
+        c.rows_mut(0, n).copy_from(&self.c);
+        (a, b, c)
+    }
+
+    /// Zeros of the sampled plant `P(z) z^m` (finite ones, from its zero dynamics: with
+    /// `CB != 0` they are the eigenvalues of `(I - B (CB)^-1 C) A` but for the one at 0
+    /// that `C` forces). Empty when `CB` vanishes to rounding (a relative degree above one,
+    /// which a zero-order hold of this plant does not give).
+    pub fn plant_zeros(&self) -> Vec<Complex<f64>> {
+        let (a, b, c) = self.sampled_plant();
+        let cb = c.dot(&b);
+        // NaN fails the comparison too: no zeros then.
+        if cb.abs().partial_cmp(&(1e-12 * c.norm() * b.norm())) != Some(std::cmp::Ordering::Greater)
+        {
+            return Vec::new();
+        }
+        let n = a.nrows();
+        let m = (DMatrix::<f64>::identity(n, n) - &b * c.transpose() / cb) * &a;
+        let mut z: Vec<Complex<f64>> = m.complex_eigenvalues().iter().copied().collect();
+        if let Some(i) = z
+            .iter()
+            .enumerate()
+            .min_by(|p, q| p.1.norm().total_cmp(&q.1.norm()))
+            .map(|(i, _)| i)
+        {
+            z.swap_remove(i);
+        }
+        z
+    }
+
+    /// The plain PID as `(numerator, denominator)` in powers of `z^-1`, computation delay
+    /// left out: `K(z) = (n0 + n1 z^-1 + n2 z^-2) / (1 - (1 + a) z^-1 + a z^-2)`, the
+    /// command being `u = -K y` (the derivative acts on the measurement, so the loop
+    /// broken at the plant input sees the whole of `K`). `None` for any other law.
+    pub fn pid_coefficients(&self) -> Option<([f64; 3], [f64; 3])> {
+        if self.law.is_some() {
+            return None;
+        }
+        let (kp, ki_t, a) = (self.kp, self.ki_t, self.a);
+        let g = (1.0 - a) * self.kd_t;
+        Some((
+            [
+                kp + ki_t + g,
+                -kp * (1.0 + a) - a * ki_t - 2.0 * g,
+                kp * a + g,
+            ],
+            [1.0, -(1.0 + a), a],
+        ))
+    }
+
+    /// Control period, s.
+    pub fn sample_period_s(&self) -> f64 {
+        self.ts
+    }
+}
+
 /// Response of filters in series at `f_hz`.
 fn chain_response(chain: &[Biquad], f_hz: f64, fs: f64) -> Complex<f64> {
     chain
@@ -932,6 +1205,8 @@ mod tests {
         assert!((bd[1] - ts / j).abs() < 1e-15);
         let lp = LinearLoop {
             a_cont: a.clone(),
+            b_cont: b.clone(),
+            voltage: false,
             ad: ad.clone(),
             b1: DVector::zeros(2),
             b2: bd.clone(),
@@ -945,6 +1220,7 @@ mod tests {
             base_rate: DVector::zeros(2),
             ic: 1.0,
             whole: 0,
+            fraction: 0.0,
             ts,
             kp: 0.0,
             ki_t: 0.0,

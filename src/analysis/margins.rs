@@ -19,6 +19,19 @@ pub struct GainCrossover {
     pub frequency_hz: f64,
     /// Phase margin there, deg: `180 - |arg L|` (35 to 60 for a sound design).
     pub phase_margin_deg: f64,
+    /// Which way `|L|` passes 1 as the frequency rises: `down` at the usual crossover,
+    /// `up` where a resonance lifts it back above 1.
+    pub direction: MagnitudeSlope,
+}
+
+/// Which way `|L|` passes 1 at a gain crossover, frequency rising.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MagnitudeSlope {
+    /// From above 1 to below.
+    Down,
+    /// From below 1 to above.
+    Up,
 }
 
 /// Which way the loop gain may move before the crossing reaches -1.
@@ -206,6 +219,16 @@ impl LinearLoop {
     }
 }
 
+/// The frequencies the margins are read on, Hz: `points` (at least 10) log-spaced from
+/// 0.1 Hz to just below Nyquist.
+pub fn margin_grid(lin: &LinearLoop, points: usize) -> Vec<f64> {
+    let (lo, hi) = (0.1_f64, lin.nyquist_hz() * 0.9999);
+    let points = points.max(10);
+    (0..points)
+        .map(|i| lo * (hi / lo).powf(i as f64 / (points - 1) as f64))
+        .collect()
+}
+
 /// Margins of `lin` on `points` log-spaced frequencies from 0.1 Hz to just below Nyquist
 /// (2000 is plenty), each crossing refined by bisection.
 pub fn margins(lin: &LinearLoop, points: usize) -> Margins {
@@ -231,11 +254,8 @@ pub fn margins(lin: &LinearLoop, points: usize) -> Margins {
         m.instability = lin.instability().map(InstabilityRecord::from);
         return m;
     }
-    let (lo, hi) = (0.1_f64, lin.nyquist_hz() * 0.9999);
-    let points = points.max(10);
-    let freqs: Vec<f64> = (0..points)
-        .map(|i| lo * (hi / lo).powf(i as f64 / (points - 1) as f64))
-        .collect();
+    let freqs = margin_grid(lin, points);
+    let points = freqs.len();
     let l: Vec<Complex<f64>> = freqs.iter().map(|&f| lin.loop_gain(f)).collect();
     let refine = |f0: f64, f1: f64, g: &dyn Fn(f64) -> f64| {
         let (mut a, mut b) = (f0, f1);
@@ -259,6 +279,11 @@ pub fn margins(lin: &LinearLoop, points: usize) -> Margins {
             gain_crossovers.push(GainCrossover {
                 frequency_hz: f,
                 phase_margin_deg: 180.0 - lin.loop_gain(f).arg().to_degrees().abs(),
+                direction: if l1.norm() < l0.norm() {
+                    MagnitudeSlope::Down
+                } else {
+                    MagnitudeSlope::Up
+                },
             });
         }
         // Crossing of the negative real axis: the imaginary part changes sign there.

@@ -6,5 +6,6 @@
 pub mod budget;
 pub mod freqresp;
 pub mod linear;
+pub mod linear_model;
 pub mod margins;
 pub mod verdict;

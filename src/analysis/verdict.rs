@@ -368,32 +368,64 @@ fn margin_checks(p: &ClosedLoopParams, point: &OperatingPoint, out: &mut Vec<Che
     }
 }
 
-/// The operating range of a setup: the free span, and the tangent at the operating load
-/// when that load is above zero; with it, why there is no tangent when the cable cannot
-/// carry that load (a span would go slack first).
-pub fn operating_range(setup: &ClosedLoopSetup<'_>) -> (Vec<OperatingPoint>, Option<String>) {
+/// One stiffness of the operating range and its linear loop.
+#[derive(Clone, Debug)]
+pub struct OperatingLoop {
+    /// `free span` or `tangent at M N m`.
+    pub condition: String,
+    /// Transmitted torque, N m (0 for the free span).
+    pub load_nm: f64,
+    /// Stiffness of each cable half, N/m.
+    pub half_stiffness_n_per_m: f64,
+    /// The exact linear reference at that stiffness.
+    pub lin: LinearLoop,
+}
+
+/// The linear loops of the operating range: the free span, and the tangent at the
+/// operating load when that load is above zero; with them, why there is no tangent when
+/// the cable cannot carry that load (a span would go slack first).
+pub fn operating_loops(setup: &ClosedLoopSetup<'_>) -> (Vec<OperatingLoop>, Option<String>) {
     let p = setup.params;
     let free = ClosedLoopParams::half_stiffness_n_per_m(setup.drive);
-    let mut points = vec![OperatingPoint {
+    let mut loops = vec![OperatingLoop {
         condition: "free span".into(),
         load_nm: 0.0,
         half_stiffness_n_per_m: free,
-        margins: LinearLoop::with_half_stiffness(p, setup.drive, free).margins(MARGIN_POINTS),
+        lin: LinearLoop::with_half_stiffness(p, setup.drive, free),
     }];
     let load = operating_load_nm(setup);
     let mut problem = None;
     if load > 0.0 {
         match tangent_half_stiffness(setup.drive, load) {
-            Ok(k) => points.push(OperatingPoint {
+            Ok(k) => loops.push(OperatingLoop {
                 condition: format!("tangent at {} N m", crate::compact(load)),
                 load_nm: load,
                 half_stiffness_n_per_m: k,
-                margins: LinearLoop::with_half_stiffness(p, setup.drive, k).margins(MARGIN_POINTS),
+                lin: LinearLoop::with_half_stiffness(p, setup.drive, k),
             }),
             Err(message) => problem = Some(message),
         }
     }
-    (points, problem)
+    (loops, problem)
+}
+
+impl OperatingLoop {
+    /// Its margins over every crossing, as the verdict reads them.
+    pub fn point(&self) -> OperatingPoint {
+        OperatingPoint {
+            condition: self.condition.clone(),
+            load_nm: self.load_nm,
+            half_stiffness_n_per_m: self.half_stiffness_n_per_m,
+            margins: self.lin.margins(MARGIN_POINTS),
+        }
+    }
+}
+
+/// The operating range of a setup with the margins at each stiffness (see
+/// [`operating_loops`]).
+pub fn operating_range(setup: &ClosedLoopSetup<'_>) -> (Vec<OperatingPoint>, Option<String>) {
+    let (loops, problem) = operating_loops(setup);
+    (loops.iter().map(OperatingLoop::point).collect(), problem)
 }
 
 /// The verdict of `setup` given the simulated result of its judged mode (`judged`, any

@@ -22,6 +22,7 @@ use std::path::{Path, PathBuf};
 
 use plotters::prelude::*;
 
+mod annotated;
 mod axis;
 mod chart;
 mod heatmap;
@@ -30,6 +31,7 @@ mod prepare;
 #[cfg(test)]
 mod tests;
 
+pub use annotated::{save_annotated, AnnotatedFigure, Arrowhead, Dash, Mark, Panel, Shape, Trace};
 use axis::*;
 use chart::*;
 use heatmap::*;

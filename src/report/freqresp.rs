@@ -11,7 +11,10 @@ use crate::analysis::freqresp::{
     PredictedCycle,
 };
 use crate::analysis::linear::LinearLoop;
-use crate::plot::{family_colour, save_chart, save_panels, Chart, Series, REFERENCE_RGB};
+use crate::plot::{
+    family_colour, save_annotated, save_panels, AnnotatedFigure, Arrowhead, Chart, Dash, Mark,
+    Panel, Series, Shape, Trace, REFERENCE_RGB,
+};
 use crate::scenario::Scenario;
 
 const COLUMNS: [&str; 24] = [
@@ -171,8 +174,15 @@ fn unwrapped(phases_deg: impl Iterator<Item = f64>) -> Vec<f64> {
 
 /// Bode plot (magnitude and phase of the measured transfer, one curve per amplitude, the
 /// exact linear reference as a line) and, when the loop gain is known, a Nyquist plot of
-/// it. Failed frequencies are left out of the curves (they are in the CSV, marked).
-pub fn plot(dir: &Path, r: &FreqResponse, lin: &LinearLoop) -> Result<Vec<PathBuf>, ReportError> {
+/// it near -1 with the sensitivity requirement's circle `|1 + L| = 1/max_ms`. Measured
+/// values are markers only (nothing was measured between them); failed frequencies are
+/// left out (they are in the CSV, marked).
+pub fn plot(
+    dir: &Path,
+    r: &FreqResponse,
+    lin: &LinearLoop,
+    max_ms: f64,
+) -> Result<Vec<PathBuf>, ReportError> {
     let ok = |a: &AmplitudeResponse| -> Vec<(f64, Complex<f64>, Option<Complex<f64>>)> {
         a.points
             .iter()
@@ -228,7 +238,7 @@ pub fn plot(dir: &Path, r: &FreqResponse, lin: &LinearLoop) -> Result<Vec<PathBu
         let label = format!("{} {}", a.amplitude, a.unit);
         let f: Vec<f64> = pts.iter().map(|p| p.0).collect();
         mag.series.push(
-            Series::line(
+            Series::points(
                 label.clone(),
                 f.clone(),
                 pts.iter().map(|p| db(p.1)).collect(),
@@ -236,7 +246,7 @@ pub fn plot(dir: &Path, r: &FreqResponse, lin: &LinearLoop) -> Result<Vec<PathBu
             .in_rgb(colour(k)),
         );
         phase.series.push(
-            Series::line(
+            Series::points(
                 label,
                 f,
                 unwrapped(pts.iter().map(|p| p.1.arg().to_degrees())),
@@ -244,7 +254,9 @@ pub fn plot(dir: &Path, r: &FreqResponse, lin: &LinearLoop) -> Result<Vec<PathBu
             .in_rgb(colour(k)),
         );
     }
-    mag.series.push(
+    // The reference first, so the measured markers are drawn over it.
+    mag.series.insert(
+        0,
         Series::line(
             "exact linear reference",
             dense.clone(),
@@ -252,7 +264,8 @@ pub fn plot(dir: &Path, r: &FreqResponse, lin: &LinearLoop) -> Result<Vec<PathBu
         )
         .in_rgb(REFERENCE_RGB),
     );
-    phase.series.push(
+    phase.series.insert(
+        0,
         Series::line(
             "exact linear reference",
             dense.clone(),
@@ -268,37 +281,106 @@ pub fn plot(dir: &Path, r: &FreqResponse, lin: &LinearLoop) -> Result<Vec<PathBu
     );
     written.extend(save_panels(&title, &[mag, phase], &dir.join("bode"))?);
     if r.point.gives_loop_gain() {
-        let mut ny = Chart {
-            title: "Nyquist plot of the loop gain L (near the critical point -1)".into(),
+        let mut ny = Panel {
             x_label: "Re L".into(),
             y_label: "Im L".into(),
-            x_range: Some((-3.0, 1.0)),
-            y_range: Some((-2.0, 2.0)),
-            ..Chart::default()
+            x_range: (-3.0, 1.5),
+            y_range: (-2.0, 2.0),
+            equal_aspect: true,
+            ..Panel::default()
         };
-        for (k, a) in r.amplitudes.iter().enumerate() {
-            let l: Vec<Complex<f64>> = ok(a).iter().filter_map(|p| p.2).collect();
-            ny.series.push(
-                Series::line(
-                    format!("{} {}", a.amplitude, a.unit),
-                    l.iter().map(|c| c.re).collect(),
-                    l.iter().map(|c| c.im).collect(),
-                )
-                .in_rgb(colour(k)),
-            );
+        let (cx, cy): (Vec<f64>, Vec<f64>) = (0..=360)
+            .map(|k| {
+                let t = (k as f64).to_radians();
+                (-1.0 + t.cos() / max_ms, t.sin() / max_ms)
+            })
+            .unzip();
+        if max_ms.is_finite() && max_ms > 1.0 {
+            ny.traces.push(Trace::line(
+                format!(
+                    "requirement Ms <= {}: L stays outside |1 + L| = {}",
+                    crate::compact(max_ms),
+                    crate::compact(1.0 / max_ms)
+                ),
+                cx,
+                cy,
+                [214, 39, 40],
+                Dash::Dashed,
+            ));
         }
         let exact_l: Vec<Complex<f64>> = dense.iter().map(|&f| lin.loop_gain(f)).collect();
-        ny.series.push(
-            Series::line(
-                "exact linear reference",
-                exact_l.iter().map(|c| c.re).collect(),
-                exact_l.iter().map(|c| c.im).collect(),
-            )
-            .in_rgb(REFERENCE_RGB),
-        );
-        ny.series
-            .push(Series::points("critical point -1", vec![-1.0], vec![0.0]).in_rgb([214, 39, 40]));
-        written.extend(save_chart(&ny, &dir.join("nyquist"))?);
+        ny.traces.push(Trace::line(
+            "exact linear reference",
+            exact_l.iter().map(|c| c.re).collect(),
+            exact_l.iter().map(|c| c.im).collect(),
+            REFERENCE_RGB,
+            Dash::Solid,
+        ));
+        for k in (1..dense.len()).step_by(25) {
+            ny.arrows.push(Arrowhead {
+                at: (exact_l[k].re, exact_l[k].im),
+                from: (exact_l[k - 1].re, exact_l[k - 1].im),
+                rgb: REFERENCE_RGB,
+            });
+        }
+        // Measured points only: nothing was measured between them.
+        for (k, a) in r.amplitudes.iter().enumerate() {
+            let pts = ok(a);
+            let l: Vec<Complex<f64>> = pts.iter().filter_map(|p| p.2).collect();
+            ny.traces.push(Trace {
+                width: 0,
+                marker: Some(Shape::Circle),
+                ..Trace::line(
+                    format!("measured, {} {}", a.amplitude, a.unit),
+                    l.iter().map(|c| c.re).collect(),
+                    l.iter().map(|c| c.im).collect(),
+                    colour(k),
+                    Dash::Solid,
+                )
+            });
+            // Measured points of the first amplitude named by their frequency, but only
+            // where no named point is close by (labels would overprint).
+            if k == 0 {
+                let mut named: Vec<Complex<f64>> = Vec::new();
+                for p in pts.iter() {
+                    if let Some(c) = p.2 {
+                        if named.iter().any(|n| (n - c).norm() < 0.25) {
+                            continue;
+                        }
+                        named.push(c);
+                        ny.marks.push(Mark {
+                            x: c.re,
+                            y: c.im,
+                            shape: Shape::Circle,
+                            rgb: colour(k),
+                            size: 4,
+                            label: String::new(),
+                            text: format!("{} Hz", crate::significant(p.0, 3)),
+                            text_offset: (8, -10),
+                        });
+                    }
+                }
+            }
+        }
+        ny.marks.push(Mark {
+            x: -1.0,
+            y: 0.0,
+            shape: Shape::Cross,
+            rgb: [214, 39, 40],
+            size: 7,
+            label: "critical point -1".into(),
+            text: String::new(),
+            text_offset: (0, 0),
+        });
+        let fig = AnnotatedFigure {
+            title: "Nyquist plot of the loop gain L near the critical point".into(),
+            panels: vec![ny],
+            notes: vec![
+                "Dots: the measured loop gain at each injected frequency (some labelled in Hz); nothing is drawn between them. Line: the exact linear reference, arrows towards rising frequency.".into(),
+            ],
+            panel_height: 820,
+        };
+        written.extend(save_annotated(&fig, &dir.join("nyquist"))?);
     }
     Ok(written)
 }

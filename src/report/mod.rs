@@ -7,6 +7,7 @@ pub mod compare;
 pub mod diagnosis;
 pub mod freqresp;
 pub mod html;
+pub mod margins;
 pub mod quasi_static;
 pub mod sweep;
 
