@@ -222,7 +222,12 @@ fn run_closed_loop(
     let (written, drawn) = std::thread::scope(|s| {
         let figures = s.spawn(|| {
             std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                report::closed_loop::plot_closed_loop(dir, &result, target)
+                report::closed_loop::plot_closed_loop(
+                    dir,
+                    &result,
+                    target,
+                    report::closed_loop::command_unit(scenario),
+                )
             }))
         });
         let written = report::closed_loop::write_closed_loop_outputs_with_rows(
@@ -735,7 +740,14 @@ pub fn run_sweep(
         }),
     )?;
     let drawn = if sampled {
-        report::sweep::plot_samples(&dir, &parameter_columns, &figure_columns, &table.rows, 3)
+        report::sweep::plot_samples(
+            &dir,
+            &parameter_columns,
+            &figure_columns,
+            &table.rows,
+            Some(0.1),
+            3,
+        )
     } else {
         report::sweep::plot(
             &dir,

@@ -12,7 +12,7 @@ fn figures(modes: &str) -> Vec<(String, Figure)> {
     ];
     let s = Scenario::load("eots_tracking", &sets).unwrap_or_else(|e| panic!("{e}"));
     let r = run_closed_loop(&s, &RunOptions::default()).unwrap_or_else(|e| panic!("{e}"));
-    closed_loop_charts(&r, 0.1)
+    closed_loop_charts(&r, 0.1, "A")
 }
 
 fn slots(f: &Figure) -> Vec<(String, Option<usize>)> {
