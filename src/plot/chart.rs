@@ -189,12 +189,18 @@ pub(super) fn draw_chart<DB: DrawingBackend>(
     y_area: u32,
     legend_w: u32,
 ) -> Result<ChartLayout, String> {
-    let (w, _) = area.dim_in_pixel();
+    // The title over the whole width (plot and legend), centred on the figure.
+    let body = if p.title.is_empty() {
+        area.clone()
+    } else {
+        area.titled(&p.title, title_font(title_px)).map_err(err)?
+    };
+    let (w, _) = body.dim_in_pixel();
     let (plot_area, legend_area) = if legend_w > 0 && legend_w < w / 2 {
-        let (l, r) = area.split_horizontally(w - legend_w);
+        let (l, r) = body.split_horizontally(w - legend_w);
         (l, Some(r))
     } else {
-        (area.clone(), None)
+        (body.clone(), None)
     };
     let mut builder = ChartBuilder::on(&plot_area);
     builder
@@ -206,9 +212,6 @@ pub(super) fn draw_chart<DB: DrawingBackend>(
             X_AREA_PX
         })
         .y_label_area_size(y_area);
-    if !p.title.is_empty() {
-        builder.caption(&p.title, title_font(title_px));
-    }
     let mut cc = builder
         .build_cartesian_2d(p.x.spec(), p.y.spec())
         .map_err(err)?;
@@ -297,7 +300,7 @@ pub(super) fn draw_chart<DB: DrawingBackend>(
                 }
             }
         }
-        let dot = if s.style == SeriesStyle::Points { 3 } else { 2 };
+        let dot = if s.style == SeriesStyle::Points { 4 } else { 2 };
         if s.style == SeriesStyle::Points {
             for &d in &s.dots {
                 draw_marker(area, s.pattern, px(d), dot, color)?;
