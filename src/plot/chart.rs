@@ -193,7 +193,9 @@ pub(super) fn draw_chart<DB: DrawingBackend>(
     let body = if p.title.is_empty() {
         area.clone()
     } else {
-        area.titled(&p.title, title_font(title_px)).map_err(err)?
+        area.margin(MARGIN_PX, 0, 0, 0)
+            .titled(&p.title, title_font(title_px))
+            .map_err(err)?
     };
     let (w, _) = body.dim_in_pixel();
     let (plot_area, legend_area) = if legend_w > 0 && legend_w < w / 2 {
@@ -205,6 +207,7 @@ pub(super) fn draw_chart<DB: DrawingBackend>(
     let mut builder = ChartBuilder::on(&plot_area);
     builder
         .margin(MARGIN_PX)
+        .margin_top(if p.title.is_empty() { MARGIN_PX } else { 6 })
         .margin_right(MARGIN_PX + 14)
         .x_label_area_size(if p.x_label.is_empty() {
             X_AREA_PX - DESC_PX - 8
@@ -238,9 +241,11 @@ pub(super) fn draw_chart<DB: DrawingBackend>(
 
     let (xl, xh) = (p.x.lo, p.x.hi);
     let (yl, yh) = (p.y.lo, p.y.hi);
-    cc.draw_series(p.shades.iter().map(|s| {
-        Rectangle::new([(s.lo, yl), (s.hi, yh)], SHADE_COLOR.mix(0.16).filled())
-    }))
+    cc.draw_series(
+        p.shades
+            .iter()
+            .map(|s| Rectangle::new([(s.lo, yl), (s.hi, yh)], SHADE_COLOR.mix(0.16).filled())),
+    )
     .map_err(err)?;
     for b in &p.bands {
         let fill = b.color.mix(0.16).filled();
@@ -316,7 +321,11 @@ pub(super) fn draw_chart<DB: DrawingBackend>(
         for (xs, up) in [(&s.off_above, true), (&s.off_below, false)] {
             for &x in xs.iter() {
                 let (cx, edge) = px((x, if up { yh } else { yl }));
-                let (tip, foot) = if up { (edge + 1, edge + 9) } else { (edge - 1, edge - 9) };
+                let (tip, foot) = if up {
+                    (edge + 1, edge + 9)
+                } else {
+                    (edge - 1, edge - 9)
+                };
                 area.draw(&Polygon::new(
                     vec![(cx, tip), (cx - 5, foot), (cx + 5, foot)],
                     color.filled(),
@@ -368,7 +377,11 @@ fn draw_legend<DB: DrawingBackend>(
         Fill(RGBColor),
     }
     let mut entries: Vec<(Key, Vec<String>)> = Vec::new();
-    for s in p.series.iter().filter(|s| s.has_data && !s.label.is_empty()) {
+    for s in p
+        .series
+        .iter()
+        .filter(|s| s.has_data && !s.label.is_empty())
+    {
         entries.push((Key::Series(s), wrap(la, &s.label, &font, text_w)));
     }
     for b in p.bands.iter().filter(|b| !b.label.is_empty()) {
@@ -397,8 +410,11 @@ fn draw_legend<DB: DrawingBackend>(
         WHITE.filled(),
     ))
     .map_err(err)?;
-    la.draw(&Rectangle::new([(left, top), (right, bottom)], BLACK.mix(0.35)))
-        .map_err(err)?;
+    la.draw(&Rectangle::new(
+        [(left, top), (right, bottom)],
+        BLACK.mix(0.35),
+    ))
+    .map_err(err)?;
     let anchor = Pos::new(HPos::Left, VPos::Center);
     let mut y = top + 5 + ROW / 2;
     for (key, lines) in &entries {
@@ -416,7 +432,10 @@ fn draw_legend<DB: DrawingBackend>(
                             (f64::from(x + SAMPLE), f64::from(y - 5)),
                         ]
                     } else {
-                        vec![(f64::from(x), f64::from(y)), (f64::from(x + SAMPLE), f64::from(y))]
+                        vec![
+                            (f64::from(x), f64::from(y)),
+                            (f64::from(x + SAMPLE), f64::from(y)),
+                        ]
                     };
                     for piece in dash_pieces(&sample, pattern) {
                         let pts = piece
@@ -438,15 +457,23 @@ fn draw_legend<DB: DrawingBackend>(
             }
         }
         for l in lines {
-            la.draw(&Text::new(l.as_str(), (x + SAMPLE + 8, y), font.clone().pos(anchor)))
-                .map_err(err)?;
+            la.draw(&Text::new(
+                l.as_str(),
+                (x + SAMPLE + 8, y),
+                font.clone().pos(anchor),
+            ))
+            .map_err(err)?;
             y += ROW;
         }
     }
     for lines in &notes {
         for l in lines {
-            la.draw(&Text::new(l.as_str(), (left + 8, y), note_font.clone().pos(anchor)))
-                .map_err(err)?;
+            la.draw(&Text::new(
+                l.as_str(),
+                (left + 8, y),
+                note_font.clone().pos(anchor),
+            ))
+            .map_err(err)?;
             y += ROW;
         }
     }

@@ -169,7 +169,13 @@ pub(super) fn prepare_heatmap(map: &Heatmap) -> Result<PreparedHeatmap, PlotErro
     let log_z = map.log_z && map.z.iter().flatten().all(|v| !v.is_finite() || *v > 0.0);
     let zd = |v: f64| if log_z { v.log10() } else { v };
     let (mut zmin, mut zmax) = (f64::INFINITY, f64::NEG_INFINITY);
-    for v in map.z.iter().flatten().filter(|v| v.is_finite()).map(|v| zd(*v)) {
+    for v in map
+        .z
+        .iter()
+        .flatten()
+        .filter(|v| v.is_finite())
+        .map(|v| zd(*v))
+    {
         zmin = zmin.min(v);
         zmax = zmax.max(v);
     }

@@ -212,7 +212,8 @@ pub(super) struct PreparedSeries {
 }
 
 /// Dash patterns (on, off, ... lengths in pixels; empty = solid) by pattern index.
-pub(super) const LINE_PATTERNS: [&[f64]; 4] = [&[], &[12.0, 6.0], &[3.0, 4.0], &[12.0, 4.0, 3.0, 4.0]];
+pub(super) const LINE_PATTERNS: [&[f64]; 4] =
+    [&[], &[12.0, 6.0], &[3.0, 4.0], &[12.0, 4.0, 3.0, 4.0]];
 
 /// Identifying markers per curve.
 const MARKERS_PER_SERIES: usize = 8;
@@ -470,10 +471,13 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
                 }
             }
         }
-        let pattern = match s.rgb {
-            Some(_) => idx,
-            None => s.palette_slot.unwrap_or(idx),
-        } % LINE_PATTERNS.len();
+        // Patterns and markers tell the curves of the legend apart; a curve outside it
+        // (a bound, a guide) stays a plain line.
+        let pattern = if s.label.is_empty() {
+            0
+        } else {
+            s.rgb.map_or(s.palette_slot.unwrap_or(idx), |_| idx) % LINE_PATTERNS.len()
+        };
         let (off_above, off_below) = off_scale(runs, &bounds);
         series.push(PreparedSeries {
             label: s.label.clone(),
@@ -482,7 +486,11 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
                 None => PALETTE[s.palette_slot.unwrap_or(idx) % PALETTE.len()],
             },
             style: s.style,
-            markers: marker_points(&lines, x0, x1, pattern),
+            markers: if s.label.is_empty() {
+                Vec::new()
+            } else {
+                marker_points(&lines, x0, x1, pattern)
+            },
             lines,
             dots,
             has_data: !runs.is_empty(),
@@ -519,8 +527,16 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
 
     let mut shades = Vec::new();
     for sh in &chart.x_shades {
-        let lo = if sh.lo == f64::NEG_INFINITY { x0 } else { to_drawing(sh.lo, log_x) };
-        let hi = if sh.hi == f64::INFINITY { x1 } else { to_drawing(sh.hi, log_x) };
+        let lo = if sh.lo == f64::NEG_INFINITY {
+            x0
+        } else {
+            to_drawing(sh.lo, log_x)
+        };
+        let hi = if sh.hi == f64::INFINITY {
+            x1
+        } else {
+            to_drawing(sh.hi, log_x)
+        };
         let (lo, hi) = (lo.min(hi).max(x0), hi.max(lo).min(x1));
         if lo < hi {
             shades.push(PreparedShade {

@@ -776,12 +776,12 @@ pub fn plot_closed_loop(
     // Figures are independent files: drawn side by side on the cores.
     let drawn: Vec<Result<Vec<PathBuf>, PlotError>> =
         closed_loop_charts(result, target_mrad, command_unit)
-        .into_par_iter()
-        .map(|(stem, figure)| match figure {
-            Figure::Chart(chart) => save_chart(&chart, &dir.join(stem)),
-            Figure::Panels { title, charts } => save_panels(&title, &charts, &dir.join(stem)),
-        })
-        .collect();
+            .into_par_iter()
+            .map(|(stem, figure)| match figure {
+                Figure::Chart(chart) => save_chart(&chart, &dir.join(stem)),
+                Figure::Panels { title, charts } => save_panels(&title, &charts, &dir.join(stem)),
+            })
+            .collect();
     let mut files = Vec::new();
     for d in drawn {
         files.extend(d?);

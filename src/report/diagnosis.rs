@@ -310,7 +310,12 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
     let names: Vec<(f64, String)> = round_one
         .iter()
         .enumerate()
-        .map(|(i, c)| (row(i), format!("{} ({:.2} mrad)", c.name, c.rmse_heldout_mrad)))
+        .map(|(i, c)| {
+            (
+                row(i),
+                format!("{} ({:.2} mrad)", c.name, c.rmse_heldout_mrad),
+            )
+        })
         .collect();
     let pick = |accepted: bool| -> (Vec<f64>, Vec<f64>) {
         round_one

@@ -227,8 +227,12 @@ fn target_series(figure: &str, target_mrad: Option<f64>, xs: &[f64]) -> Option<S
             (l.min(*x), h.max(*x))
         });
     (lo <= hi).then(|| {
-        Series::line(format!("target {target} mrad"), vec![lo, hi], vec![target, target])
-            .in_slot(7)
+        Series::line(
+            format!("target {target} mrad"),
+            vec![lo, hi],
+            vec![target, target],
+        )
+        .in_slot(7)
     })
 }
 
