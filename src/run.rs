@@ -12,6 +12,7 @@ use crate::study::quasi_static::{self, BacklashResult};
 use crate::sweep::engine::{self, Case, Cell, Shard, SweepError};
 
 mod case;
+pub mod progress;
 pub use case::{case_dir, case_scenario, run_one_case, CaseRunner};
 
 /// Why a run produced no (complete) results.
@@ -97,6 +98,15 @@ pub fn default_results_dir(base: &Path, force: bool) -> PathBuf {
 
 /// Run a single scenario (quasi-static, backlash or closed-loop study).
 pub fn run_scenario(scenario: &Scenario, out: &OutputOptions) -> Result<RunReport, RunError> {
+    run_scenario_with_progress(scenario, out, &crate::progress::Silent)
+}
+
+/// [`run_scenario`], reporting the long parts (the error budget's runs) to `progress`.
+pub fn run_scenario_with_progress(
+    scenario: &Scenario,
+    out: &OutputOptions,
+    progress: &dyn crate::progress::Progress,
+) -> Result<RunReport, RunError> {
     let mut warnings = scenario.warnings();
     let staged = StagedDir::create(&out.dir, out.force)?;
     let dir = staged.path().to_path_buf();
@@ -104,7 +114,7 @@ pub fn run_scenario(scenario: &Scenario, out: &OutputOptions) -> Result<RunRepor
     let (table, failure) = match scenario.study {
         Study::QuasiStatic => run_quasi_static(scenario, &dir, &mut warnings)?,
         Study::Backlash => run_backlash(scenario, &dir, &warnings)?,
-        Study::ClosedLoop => run_closed_loop(scenario, &dir, &mut warnings, &mut met)?,
+        Study::ClosedLoop => run_closed_loop(scenario, &dir, &mut warnings, &mut met, progress)?,
     };
     let mut report = finish(staged, table, failure, warnings)?;
     report.requirements_met = met;
@@ -201,6 +211,7 @@ fn run_closed_loop(
     dir: &Path,
     warnings: &mut Vec<String>,
     requirements_met: &mut Option<bool>,
+    progress: &dyn crate::progress::Progress,
 ) -> Result<(String, Option<String>), RunError> {
     let options = scenario
         .closed_loop
@@ -261,7 +272,7 @@ fn run_closed_loop(
         .is_some_and(|c| c.error_budget)
     {
         let setup = closed_loop::ClosedLoopSource::closed_loop_setup(scenario)?;
-        let budget = crate::analysis::budget::error_budget(&setup)?;
+        let budget = crate::analysis::budget::error_budget_with_progress(&setup, progress)?;
         report::closed_loop::write_budget(dir, &budget)?;
         table.push_str(&report::closed_loop::format_budget(&budget));
     }

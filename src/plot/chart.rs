@@ -45,8 +45,20 @@ pub(super) fn y_area_width<DB: DrawingBackend>(
 /// plotting area and, if it has one, its legend box (always outside the plotting area).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct ChartLayout {
-    pub(super) plot: ((i32, i32), (i32, i32)),
-    pub(super) legend: Option<((i32, i32), (i32, i32))>,
+    pub(super) plot: PixelRect,
+    pub(super) legend: Option<PixelRect>,
+}
+
+/// A rectangle in absolute pixels, `((left, top), (right, bottom))`.
+pub(super) type PixelRect = ((i32, i32), (i32, i32));
+
+impl ChartLayout {
+    /// Whether the legend (if any) keeps clear of the plotting area.
+    pub(super) fn legend_clear(&self) -> bool {
+        let ((pl, pt), (pr, pb)) = self.plot;
+        self.legend
+            .is_none_or(|((ll, lt), (lr, lb))| !(ll < pr && pl < lr && lt < pb && pt < lb))
+    }
 }
 
 /// Width of the legend column a chart needs (0 without a legend).
@@ -61,7 +73,7 @@ pub(super) fn legend_width(p: &PreparedChart) -> u32 {
 /// Pieces of a pixel polyline that are "on" in a dash `pattern` (on, off, ... lengths in
 /// pixels), walked by arc length so the pattern runs on across the polyline's corners.
 pub(super) fn dash_pieces(pts: &[(f64, f64)], pattern: &[f64]) -> Vec<Vec<(f64, f64)>> {
-    if pattern.is_empty() || pattern.iter().any(|l| !(*l > 0.0)) {
+    if pattern.is_empty() || pattern.iter().any(|l| l.is_nan() || *l <= 0.0) {
         return vec![pts.to_vec()];
     }
     let mut out = Vec::new();
@@ -363,7 +375,7 @@ fn draw_legend<DB: DrawingBackend>(
     la: &DrawingArea<DB, Shift>,
     p: &PreparedChart,
     top: i32,
-) -> Result<((i32, i32), (i32, i32)), String> {
+) -> Result<PixelRect, String> {
     const ROW: i32 = 22;
     const SAMPLE: i32 = 34;
     let base = la.get_base_pixel();
@@ -493,7 +505,9 @@ impl Figure for SingleFigure {
 
     fn render<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
         let y_area = y_area_width(root, &self.0.y, &self.0.y_label);
-        draw_chart(root, &self.0, TITLE_PX, y_area, legend_width(&self.0)).map(|_| ())
+        let layout = draw_chart(root, &self.0, TITLE_PX, y_area, legend_width(&self.0))?;
+        debug_assert!(layout.legend_clear(), "legend over the data: {layout:?}");
+        Ok(())
     }
 }
 
@@ -528,7 +542,8 @@ impl Figure for PanelFigure {
         let legend_w = self.panels.iter().map(legend_width).max().unwrap_or(0);
         let areas = body.split_evenly((self.panels.len(), 1));
         for (area, panel) in areas.iter().zip(&self.panels) {
-            draw_chart(area, panel, PANEL_TITLE_PX, y_area, legend_w)?;
+            let layout = draw_chart(area, panel, PANEL_TITLE_PX, y_area, legend_w)?;
+            debug_assert!(layout.legend_clear(), "legend over the data: {layout:?}");
         }
         Ok(())
     }

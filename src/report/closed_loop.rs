@@ -470,6 +470,8 @@ pub fn window_shades(window: Option<(f64, f64)>, span: (f64, f64)) -> Vec<XShade
 }
 
 /// A figure of a run: one chart, or charts stacked under one title.
+// A handful of figures per run, built and drawn once: boxing the chart buys nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum Figure {
     /// One chart.
