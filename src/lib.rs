@@ -21,6 +21,7 @@ pub mod measurement;
 pub mod metrics;
 pub mod physics;
 pub mod plot;
+pub mod progress;
 pub mod report;
 pub mod run;
 pub mod scenario;

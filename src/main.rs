@@ -508,7 +508,11 @@ fn main() -> ExitCode {
                     w.memory_mb
                 );
             }
-            report(run::run_scenario(&scenario, &OutputOptions { dir, force }))
+            let budget = run::progress::Bar::new("error budget", "runs");
+            let result =
+                run::run_scenario_with_progress(&scenario, &OutputOptions { dir, force }, &budget);
+            budget.finish();
+            report(result)
         }
         Command::Compare {
             scenarios,
@@ -788,7 +792,11 @@ fn main() -> ExitCode {
                 let dir = out.unwrap_or_else(|| {
                     PathBuf::from("results").join(format!("{}-leave-one-out", scenario.name()))
                 });
-                return report(cable_servo::run::run_leave_one_out(
+                let spinner = cable_servo::run::progress::Spinner::start(
+                    "leave-one-out",
+                    &format!("{} logs", data.len()),
+                );
+                let result = cable_servo::run::run_leave_one_out(
                     &scenario,
                     &data,
                     &effects,
@@ -796,16 +804,28 @@ fn main() -> ExitCode {
                     &OutputOptions { dir, force },
                     json.as_deref(),
                     save_model.as_deref(),
-                ));
+                );
+                drop(spinner);
+                return report(result);
             }
-            report(cable_servo::run::run_diagnosis(
+            let spinner = cable_servo::run::progress::Spinner::start(
+                "diagnosis",
+                &format!(
+                    "{} log{}",
+                    data.len(),
+                    if data.len() == 1 { "" } else { "s" }
+                ),
+            );
+            let result = cable_servo::run::run_diagnosis(
                 &scenario,
                 &data,
                 &options,
                 &OutputOptions { dir, force },
                 json.as_deref(),
                 save_model.as_deref(),
-            ))
+            );
+            drop(spinner);
+            report(result)
         }
         Command::Synth {
             scenario,

@@ -12,6 +12,7 @@ use crate::study::quasi_static::{self, BacklashResult};
 use crate::sweep::engine::{self, Case, Cell, Shard, SweepError};
 
 mod case;
+pub mod progress;
 pub use case::{case_dir, case_scenario, run_one_case, CaseRunner};
 
 /// Why a run produced no (complete) results.
@@ -97,6 +98,15 @@ pub fn default_results_dir(base: &Path, force: bool) -> PathBuf {
 
 /// Run a single scenario (quasi-static, backlash or closed-loop study).
 pub fn run_scenario(scenario: &Scenario, out: &OutputOptions) -> Result<RunReport, RunError> {
+    run_scenario_with_progress(scenario, out, &crate::progress::Silent)
+}
+
+/// [`run_scenario`], reporting the long parts (the error budget's runs) to `progress`.
+pub fn run_scenario_with_progress(
+    scenario: &Scenario,
+    out: &OutputOptions,
+    progress: &dyn crate::progress::Progress,
+) -> Result<RunReport, RunError> {
     let mut warnings = scenario.warnings();
     let staged = StagedDir::create(&out.dir, out.force)?;
     let dir = staged.path().to_path_buf();
@@ -104,7 +114,7 @@ pub fn run_scenario(scenario: &Scenario, out: &OutputOptions) -> Result<RunRepor
     let (table, failure) = match scenario.study {
         Study::QuasiStatic => run_quasi_static(scenario, &dir, &mut warnings)?,
         Study::Backlash => run_backlash(scenario, &dir, &warnings)?,
-        Study::ClosedLoop => run_closed_loop(scenario, &dir, &mut warnings, &mut met)?,
+        Study::ClosedLoop => run_closed_loop(scenario, &dir, &mut warnings, &mut met, progress)?,
     };
     let mut report = finish(staged, table, failure, warnings)?;
     report.requirements_met = met;
@@ -210,6 +220,7 @@ fn run_closed_loop(
     dir: &Path,
     warnings: &mut Vec<String>,
     requirements_met: &mut Option<bool>,
+    progress: &dyn crate::progress::Progress,
 ) -> Result<(String, Option<String>), RunError> {
     let options = scenario
         .closed_loop
@@ -231,7 +242,12 @@ fn run_closed_loop(
     let (written, drawn) = std::thread::scope(|s| {
         let figures = s.spawn(|| {
             std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                report::closed_loop::plot_closed_loop(dir, &result, target)
+                report::closed_loop::plot_closed_loop(
+                    dir,
+                    &result,
+                    target,
+                    report::closed_loop::command_unit(scenario),
+                )
             }))
         });
         let written = report::closed_loop::write_closed_loop_outputs_with_rows(
@@ -265,7 +281,7 @@ fn run_closed_loop(
         .is_some_and(|c| c.error_budget)
     {
         let setup = closed_loop::ClosedLoopSource::closed_loop_setup(scenario)?;
-        let budget = crate::analysis::budget::error_budget(&setup)?;
+        let budget = crate::analysis::budget::error_budget_with_progress(&setup, progress)?;
         report::closed_loop::write_budget(dir, &budget)?;
         table.push_str(&report::closed_loop::format_budget(&budget));
     }
@@ -744,7 +760,14 @@ pub fn run_sweep(
         }),
     )?;
     let drawn = if sampled {
-        report::sweep::plot_samples(&dir, &parameter_columns, &figure_columns, &table.rows, 3)
+        report::sweep::plot_samples(
+            &dir,
+            &parameter_columns,
+            &figure_columns,
+            &table.rows,
+            Some(0.1),
+            3,
+        )
     } else {
         report::sweep::plot(
             &dir,

@@ -379,9 +379,9 @@ fn outputs_are_written_and_metrics_do_not_depend_on_recording() {
     assert!(table.contains("memory"));
     assert!(table.contains("settling_ms"), "{table}");
     // Pointing error, error against angle, tensions, command, error spectrum.
-    let charts = closed_loop_charts(&rec, 0.1);
+    let charts = closed_loop_charts(&rec, 0.1, "A");
     assert_eq!(charts.len(), 5);
-    let pictures = plot_closed_loop(dir.path(), &rec, 0.1).unwrap();
+    let pictures = plot_closed_loop(dir.path(), &rec, 0.1, "A").unwrap();
     assert_eq!(pictures.len(), 10);
     assert!(pictures.iter().all(|p| p.exists()));
 }

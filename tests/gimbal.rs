@@ -303,7 +303,7 @@ fn bad_gimbal_input_is_named_and_unstable_laws_stop() {
         .all(|v| v.is_finite()));
 }
 
-/// `compare`: a table, one folder per design, overlay figures, and exit code 4 when a
+/// `compare`: a table, one folder per design with its figures, overlay figures, and exit code 4 when a
 /// design misses the target (the encoder loop under base motion does).
 #[test]
 fn compare_runs_designs_side_by_side() {
@@ -341,6 +341,9 @@ fn compare_runs_designs_side_by_side() {
         "compare_psd.svg",
         "designs/stabilised/timeseries.csv",
         "designs/encoder/error_psd.csv",
+        // Each design's own figures, as `run` draws them.
+        "designs/stabilised/pointing_error.png",
+        "designs/encoder/motor_command.svg",
     ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }

@@ -22,6 +22,7 @@ const LAYERS: &[(&str, &[&str])] = &[
             "signal",
             "metrics",
             "measurement",
+            "progress",
         ],
     ),
     // Computation over parameter structs, returning result records.

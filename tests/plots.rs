@@ -12,7 +12,7 @@ fn figures(modes: &str) -> Vec<(String, Figure)> {
     ];
     let s = Scenario::load("eots_tracking", &sets).unwrap_or_else(|e| panic!("{e}"));
     let r = run_closed_loop(&s, &RunOptions::default()).unwrap_or_else(|e| panic!("{e}"));
-    closed_loop_charts(&r, 0.1)
+    closed_loop_charts(&r, 0.1, "A")
 }
 
 fn slots(f: &Figure) -> Vec<(String, Option<usize>)> {
@@ -50,4 +50,64 @@ fn a_mode_keeps_its_colour_in_every_figure() {
     assert_eq!(charts[1].series.len(), 2);
     let (lo, hi) = charts[1].y_range.unwrap_or((f64::NAN, f64::NAN));
     assert!(lo < -0.1 && hi > 0.1 && hi < 0.2, "{lo} {hi}");
+}
+
+fn chart_of<'a>(figures: &'a [(String, Figure)], stem: &str) -> Vec<&'a cable_servo::plot::Chart> {
+    let (_, f) = figures
+        .iter()
+        .find(|(s, _)| s == stem)
+        .unwrap_or_else(|| panic!("no figure {stem}"));
+    match f {
+        Figure::Chart(c) => vec![c],
+        Figure::Panels { charts, .. } => charts.iter().collect(),
+    }
+}
+
+/// The motor command's axis names the unit the amplifier takes: amperes behind a current
+/// amplifier, volts behind a voltage one.
+#[test]
+fn motor_command_axis_names_the_run_unit() {
+    use cable_servo::report::closed_loop::command_unit;
+    let sets = |amp: &str| {
+        vec![
+            "closed_loop.duration_s=2.5".to_string(),
+            "closed_loop.modes=[\"memory\"]".to_string(),
+            format!("closed_loop.motor.amplifier=\"{amp}\""),
+        ]
+    };
+    for (amp, unit) in [("current", "A"), ("voltage", "V")] {
+        let s = Scenario::load("eots_tracking", &sets(amp)).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(command_unit(&s), unit);
+        let r = run_closed_loop(&s, &RunOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+        let figures = closed_loop_charts(&r, 0.1, command_unit(&s));
+        let command = chart_of(&figures, "motor_command");
+        assert_eq!(command[0].y_label, format!("motor command [{unit}]"));
+    }
+}
+
+/// Time outside the metrics window is shaded on every time panel, and the error panel
+/// that shows every mode takes its scale from the window alone.
+#[test]
+fn time_outside_the_metrics_window_is_shaded_and_off_the_error_scale() {
+    let all = figures("[\"none\", \"memoryless\", \"memory\"]");
+    let error = chart_of(&all, "pointing_error");
+    let window = error[0].y_fit_x.expect("the window sets the scale");
+    assert!(window.0 > 0.0, "{window:?}");
+    for stem in ["pointing_error", "tensions", "motor_command"] {
+        for c in chart_of(&all, stem) {
+            if c.x_range.is_some() {
+                continue; // the panel drawn over the window alone
+            }
+            assert!(
+                c.x_shades.iter().any(|s| s.hi == window.0),
+                "{stem}: {} not shaded before {}",
+                c.title,
+                window.0
+            );
+        }
+    }
+    // Every error panel carries the target.
+    for c in chart_of(&all, "pointing_error") {
+        assert!(c.bands.iter().any(|b| b.label.starts_with("target")));
+    }
 }

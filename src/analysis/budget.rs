@@ -202,6 +202,15 @@ pub struct ErrorBudget {
 /// Run the budget: one run per present effect switched off, one with all off, one full
 /// run (metrics only; runs side by side on the cores).
 pub fn error_budget(setup: &ClosedLoopSetup<'_>) -> Result<ErrorBudget, ClosedLoopError> {
+    error_budget_with_progress(setup, &crate::progress::Silent)
+}
+
+/// [`error_budget`], reporting each finished run to `progress` (units: closed-loop runs,
+/// the number of present effects plus two; each as long as the scenario's run).
+pub fn error_budget_with_progress(
+    setup: &ClosedLoopSetup<'_>,
+    progress: &dyn crate::progress::Progress,
+) -> Result<ErrorBudget, ClosedLoopError> {
     let full = Variant::of(setup);
     let effects: Vec<BudgetEffect> = BudgetEffect::ALL
         .into_iter()
@@ -218,9 +227,14 @@ pub fn error_budget(setup: &ClosedLoopSetup<'_>) -> Result<ErrorBudget, ClosedLo
         e.remove(&mut rest);
     }
     variants.push(rest);
+    let runs = crate::progress::Counter::new(variants.len(), progress);
     let results = variants
         .par_iter()
-        .map(|v| run_closed_loop(&v.setup(), &RunOptions::metrics_only()))
+        .map(|v| {
+            let r = run_closed_loop(&v.setup(), &RunOptions::metrics_only());
+            runs.tick();
+            r
+        })
         .collect::<Result<Vec<_>, _>>()?;
     let rms = |r: &crate::closed_loop::sim::ClosedLoopResult, i: usize| -> (Option<f64>, String) {
         let m = &r.modes[i];

@@ -16,6 +16,8 @@ pub(super) struct Axis {
     pub(super) step: f64,
     /// Scientific notation for linear labels.
     pub(super) sci: bool,
+    /// Names shown at these positions instead of numbers (a categorical axis).
+    pub(super) names: Vec<(f64, String)>,
 }
 
 /// "Nice" step (1, 2 or 5 times a power of ten) at least `raw`.
@@ -75,6 +77,7 @@ impl Axis {
             log: false,
             step: 0.0,
             sci: false,
+            names: Vec::new(),
         };
         if let Some((step, m)) = nice_step(half_span / target.max(2) as f64 * 2.0) {
             axis.major = multiples(lo, hi, step);
@@ -97,6 +100,7 @@ impl Axis {
             log: true,
             step: 0.0,
             sci: false,
+            names: Vec::new(),
         };
         if !(lo.is_finite() && hi.is_finite() && hi > lo) {
             return axis;
@@ -147,6 +151,22 @@ impl Axis {
         axis
     }
 
+    /// The same axis with names at the given positions as its only ticks (those in
+    /// range); no names keeps the numeric ticks.
+    pub(super) fn named(mut self, names: &[(f64, String)]) -> Self {
+        let inside: Vec<(f64, String)> = names
+            .iter()
+            .filter(|(v, _)| v.is_finite() && *v >= self.lo && *v <= self.hi)
+            .cloned()
+            .collect();
+        if !inside.is_empty() {
+            self.major = inside.iter().map(|(v, _)| *v).collect();
+            self.minor = Vec::new();
+            self.names = inside;
+        }
+        self
+    }
+
     /// Coordinate spec for plotters with our own tick positions.
     pub(super) fn spec(&self) -> TickRange {
         TickRange {
@@ -159,6 +179,14 @@ impl Axis {
 
     /// Tick label for drawing coordinate `v`.
     pub(super) fn label(&self, v: f64) -> String {
+        if !self.names.is_empty() {
+            let tolerance = (self.hi - self.lo).abs() * 1e-9;
+            return self
+                .names
+                .iter()
+                .find(|(p, _)| (p - v).abs() <= tolerance)
+                .map_or_else(String::new, |(_, n)| n.clone());
+        }
         if self.log {
             return fmt_log_tick(v);
         }

@@ -117,6 +117,10 @@ pub(super) struct PreparedHeatmap {
     pub(super) y: Axis,
     pub(super) z: Axis,
     pub(super) cells: Vec<(Pt, Pt, RGBColor)>,
+    /// Colour bar in log10 of the values.
+    pub(super) log_z: bool,
+    /// Corners of the cells without a value (failed or stopped cases), crossed out.
+    pub(super) missing: Vec<(Pt, Pt)>,
     /// Level and contour polylines along cell edges.
     pub(super) contour: Option<(f64, Vec<Vec<Pt>>)>,
     pub(super) has_missing: bool,
@@ -161,33 +165,43 @@ pub(super) fn prepare_heatmap(map: &Heatmap) -> Result<PreparedHeatmap, PlotErro
         }
     }
 
+    // A log scale only where every value has a logarithm; otherwise linear.
+    let log_z = map.log_z && map.z.iter().flatten().all(|v| !v.is_finite() || *v > 0.0);
+    let zd = |v: f64| if log_z { v.log10() } else { v };
     let (mut zmin, mut zmax) = (f64::INFINITY, f64::NEG_INFINITY);
-    for &v in map.z.iter().flatten().filter(|v| v.is_finite()) {
+    for v in map
+        .z
+        .iter()
+        .flatten()
+        .filter(|v| v.is_finite())
+        .map(|v| zd(*v))
+    {
         zmin = zmin.min(v);
         zmax = zmax.max(v);
     }
     let (z0, z1) = if zmin > zmax {
         (0.0, 1.0)
     } else if zmax - zmin <= zmin.abs().max(zmax.abs()) * 1e-12 {
-        let pad = degenerate_pad(zmin);
+        let pad = if log_z { 0.5 } else { degenerate_pad(zmin) };
         (zmin - pad, zmin + pad)
     } else {
         (zmin, zmax)
     };
 
     let mut cells = Vec::with_capacity(nx * ny);
-    let mut has_missing = false;
+    let mut missing = Vec::new();
     for (iy, row) in map.z.iter().enumerate() {
         for (ix, &v) in row.iter().enumerate() {
             let color = if v.is_finite() {
-                viridis((v - z0) / (z1 - z0))
+                viridis((zd(v) - z0) / (z1 - z0))
             } else {
-                has_missing = true;
+                missing.push(((xe[ix], ye[iy]), (xe[ix + 1], ye[iy + 1])));
                 MISSING_COLOR
             };
             cells.push(((xe[ix], ye[iy]), (xe[ix + 1], ye[iy + 1]), color));
         }
     }
+    let has_missing = !missing.is_empty();
 
     let contour = map.contour.map(|level| {
         let crosses =
@@ -232,8 +246,14 @@ pub(super) fn prepare_heatmap(map: &Heatmap) -> Result<PreparedHeatmap, PlotErro
         } else {
             Axis::linear(yl, yh, 8)
         },
-        z: Axis::linear(z0, z1, 8),
+        z: if log_z {
+            Axis::log10(z0, z1)
+        } else {
+            Axis::linear(z0, z1, 8)
+        },
+        log_z,
         cells,
+        missing,
         contour,
         has_missing,
     })
@@ -274,6 +294,15 @@ impl Figure for HeatFigure {
                 .iter()
                 .map(|&(a, b, c)| Rectangle::new([a, b], c.filled())),
         )
+        .map_err(err)?;
+        // A cross on each cell without a value: no colour of the scale, no doubt.
+        let cross = RGBColor(60, 60, 60).stroke_width(2);
+        cc.draw_series(h.missing.iter().flat_map(|&(a, b)| {
+            [
+                PathElement::new(vec![a, b], cross),
+                PathElement::new(vec![(a.0, b.1), (b.0, a.1)], cross),
+            ]
+        }))
         .map_err(err)?;
         if let Some((_, lines)) = &h.contour {
             let halo = WHITE.stroke_width(6);
@@ -329,6 +358,7 @@ impl Figure for HeatFigure {
         }))
         .map_err(err)?;
         if let Some((level, _)) = h.contour {
+            let level = if h.log_z { level.log10() } else { level };
             if level >= z0 && level <= z1 {
                 let pts = vec![(0.0, level), (1.0, level)];
                 cb.draw_series(std::iter::once(PathElement::new(
@@ -376,8 +406,18 @@ impl Figure for HeatFigure {
                 MISSING_COLOR.filled(),
             ))
             .map_err(err)?;
+            root.draw(&PathElement::new(
+                vec![(bx, row_y - 7), (bx + 22, row_y + 7)],
+                RGBColor(60, 60, 60).stroke_width(2),
+            ))
+            .map_err(err)?;
+            root.draw(&PathElement::new(
+                vec![(bx, row_y + 7), (bx + 22, row_y - 7)],
+                RGBColor(60, 60, 60).stroke_width(2),
+            ))
+            .map_err(err)?;
             root.draw(&Text::new(
-                "missing/failed",
+                "failed or stopped case",
                 (bx + 30, row_y),
                 key_font.clone(),
             ))
@@ -391,7 +431,7 @@ impl Figure for HeatFigure {
             ))
             .map_err(err)?;
             root.draw(&Text::new(
-                format!("contour {}", fmt_general(level)),
+                format!("target contour {}", fmt_general(level)),
                 (bx + 30, row_y),
                 key_font,
             ))

@@ -88,8 +88,17 @@ const BAND_COLORS: [RGBColor; 4] = [
     RGBColor(148, 103, 189),
 ];
 
-/// Colour of missing / failed heat-map cells.
+/// Colour of missing / failed heat-map cells: a light grey that no colour scale here
+/// contains, drawn with a dark cross so it reads as "no value" even in greyscale.
 const MISSING_COLOR: RGBColor = RGBColor(190, 190, 190);
+/// Shade of the x intervals a chart marks as not judged (outside the metrics window).
+const SHADE_COLOR: RGBColor = RGBColor(120, 120, 120);
+/// Width of the legend column right of a chart's plotting area, in pixels: wide enough
+/// for a mode label and a short note; longer text wraps.
+const LEGEND_WIDTH_PX: u32 = 250;
+/// Two curves closer than this fraction of the y axis' span everywhere in view are
+/// reported as coinciding (0.5 %: about 2 px on a 360 px panel, where one hides the other).
+const COINCIDE_FRACTION: f64 = 0.005;
 /// Colour of the heat-map contour line (drawn over a white halo).
 const CONTOUR_COLOR: RGBColor = RGBColor(220, 20, 60);
 
@@ -241,6 +250,18 @@ impl Series {
     }
 }
 
+/// An x interval drawn shaded grey behind the data, e.g. the start-up transient outside
+/// the metrics window: the data stay drawn, the shade says they are not judged.
+#[derive(Clone, Debug)]
+pub struct XShade {
+    /// Start of the interval (x units; `-inf` reaches the left edge).
+    pub lo: f64,
+    /// End of the interval (x units; `inf` reaches the right edge).
+    pub hi: f64,
+    /// Legend label (empty = not in legend); equal labels share one legend entry.
+    pub label: String,
+}
+
 /// Horizontal band drawn shaded, e.g. the +-0.1 mrad pointing target.
 ///
 /// The first band of a chart is shaded light green, the second light red,
@@ -281,6 +302,19 @@ pub struct Chart {
     pub log_x: bool,
     /// log10 y axis (spectra); samples with non-positive y are skipped, and so are bands.
     pub log_y: bool,
+    /// Shaded x intervals (not judged), drawn behind everything.
+    pub x_shades: Vec<XShade>,
+    /// Automatic y range fitted to the samples with x in this interval only (the metrics
+    /// window), so a start-up transient does not set the scale; samples beyond the axis
+    /// are marked "off scale" at its edge. `None` = every sample.
+    pub y_fit_x: Option<(f64, f64)>,
+    /// Names instead of numbers on the x axis: `(position, name)`, e.g. categories at
+    /// 1, 2, 3; empty = numeric ticks.
+    pub x_names: Vec<(f64, String)>,
+    /// Names instead of numbers on the y axis, as `x_names`.
+    pub y_names: Vec<(f64, String)>,
+    /// Notes printed under the legend (what the figure leaves out or clips).
+    pub notes: Vec<String>,
 }
 
 /// Heat map over two parameters, `z[iy][ix]`.
@@ -291,7 +325,7 @@ pub struct Chart {
 /// is set, a thick line is drawn along the cell edges where `z` crosses that
 /// level (e.g. the 0.1 mrad pointing target). A colour bar labelled with
 /// `z_label` is drawn to the right.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct Heatmap {
     /// Figure title (empty = no title).
     pub title: String,
@@ -315,6 +349,10 @@ pub struct Heatmap {
     pub log_x: bool,
     /// log10 y axis, as `log_x`.
     pub log_y: bool,
+    /// log10 colour scale, for values spread over decades (an RMS error over a sweep),
+    /// where a linear scale paints most cells one colour. Ignored (linear) when a finite
+    /// value is not positive.
+    pub log_z: bool,
 }
 
 /// Writes `<stem>.png` (1200x700) and `<stem>.svg`; returns both paths.

@@ -200,6 +200,30 @@ pub(super) struct PreparedSeries {
     pub(super) dots: Vec<Pt>,
     /// Has at least one drawable sample anywhere (decides the legend entry).
     pub(super) has_data: bool,
+    /// Dash pattern and marker shape (index into [`LINE_PATTERNS`]), so curves of one
+    /// colour family or curves drawn over each other stay apart.
+    pub(super) pattern: usize,
+    /// Where the series' identifying markers sit (a few per curve, staggered per series).
+    pub(super) markers: Vec<Pt>,
+    /// x of samples above the y axis (one per pixel column group), marked at the top edge.
+    pub(super) off_above: Vec<f64>,
+    /// x of samples below the y axis, marked at the bottom edge.
+    pub(super) off_below: Vec<f64>,
+}
+
+/// Dash patterns (on, off, ... lengths in pixels; empty = solid) by pattern index.
+pub(super) const LINE_PATTERNS: [&[f64]; 4] =
+    [&[], &[12.0, 6.0], &[3.0, 4.0], &[12.0, 4.0, 3.0, 4.0]];
+
+/// Identifying markers per curve.
+const MARKERS_PER_SERIES: usize = 8;
+
+/// An x interval shaded as not judged (drawing coordinates, within the x axis).
+#[derive(Debug)]
+pub(super) struct PreparedShade {
+    pub(super) lo: f64,
+    pub(super) hi: f64,
+    pub(super) label: String,
 }
 
 /// A band ready for drawing (clamped to the y axis).
@@ -221,6 +245,9 @@ pub(super) struct PreparedChart {
     pub(super) y: Axis,
     pub(super) series: Vec<PreparedSeries>,
     pub(super) bands: Vec<PreparedBand>,
+    pub(super) shades: Vec<PreparedShade>,
+    /// Notes under the legend: the chart's own, coinciding curves, data off scale.
+    pub(super) notes: Vec<String>,
     pub(super) has_data: bool,
 }
 
@@ -230,7 +257,103 @@ impl PreparedChart {
             .iter()
             .any(|s| s.has_data && !s.label.is_empty())
             || self.bands.iter().any(|b| !b.label.is_empty())
+            || self.shades.iter().any(|b| !b.label.is_empty())
+            || !self.notes.is_empty()
     }
+}
+
+/// A value in drawing coordinates (log10 on a log axis; NaN where a log axis has none).
+fn to_drawing(v: f64, log: bool) -> f64 {
+    if !log {
+        v
+    } else if v > 0.0 {
+        v.log10()
+    } else {
+        f64::NAN
+    }
+}
+
+/// Whether two series draw the same curve: identical x samples and y within `tol`
+/// (drawing coordinates) wherever both are in the x range `[x0, x1]` and finite.
+fn coincide(a: &Series, b: &Series, log: (bool, bool), x_view: (f64, f64), tol: f64) -> bool {
+    let n = a.x.len().min(a.y.len());
+    if n == 0 || n != b.x.len().min(b.y.len()) || a.x[..n] != b.x[..n] {
+        return false;
+    }
+    let mut compared = 0usize;
+    for i in 0..n {
+        let x = to_drawing(a.x[i], log.0);
+        if !(x >= x_view.0 && x <= x_view.1) {
+            continue;
+        }
+        let (ya, yb) = (to_drawing(a.y[i], log.1), to_drawing(b.y[i], log.1));
+        match (ya.is_finite(), yb.is_finite()) {
+            (true, true) => {
+                if (ya - yb).abs() > tol {
+                    return false;
+                }
+                compared += 1;
+            }
+            (false, false) => {}
+            _ => return false,
+        }
+    }
+    compared > 0
+}
+
+/// A few points of the drawn curve at staggered x positions (by `pattern`), so the
+/// markers of different curves do not sit on each other.
+fn marker_points(lines: &[Vec<Pt>], x0: f64, x1: f64, pattern: usize) -> Vec<Pt> {
+    let pts: Vec<Pt> = lines.iter().flatten().copied().collect();
+    if pts.is_empty() {
+        return Vec::new();
+    }
+    let offset = (pattern % LINE_PATTERNS.len()) as f64 + 0.5;
+    let slot = (x1 - x0) / MARKERS_PER_SERIES as f64;
+    let mut out = Vec::new();
+    let mut k = 0usize;
+    for j in 0..MARKERS_PER_SERIES {
+        let target = x0 + slot * (j as f64 + offset / LINE_PATTERNS.len() as f64);
+        while k < pts.len() && pts[k].0 < target {
+            k += 1;
+        }
+        match pts.get(k) {
+            Some(p) if (p.0 - target).abs() <= slot * 0.5 => out.push(*p),
+            _ => {}
+        }
+    }
+    out
+}
+
+/// x of the samples beyond the y range, one per x bucket (about a marker's width),
+/// `(above, below)`.
+fn off_scale(runs: &[(Vec<f64>, Vec<f64>)], b: &Bounds) -> (Vec<f64>, Vec<f64>) {
+    const BUCKETS: f64 = 120.0;
+    let w = b.x1 - b.x0;
+    let mut above: HashSet<i64> = HashSet::new();
+    let mut below: HashSet<i64> = HashSet::new();
+    for (rx, ry) in runs {
+        for (&x, &y) in rx.iter().zip(ry) {
+            if !(x >= b.x0 && x <= b.x1) {
+                continue;
+            }
+            let k = ((x - b.x0) / w * BUCKETS).floor() as i64;
+            if y > b.y1 {
+                above.insert(k);
+            } else if y < b.y0 {
+                below.insert(k);
+            }
+        }
+    }
+    let centres = |set: HashSet<i64>| {
+        let mut v: Vec<f64> = set
+            .into_iter()
+            .map(|k| b.x0 + (k as f64 + 0.5) / BUCKETS * w)
+            .collect();
+        v.sort_by(f64::total_cmp);
+        v
+    };
+    (centres(above), centres(below))
 }
 
 /// Decimation buckets for a figure of the given width (≈ plot pixels).
@@ -250,17 +373,31 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
     // Data extents in drawing coordinates.
     let (mut xmin, mut xmax) = (f64::INFINITY, f64::NEG_INFINITY);
     let (mut ymin, mut ymax) = (f64::INFINITY, f64::NEG_INFINITY);
+    let fit = chart.y_fit_x.map(|(a, b)| {
+        let (a, b) = (to_drawing(a, log_x), to_drawing(b, log_x));
+        (a.min(b), a.max(b))
+    });
+    let (mut fit_min, mut fit_max) = (f64::INFINITY, f64::NEG_INFINITY);
     for (rx, ry) in runs.iter().flatten() {
         for &v in rx {
             xmin = xmin.min(v);
             xmax = xmax.max(v);
         }
-        for &v in ry {
+        for (&x, &v) in rx.iter().zip(ry) {
             ymin = ymin.min(v);
             ymax = ymax.max(v);
+            if fit.is_some_and(|(a, b)| x >= a && x <= b) {
+                fit_min = fit_min.min(v);
+                fit_max = fit_max.max(v);
+            }
         }
     }
     let has_data = xmin <= xmax;
+    if fit_min <= fit_max {
+        // The window holds data: it alone sets the scale (what lies outside is marked
+        // off scale where it leaves the axis).
+        (ymin, ymax) = (fit_min, fit_max);
+    }
     for b in chart.bands.iter().filter(|_| !log_y) {
         for v in [b.lo, b.hi] {
             if v.is_finite() && !(b.lo.is_nan() || b.hi.is_nan()) {
@@ -282,12 +419,14 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
         Axis::log10(x0, x1)
     } else {
         Axis::linear(x0, x1, 8)
-    };
+    }
+    .named(&chart.x_names);
     let y_axis = if log_y {
         Axis::log10(y0, y1)
     } else {
         Axis::linear(y0, y1, 6)
-    };
+    }
+    .named(&chart.y_names);
     let bounds = Bounds { x0, x1, y0, y1 };
 
     let mut series = Vec::with_capacity(chart.series.len());
@@ -332,6 +471,14 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
                 }
             }
         }
+        // Patterns and markers tell the curves of the legend apart; a curve outside it
+        // (a bound, a guide) stays a plain line.
+        let pattern = if s.label.is_empty() {
+            0
+        } else {
+            s.rgb.map_or(s.palette_slot.unwrap_or(idx), |_| idx) % LINE_PATTERNS.len()
+        };
+        let (off_above, off_below) = off_scale(runs, &bounds);
         series.push(PreparedSeries {
             label: s.label.clone(),
             color: match s.rgb {
@@ -339,10 +486,65 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
                 None => PALETTE[s.palette_slot.unwrap_or(idx) % PALETTE.len()],
             },
             style: s.style,
+            markers: if s.label.is_empty() {
+                Vec::new()
+            } else {
+                marker_points(&lines, x0, x1, pattern)
+            },
             lines,
             dots,
             has_data: !runs.is_empty(),
+            pattern,
+            off_above,
+            off_below,
         });
+    }
+
+    let mut notes = chart.notes.clone();
+    let tol = COINCIDE_FRACTION * (y1 - y0);
+    for j in 1..chart.series.len() {
+        for i in 0..j {
+            let (a, b) = (&chart.series[i], &chart.series[j]);
+            if a.label.is_empty() || b.label.is_empty() || a.label == b.label {
+                continue;
+            }
+            if coincide(a, b, (log_x, log_y), (x0, x1), tol) {
+                notes.push(format!(
+                    "{} coincides with {} (within {} % of the axis)",
+                    b.label,
+                    a.label,
+                    COINCIDE_FRACTION * 100.0
+                ));
+            }
+        }
+    }
+    if series
+        .iter()
+        .any(|s| !s.off_above.is_empty() || !s.off_below.is_empty())
+    {
+        notes.push("triangles at the axis edge: data off scale there".into());
+    }
+
+    let mut shades = Vec::new();
+    for sh in &chart.x_shades {
+        let lo = if sh.lo == f64::NEG_INFINITY {
+            x0
+        } else {
+            to_drawing(sh.lo, log_x)
+        };
+        let hi = if sh.hi == f64::INFINITY {
+            x1
+        } else {
+            to_drawing(sh.hi, log_x)
+        };
+        let (lo, hi) = (lo.min(hi).max(x0), hi.max(lo).min(x1));
+        if lo < hi {
+            shades.push(PreparedShade {
+                lo,
+                hi,
+                label: sh.label.clone(),
+            });
+        }
     }
 
     let mut bands = Vec::new();
@@ -375,6 +577,8 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
         y: y_axis,
         series,
         bands,
+        shades,
+        notes,
         has_data,
     })
 }

@@ -421,6 +421,7 @@ fn save_chart_extreme_values() {
         contour: Some(0.5),
         log_x: false,
         log_y: false,
+        log_z: false,
     };
     check_outputs(
         &save_heatmap(&map, &dir.join("heat")).expect("heat"),
@@ -521,6 +522,7 @@ fn save_heatmap_nan_and_contour() {
         contour: Some(0.1),
         log_x: false,
         log_y: false,
+        log_z: false,
     };
     let prepared = prepare_heatmap(&map).expect("prepare");
     assert!(prepared.has_missing);
@@ -528,7 +530,7 @@ fn save_heatmap_nan_and_contour() {
     let paths = save_heatmap(&map, &dir.join("sweep")).expect("heatmap");
     check_outputs(&paths, HEATMAP_SIZE);
     let svg = fs::read_to_string(&paths[1]).expect("svg");
-    assert!(svg.contains("missing/failed") && svg.contains("contour 0.1"));
+    assert!(svg.contains("failed or stopped case") && svg.contains("target contour 0.1"));
 
     // All-NaN and single-cell maps still render.
     let single = Heatmap {
@@ -578,6 +580,7 @@ fn heatmap_log_axes_centre_log_spaced_cells() {
         contour: Some(2.0),
         log_x: true,
         log_y: true,
+        log_z: false,
     };
     let p = prepare_heatmap(&map).expect("prepared");
     assert!(p.x.log && p.y.log);
@@ -897,4 +900,251 @@ fn nothing_drawn_over_a_title() {
             "panel {p}: data from row {d_first}, its title down to row {t_last}"
         );
     }
+}
+
+/// A chart drawn into an in-memory bitmap of `size`, returning where its plotting area and
+/// legend landed.
+fn layout_of(p: &PreparedChart, legend_w: u32) -> chart::ChartLayout {
+    output::ensure_fonts().expect("fonts");
+    let (w, h) = CHART_SIZE;
+    let mut buf = vec![0u8; (w * h * 3) as usize];
+    let root = plotters::prelude::BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+    let y_area = chart::y_area_width(&root, &p.y, &p.y_label);
+    chart::draw_chart(&root, p, TITLE_PX, y_area, legend_w).expect("drawn")
+}
+
+/// Data over the whole plotting area and a legend of long labels and notes: the legend's
+/// box lies wholly right of the plotting area, so it covers no data.
+#[test]
+fn legend_box_does_not_overlap_the_plotting_area() {
+    let x: Vec<f64> = (0..2000).map(|i| f64::from(i) * 1e-3).collect();
+    let fill = |k: f64| x.iter().map(|t| (t * k).sin()).collect::<Vec<f64>>();
+    let chart = Chart {
+        title: "legend placement".into(),
+        x_label: "time [s]".into(),
+        y_label: "pointing error [mrad]".into(),
+        series: vec![
+            Series::line(
+                "none, a label long enough to wrap in the legend column",
+                x.clone(),
+                fill(40.0),
+            ),
+            Series::line("memoryless", x.clone(), fill(41.0)),
+            Series::step("memory", x.clone(), fill(43.0)),
+        ],
+        bands: vec![HBand {
+            lo: -0.1,
+            hi: 0.1,
+            label: "target +-0.1 mrad".into(),
+        }],
+        x_shades: vec![XShade {
+            lo: f64::NEG_INFINITY,
+            hi: 0.2,
+            label: "outside the metrics window (not judged)".into(),
+        }],
+        notes: vec!["a note of some length that wraps onto several lines".into()],
+        ..Chart::default()
+    };
+    let p = prepare_chart(&chart, plot_buckets(CHART_SIZE.0)).expect("prepared");
+    let layout = layout_of(&p, chart::legend_width(&p));
+    let ((pl, pt), (pr, pb)) = layout.plot;
+    let ((ll, lt), (lr, lb)) = layout.legend.expect("a legend is drawn");
+    assert!(pr > pl && pb > pt && lr > ll && lb > lt);
+    assert!(
+        layout.legend_clear(),
+        "legend {:?} overlaps plotting area {:?}",
+        layout.legend,
+        layout.plot
+    );
+    assert!(
+        ll >= pr,
+        "legend starts at x {ll}, plotting area ends at {pr}"
+    );
+    assert!(lr <= CHART_SIZE.0 as i32, "legend leaves the figure");
+    // No legend: the plotting area takes the width.
+    let bare = Chart {
+        series: vec![Series::line("", x.clone(), fill(40.0))],
+        bands: Vec::new(),
+        x_shades: Vec::new(),
+        notes: Vec::new(),
+        ..chart
+    };
+    let p = prepare_chart(&bare, plot_buckets(CHART_SIZE.0)).expect("prepared");
+    let layout = layout_of(&p, chart::legend_width(&p));
+    assert!(layout.legend.is_none());
+    assert!(layout.plot.1 .0 > pr);
+}
+
+/// Two curves that are the same within a small fraction of the axis are named in a note,
+/// and every curve of a chart keeps its own dash pattern and marker.
+#[test]
+fn coinciding_curves_are_told_apart() {
+    let x: Vec<f64> = (0..500).map(|i| f64::from(i) * 1e-2).collect();
+    let a: Vec<f64> = x.iter().map(|t| t.sin()).collect();
+    let b: Vec<f64> = a.iter().map(|v| v + 1e-4).collect();
+    let c: Vec<f64> = a.iter().map(|v| v + 0.5).collect();
+    let chart = Chart {
+        series: vec![
+            Series::line("memoryless", x.clone(), a).in_slot(1),
+            Series::line("memory", x.clone(), b).in_slot(2),
+            Series::line("none", x.clone(), c).in_slot(0),
+        ],
+        ..Chart::default()
+    };
+    let p = prepare_chart(&chart, plot_buckets(CHART_SIZE.0)).expect("prepared");
+    assert_eq!(p.notes.len(), 1, "{:?}", p.notes);
+    assert!(
+        p.notes[0].starts_with("memory coincides with memoryless"),
+        "{}",
+        p.notes[0]
+    );
+    let patterns: std::collections::HashSet<usize> = p.series.iter().map(|s| s.pattern).collect();
+    assert_eq!(patterns.len(), 3);
+    assert!(p.series.iter().all(|s| !s.markers.is_empty()));
+    // Markers of different curves sit at different x.
+    assert!(p.series[0].markers[0].0 != p.series[1].markers[0].0);
+}
+
+/// Dashes run on across the polyline's vertices and their total length follows the
+/// pattern's duty cycle.
+#[test]
+fn dashes_follow_the_pattern() {
+    let line: Vec<(f64, f64)> = (0..=10).map(|i| (f64::from(i) * 18.0, 0.0)).collect();
+    let pieces = chart::dash_pieces(&line, &[12.0, 6.0]);
+    let on: f64 = pieces
+        .iter()
+        .map(|p| p.windows(2).map(|w| (w[1].0 - w[0].0).abs()).sum::<f64>())
+        .sum();
+    assert_eq!(pieces.len(), 10);
+    assert!((on - 120.0).abs() < 1e-9, "{on}");
+    assert_eq!(chart::dash_pieces(&line, &[]).len(), 1);
+}
+
+/// A start-up transient outside the window that sets the scale: the axis fits the window,
+/// the transient is marked off scale with a note, the shade covers the start-up.
+#[test]
+fn window_sets_the_scale_and_the_rest_is_marked_off_scale() {
+    let t: Vec<f64> = (0..4000).map(|i| f64::from(i) * 1e-3).collect();
+    let e: Vec<f64> = t
+        .iter()
+        .map(|t| {
+            if *t < 0.5 {
+                10.0 * (1.0 - t)
+            } else {
+                0.05 * (t * 20.0).sin()
+            }
+        })
+        .collect();
+    let chart = Chart {
+        series: vec![Series::line("none", t, e)],
+        bands: vec![HBand {
+            lo: -0.1,
+            hi: 0.1,
+            label: "target".into(),
+        }],
+        x_shades: vec![XShade {
+            lo: f64::NEG_INFINITY,
+            hi: 1.0,
+            label: "outside".into(),
+        }],
+        y_fit_x: Some((1.0, 4.0)),
+        ..Chart::default()
+    };
+    let p = prepare_chart(&chart, plot_buckets(CHART_SIZE.0)).expect("prepared");
+    assert!(p.y.hi < 0.2 && p.y.lo > -0.2, "{} {}", p.y.lo, p.y.hi);
+    assert!(!p.series[0].off_above.is_empty());
+    assert!(p.series[0].off_above.iter().all(|x| *x < 0.6));
+    assert!(p.notes.iter().any(|n| n.contains("off scale")));
+    assert_eq!(p.shades.len(), 1);
+    assert!((p.shades[0].lo - p.x.lo).abs() < 1e-12 && (p.shades[0].hi - 1.0).abs() < 1e-12);
+    check_outputs(
+        &save_chart(&chart, &out_dir("off_scale").join("window")).expect("drawn"),
+        CHART_SIZE,
+    );
+}
+
+/// Categories named on an axis: their names are its tick labels, nothing else is.
+#[test]
+fn named_axis_shows_the_names() {
+    let chart = Chart {
+        series: vec![Series::points("rmse", vec![0.3, 0.1], vec![2.0, 1.0])],
+        y_names: vec![(1.0, "backlash".into()), (2.0, "runout".into())],
+        y_range: Some((0.5, 2.5)),
+        ..Chart::default()
+    };
+    let p = prepare_chart(&chart, plot_buckets(CHART_SIZE.0)).expect("prepared");
+    assert_eq!(p.y.major, vec![1.0, 2.0]);
+    assert_eq!(p.y.label(1.0), "backlash");
+    assert_eq!(p.y.label(2.0), "runout");
+    assert_eq!(p.y.label(1.5), "");
+    let svg = save_chart(&chart, &out_dir("named").join("names")).expect("drawn");
+    let text = fs::read_to_string(&svg[1]).expect("svg");
+    assert!(text.contains("backlash") && text.contains("runout"));
+}
+
+/// Values over three decades on a log colour scale use the whole scale (a linear one puts
+/// nearly every cell in its lowest tenth); failed cells are crossed out.
+#[test]
+fn heatmap_log_colour_scale_spreads_decades() {
+    let x: Vec<f64> = (0..12).map(f64::from).collect();
+    let y: Vec<f64> = (0..10).map(f64::from).collect();
+    let z: Vec<Vec<f64>> = y
+        .iter()
+        .map(|yv| {
+            x.iter()
+                .map(|xv| {
+                    if *xv == 5.0 && *yv == 5.0 {
+                        f64::NAN
+                    } else {
+                        0.01 * 10f64.powf((xv + yv) / 7.0)
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let map = Heatmap {
+        title: "rms over two gains".into(),
+        x_label: "kp".into(),
+        y_label: "ki".into(),
+        z_label: "rms_mrad".into(),
+        x,
+        y,
+        z,
+        contour: Some(0.1),
+        log_z: true,
+        ..Heatmap::default()
+    };
+    let tenths = |m: &Heatmap| {
+        let p = prepare_heatmap(m).expect("prepared");
+        let lowest = viridis(0.1);
+        let low = p
+            .cells
+            .iter()
+            .filter(|c| c.2 != MISSING_COLOR)
+            .filter(|c| {
+                // Colours of the lowest tenth of the scale lie between viridis(0) and (0.1).
+                let d = |a: u8, b: u8| (i32::from(a) - i32::from(b)).abs();
+                d(c.2 .0, lowest.0) + d(c.2 .1, lowest.1) + d(c.2 .2, lowest.2) < 40
+                    || c.2 == viridis(0.0)
+            })
+            .count();
+        (p, low)
+    };
+    let (p, low_log) = tenths(&map);
+    assert!(p.log_z && p.z.log);
+    assert_eq!(p.missing.len(), 1);
+    assert!(!p.contour.as_ref().expect("contour").1.is_empty());
+    let (_, low_lin) = tenths(&Heatmap {
+        log_z: false,
+        ..map.clone()
+    });
+    assert!(low_lin > 3 * low_log, "linear {low_lin}, log {low_log}");
+    // A value without a logarithm keeps the scale linear.
+    let mut zero = map.clone();
+    zero.z[0][0] = 0.0;
+    assert!(!prepare_heatmap(&zero).expect("prepared").log_z);
+    check_outputs(
+        &save_heatmap(&map, &out_dir("heat_log").join("map")).expect("drawn"),
+        HEATMAP_SIZE,
+    );
 }

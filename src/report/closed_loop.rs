@@ -10,7 +10,7 @@ use crate::closed_loop::{
 };
 use crate::metrics::los::ErrorSpectrum;
 use crate::metrics::Metrics;
-use crate::plot::{save_chart, save_panels, Chart, HBand, PlotError, Series};
+use crate::plot::{save_chart, save_panels, Chart, HBand, PlotError, Series, XShade};
 use crate::report::ReportError;
 use crate::scenario::Scenario;
 
@@ -175,10 +175,7 @@ pub fn write_closed_loop_outputs_with_rows(
 ) -> Result<Vec<PathBuf>, ReportError> {
     std::fs::create_dir_all(dir).map_err(|e| ReportError::io(dir, e))?;
     let mut written = Vec::new();
-    let command_unit = match scenario.closed_loop.as_ref().map(|p| p.motor.amplifier) {
-        Some(crate::closed_loop::Amplifier::Voltage) => "V",
-        _ => "A",
-    };
+    let command_unit = command_unit(scenario);
     if result.modes.iter().any(|m| m.series.is_some()) {
         let path = dir.join("timeseries.csv");
         let csv_err = |e| ReportError::csv(&path, e);
@@ -428,7 +425,53 @@ fn format_step_table(result: &ClosedLoopResult) -> String {
     out
 }
 
+/// Unit of the motor command and feedforward: `"A"` behind a current amplifier, `"V"`
+/// behind a voltage one (a scenario without a closed loop: `"A"`).
+pub fn command_unit(scenario: &Scenario) -> &'static str {
+    match scenario.closed_loop.as_ref().map(|p| p.motor.amplifier) {
+        Some(crate::closed_loop::Amplifier::Voltage) => "V",
+        _ => "A",
+    }
+}
+
+/// Legend label of the shade over the samples outside the metrics window.
+pub const OUTSIDE_WINDOW: &str = "outside the metrics window (not judged)";
+
+/// The metrics window `[from, to]` (s) the modes were judged over: that of the first mode
+/// with judged samples; `None` when no mode has any.
+pub fn metrics_window(result: &ClosedLoopResult) -> Option<(f64, f64)> {
+    result
+        .modes
+        .iter()
+        .find(|m| m.metrics.samples > 0)
+        .map(|m| (m.metrics.window_s[0], m.metrics.window_s[1]))
+        .filter(|(a, b)| a.is_finite() && b.is_finite() && b >= a)
+}
+
+/// Grey shades over the recorded time `span` (s) before and after the metrics window
+/// (none on a side the window reaches).
+pub fn window_shades(window: Option<(f64, f64)>, span: (f64, f64)) -> Vec<XShade> {
+    let Some((from, to)) = window else {
+        return Vec::new();
+    };
+    let shade = |lo, hi| XShade {
+        lo,
+        hi,
+        label: OUTSIDE_WINDOW.into(),
+    };
+    let mut out = Vec::new();
+    if span.0 < from {
+        out.push(shade(f64::NEG_INFINITY, from));
+    }
+    if span.1 > to {
+        out.push(shade(to, f64::INFINITY));
+    }
+    out
+}
+
 /// A figure of a run: one chart, or charts stacked under one title.
+// A handful of figures per run, built and drawn once: boxing the chart buys nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum Figure {
     /// One chart.
@@ -455,9 +498,15 @@ pub fn mode_slot(mode: CompensationMode) -> usize {
 /// The closed-loop figures as `(file stem, figure)`: pointing error against time (every
 /// mode with the +-target band; below, the compensated modes on an axis fitted to them),
 /// pointing error against output angle, span tensions (upper and lower panels) and motor
-/// command; one colour per mode throughout. Built from recorded series only (empty when
-/// nothing was recorded, and then no figure is written).
-pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(String, Figure)> {
+/// command in `command_unit` (`"A"` or `"V"`, see [`command_unit`]); one colour per mode
+/// throughout. Time outside the metrics window is shaded, and the error panels' scale is
+/// set by the window alone (a start-up transient beyond it is marked off scale). Built from
+/// recorded series only (empty when nothing was recorded, and then no figure is written).
+pub fn closed_loop_charts(
+    result: &ClosedLoopResult,
+    target_mrad: f64,
+    command_unit: &str,
+) -> Vec<(String, Figure)> {
     let recorded: Vec<(CompensationMode, &TimeSeries, String)> = result
         .modes
         .iter()
@@ -491,14 +540,28 @@ pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(S
         bands,
         ..Chart::default()
     };
+    let window = metrics_window(result);
+    let span = recorded
+        .iter()
+        .flat_map(|(_, s, _)| s.t_s.iter().copied().filter(|t| t.is_finite()))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| {
+            (a.min(t), b.max(t))
+        });
+    let timed = |c: Chart| Chart {
+        x_shades: window_shades(window, span),
+        ..c
+    };
     let error = |s: &TimeSeries| (s.t_s.clone(), s.pointing_error_mrad.clone());
-    let all_modes = chart(
-        "every mode",
-        "time [s]",
-        "pointing error [mrad]",
-        curves(&error, false),
-        band(),
-    );
+    let all_modes = Chart {
+        y_fit_x: window,
+        ..timed(chart(
+            "every mode (scale set by the metrics window)",
+            "time [s]",
+            "pointing error [mrad]",
+            curves(&error, false),
+            band(),
+        ))
+    };
     let compensated = recorded
         .iter()
         .any(|(m, _, _)| *m != CompensationMode::None);
@@ -554,13 +617,13 @@ pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(S
         })
     };
     let tension_panel = |title: &str, f: &Columns| {
-        chart(
+        timed(chart(
             title,
             "time [s]",
             "tension [N]",
             curves(f, false),
             Vec::new(),
-        )
+        ))
     };
     // Commands are held between samples: drawn as staircases.
     let commands = recorded
@@ -606,13 +669,13 @@ pub fn closed_loop_charts(result: &ClosedLoopResult, target_mrad: f64) -> Vec<(S
         ),
         (
             "motor_command".into(),
-            Figure::Chart(chart(
+            Figure::Chart(timed(chart(
                 "Motor command",
                 "time [s]",
-                "command [A or V]",
+                &format!("motor command [{command_unit}]"),
                 commands,
                 Vec::new(),
-            )),
+            ))),
         ),
     ];
     if let Some(f) = spectrum_figure(result, target_mrad) {
@@ -709,16 +772,18 @@ pub fn plot_closed_loop(
     dir: &Path,
     result: &ClosedLoopResult,
     target_mrad: f64,
+    command_unit: &str,
 ) -> Result<Vec<PathBuf>, PlotError> {
     use rayon::prelude::*;
     // Figures are independent files: drawn side by side on the cores.
-    let drawn: Vec<Result<Vec<PathBuf>, PlotError>> = closed_loop_charts(result, target_mrad)
-        .into_par_iter()
-        .map(|(stem, figure)| match figure {
-            Figure::Chart(chart) => save_chart(&chart, &dir.join(stem)),
-            Figure::Panels { title, charts } => save_panels(&title, &charts, &dir.join(stem)),
-        })
-        .collect();
+    let drawn: Vec<Result<Vec<PathBuf>, PlotError>> =
+        closed_loop_charts(result, target_mrad, command_unit)
+            .into_par_iter()
+            .map(|(stem, figure)| match figure {
+                Figure::Chart(chart) => save_chart(&chart, &dir.join(stem)),
+                Figure::Panels { title, charts } => save_panels(&title, &charts, &dir.join(stem)),
+            })
+            .collect();
     let mut files = Vec::new();
     for d in drawn {
         files.extend(d?);

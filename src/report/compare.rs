@@ -130,24 +130,46 @@ pub fn write_compare(dir: &Path, designs: &[DesignOutcome]) -> Result<Vec<PathBu
     crate::report::write_json(&path, &value)?;
     written.push(path);
     for d in designs {
-        let sub = dir.join("designs").join(&d.name);
-        let result = crate::closed_loop::ClosedLoopResult {
-            modes: vec![d.result.clone()],
-            duration_s: d
-                .scenario
-                .closed_loop
-                .as_ref()
-                .map_or(0.0, |c| c.duration_s),
-            complete: d.result.completion == Completion::Complete,
-        };
         written.extend(crate::report::closed_loop::write_closed_loop_outputs(
-            &sub,
+            &design_dir(dir, d),
             &d.scenario,
-            &result,
+            &design_result(d),
             Some(&d.verdict),
         )?);
     }
     Ok(written)
+}
+
+/// Where a design's own run files go: `designs/<name>/`.
+fn design_dir(dir: &Path, d: &DesignOutcome) -> PathBuf {
+    dir.join("designs").join(&d.name)
+}
+
+/// A design's outcome as the result of a run of its one mode.
+fn design_result(d: &DesignOutcome) -> crate::closed_loop::ClosedLoopResult {
+    crate::closed_loop::ClosedLoopResult {
+        modes: vec![d.result.clone()],
+        duration_s: d
+            .scenario
+            .closed_loop
+            .as_ref()
+            .map_or(0.0, |c| c.duration_s),
+        complete: d.result.completion == Completion::Complete,
+    }
+}
+
+/// Each design's own figures under `designs/<name>/`, the same as `run` draws for it.
+pub fn plot_designs(dir: &Path, designs: &[DesignOutcome]) -> Result<Vec<PathBuf>, PlotError> {
+    let mut files = Vec::new();
+    for d in designs {
+        files.extend(crate::report::closed_loop::plot_closed_loop(
+            &design_dir(dir, d),
+            &design_result(d),
+            d.target_mrad,
+            crate::report::closed_loop::command_unit(&d.scenario),
+        )?);
+    }
+    Ok(files)
 }
 
 /// The comparison table for the terminal.
@@ -226,9 +248,17 @@ pub fn format_compare(designs: &[DesignOutcome]) -> String {
 }
 
 /// Overlay figures: line-of-sight error against time (whole run, and the metrics window
-/// on an axis fitted to the designs), and the error's PSD over its cumulative RMS. Design
-/// `i` takes palette slot `i` in every figure.
+/// on an axis fitted to the designs), and the error's PSD over its cumulative RMS; then
+/// each design's own figures ([`plot_designs`]). Design `i` takes palette slot `i` in
+/// every overlay figure.
 pub fn plot_compare(dir: &Path, designs: &[DesignOutcome]) -> Result<Vec<PathBuf>, PlotError> {
+    let mut files = plot_overlays(dir, designs)?;
+    files.extend(plot_designs(dir, designs)?);
+    Ok(files)
+}
+
+/// The overlay figures of [`plot_compare`].
+fn plot_overlays(dir: &Path, designs: &[DesignOutcome]) -> Result<Vec<PathBuf>, PlotError> {
     let target = designs.first().map_or(0.1, |d| d.target_mrad);
     let band = || {
         vec![HBand {
@@ -251,6 +281,12 @@ pub fn plot_compare(dir: &Path, designs: &[DesignOutcome]) -> Result<Vec<PathBuf
             .iter()
             .find(|d| d.result.metrics.samples > 0)
             .map(|d| (d.result.metrics.window_s[0], d.result.metrics.window_s[1]));
+        let span = error
+            .iter()
+            .flat_map(|s| s.x.iter().copied().filter(|t| t.is_finite()))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| {
+                (a.min(t), b.max(t))
+            });
         // The second panel is scaled to the designs that pass, so they can be told apart
         // (to every design when none passes).
         let any_pass = designs.iter().any(DesignOutcome::passes);
@@ -300,9 +336,11 @@ pub fn plot_compare(dir: &Path, designs: &[DesignOutcome]) -> Result<Vec<PathBuf
             "Line-of-sight error by design",
             &[
                 Chart {
-                    title: "whole run".into(),
+                    title: "whole run (scale set by the metrics window)".into(),
                     x_label: "time [s]".into(),
                     y_label: "line-of-sight error [mrad]".into(),
+                    x_shades: crate::report::closed_loop::window_shades(window, span),
+                    y_fit_x: window,
                     series: error,
                     bands: band(),
                     ..Chart::default()

@@ -301,37 +301,49 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
             .map_err(perr)?,
         );
     }
-    // One series per candidate, so the legend names each; the base model as a line.
+    // Candidates by name on the y axis (first at the top), their held-out RMSE along x,
+    // accepted ones apart; the base model as a vertical line to beat.
     let round_one: Vec<&crate::identify::CandidateScore> =
         d.candidates.iter().filter(|c| c.round == 1).collect();
-    let mut series: Vec<Series> = round_one
+    let n = round_one.len();
+    let row = |i: usize| (n - i) as f64;
+    let names: Vec<(f64, String)> = round_one
         .iter()
         .enumerate()
         .map(|(i, c)| {
-            Series::points(
-                format!(
-                    "{} ({:.2} mrad{})",
-                    c.name,
-                    c.rmse_heldout_mrad,
-                    if c.accepted { ", accepted" } else { "" }
-                ),
-                vec![i as f64 + 1.0],
-                vec![c.rmse_heldout_mrad],
+            (
+                row(i),
+                format!("{} ({:.2} mrad)", c.name, c.rmse_heldout_mrad),
             )
         })
         .collect();
-    let n = round_one.len().max(1) as f64;
-    series.push(Series::line(
-        format!("base model ({:.2} mrad)", d.rmse_base_mrad),
-        vec![0.5, n + 0.5],
-        vec![d.rmse_base_mrad, d.rmse_base_mrad],
-    ));
+    let pick = |accepted: bool| -> (Vec<f64>, Vec<f64>) {
+        round_one
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.accepted == accepted)
+            .map(|(i, c)| (c.rmse_heldout_mrad, row(i)))
+            .unzip()
+    };
+    let (rx, ry) = pick(false);
+    let (ax, ay) = pick(true);
+    let series = vec![
+        Series::points("not accepted", rx, ry).in_slot(0),
+        Series::points("accepted", ax, ay).in_slot(2),
+        Series::line(
+            format!("base model ({:.2} mrad)", d.rmse_base_mrad),
+            vec![d.rmse_base_mrad, d.rmse_base_mrad],
+            vec![0.5, n as f64 + 0.5],
+        )
+        .in_slot(7),
+    ];
     let cands = Chart {
         title: "Held-out RMSE of each candidate effect added to the base model (round 1)".into(),
-        x_label: "candidate (named in the legend)".into(),
-        y_label: "held-out RMSE (mrad)".into(),
+        x_label: "held-out RMSE (mrad)".into(),
+        y_label: "candidate effect".into(),
         series,
-        x_range: Some((0.5, n + 0.5)),
+        y_range: Some((0.5, n.max(1) as f64 + 0.5)),
+        y_names: names,
         ..Chart::default()
     };
     files.extend(save_chart(&cands, &dir.join("candidates")).map_err(perr)?);

@@ -108,6 +108,7 @@ pub fn plot(
             rows,
             max_figures,
             true,
+            contour_mrad,
         );
     }
     let numeric_figures = drawn_figures(figure_columns, rows, max_figures);
@@ -156,6 +157,9 @@ pub fn plot(
                 }
                 _ => series,
             };
+            let mut series = series;
+            let xs: Vec<f64> = series.iter().flat_map(|s| s.x.iter().copied()).collect();
+            series.extend(target_series(fig, contour_mrad, &xs));
             let chart = Chart {
                 title: format!("{fig} against {}", parameter_columns[xi]),
                 x_label: parameter_columns[xi].clone(),
@@ -201,12 +205,35 @@ pub fn plot(
                     } else {
                         None
                     },
+                    // Errors over a sweep spread over decades: a linear scale would
+                    // paint all but the worst cells one colour.
+                    log_z: true,
                 };
                 files.extend(save_heatmap(&map, &dir.join(format!("{fig}_map")))?);
             }
         }
     }
     Ok(files)
+}
+
+/// The target as a grey line across the swept values, for a figure in mrad (an error
+/// judged against the pointing target); nothing for other figures.
+fn target_series(figure: &str, target_mrad: Option<f64>, xs: &[f64]) -> Option<Series> {
+    let target = target_mrad.filter(|t| t.is_finite() && figure.ends_with("_mrad"))?;
+    let (lo, hi) = xs
+        .iter()
+        .filter(|x| x.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| {
+            (l.min(*x), h.max(*x))
+        });
+    (lo <= hi).then(|| {
+        Series::line(
+            format!("target {target} mrad"),
+            vec![lo, hi],
+            vec![target, target],
+        )
+        .in_slot(7)
+    })
 }
 
 /// Mode and metric of a closed-loop figure column (`memory_rms_mrad` -> memory,
@@ -327,12 +354,14 @@ pub fn statistics(
 }
 
 /// Plots of a sampled sweep: each numeric figure against each parameter, one point per
-/// case (curves and heat maps need a grid).
+/// case (curves and heat maps need a grid); `target_mrad` drawn as a line on the figures
+/// in mrad.
 pub fn plot_samples(
     dir: &Path,
     parameter_columns: &[String],
     figure_columns: &[String],
     rows: &[(Case, Vec<Cell>)],
+    target_mrad: Option<f64>,
     max_figures: usize,
 ) -> Result<Vec<PathBuf>, ReportError> {
     by_metric(
@@ -342,6 +371,7 @@ pub fn plot_samples(
         rows,
         max_figures,
         false,
+        target_mrad,
     )
 }
 
@@ -354,6 +384,7 @@ fn by_metric(
     rows: &[(Case, Vec<Cell>)],
     max_figures: usize,
     lines: bool,
+    target_mrad: Option<f64>,
 ) -> Result<Vec<PathBuf>, ReportError> {
     let mut files = Vec::new();
     let figures = drawn_figures(figure_columns, rows, max_figures);
@@ -412,6 +443,7 @@ fn by_metric(
             if series.is_empty() {
                 continue;
             }
+            series.extend(target_series(metric, target_mrad, &xs_all));
             let chart = Chart {
                 title: format!("{metric} against {param} ({cases} finished cases)"),
                 x_label: param.clone(),
