@@ -792,11 +792,8 @@ fn main() -> ExitCode {
                 let dir = out.unwrap_or_else(|| {
                     PathBuf::from("results").join(format!("{}-leave-one-out", scenario.name()))
                 });
-                let spinner = cable_servo::run::progress::Spinner::start(
-                    "leave-one-out",
-                    &format!("{} logs", data.len()),
-                );
-                let result = cable_servo::run::run_leave_one_out(
+                let folds = cable_servo::run::progress::Bar::new("leave-one-out", "logs");
+                let result = cable_servo::run::run_leave_one_out_with_progress(
                     &scenario,
                     &data,
                     &effects,
@@ -804,27 +801,22 @@ fn main() -> ExitCode {
                     &OutputOptions { dir, force },
                     json.as_deref(),
                     save_model.as_deref(),
+                    &folds,
                 );
-                drop(spinner);
+                folds.finish();
                 return report(result);
             }
-            let spinner = cable_servo::run::progress::Spinner::start(
-                "diagnosis",
-                &format!(
-                    "{} log{}",
-                    data.len(),
-                    if data.len() == 1 { "" } else { "s" }
-                ),
-            );
-            let result = cable_servo::run::run_diagnosis(
+            let judged = cable_servo::run::progress::Bar::new("diagnosis", "candidates");
+            let result = cable_servo::run::run_diagnosis_with_progress(
                 &scenario,
                 &data,
                 &options,
                 &OutputOptions { dir, force },
                 json.as_deref(),
                 save_model.as_deref(),
+                &judged,
             );
-            drop(spinner);
+            judged.finish();
             report(result)
         }
         Command::Synth {

@@ -906,6 +906,28 @@ pub fn run_diagnosis(
     json: Option<&Path>,
     save_model: Option<&Path>,
 ) -> Result<RunReport, RunError> {
+    run_diagnosis_with_progress(
+        scenario,
+        paths,
+        options,
+        out,
+        json,
+        save_model,
+        &crate::progress::Silent,
+    )
+}
+
+/// [`run_diagnosis`], reporting each candidate effect judged to `progress`
+/// ([`crate::identify::diagnose_with_progress`]).
+pub fn run_diagnosis_with_progress(
+    scenario: &Scenario,
+    paths: &[PathBuf],
+    options: &crate::identify::DiagnoseOptions,
+    out: &OutputOptions,
+    json: Option<&Path>,
+    save_model: Option<&Path>,
+    progress: &dyn crate::progress::Progress,
+) -> Result<RunReport, RunError> {
     use crate::io::staging::{check_file_target, FileKind};
     // Checked before the work: an output that cannot be written costs no diagnosis.
     if let Some(path) = json {
@@ -918,7 +940,7 @@ pub fn run_diagnosis(
         .iter()
         .map(|p| crate::io::benchlog::read_bench_log(p))
         .collect::<Result<_, _>>()?;
-    let diagnosis = crate::identify::diagnose(scenario, &logs, options)?;
+    let diagnosis = crate::identify::diagnose_with_progress(scenario, &logs, options, progress)?;
     let staged = StagedDir::create(&out.dir, out.force)?;
     report::diagnosis::write_diagnosis(staged.path(), &diagnosis, None)?;
     if let Some(path) = json {
@@ -945,6 +967,31 @@ pub fn run_leave_one_out(
     json: Option<&Path>,
     save_model: Option<&Path>,
 ) -> Result<RunReport, RunError> {
+    run_leave_one_out_with_progress(
+        scenario,
+        paths,
+        effects,
+        start,
+        out,
+        json,
+        save_model,
+        &crate::progress::Silent,
+    )
+}
+
+/// [`run_leave_one_out`], reporting each log held out to `progress`
+/// ([`crate::identify::loo::leave_one_out_with_progress`]).
+#[allow(clippy::too_many_arguments)]
+pub fn run_leave_one_out_with_progress(
+    scenario: &Scenario,
+    paths: &[PathBuf],
+    effects: &[crate::identify::EffectName],
+    start: crate::identify::startup::StartMode,
+    out: &OutputOptions,
+    json: Option<&Path>,
+    save_model: Option<&Path>,
+    progress: &dyn crate::progress::Progress,
+) -> Result<RunReport, RunError> {
     let ident = scenario.identify.clone().unwrap_or_default();
     let effects: Vec<crate::identify::EffectName> = if effects.is_empty() {
         ident.candidates.clone()
@@ -955,8 +1002,14 @@ pub fn run_leave_one_out(
         .iter()
         .map(|p| crate::io::benchlog::read_bench_log(p))
         .collect::<Result<_, _>>()?;
-    let table =
-        crate::identify::loo::leave_one_out(&scenario.drive, &ident, &logs, &effects, start)?;
+    let table = crate::identify::loo::leave_one_out_with_progress(
+        &scenario.drive,
+        &ident,
+        &logs,
+        &effects,
+        start,
+        progress,
+    )?;
     let text = crate::identify::loo::loo_text(&table);
     let staged = StagedDir::create(&out.dir, out.force)?;
     let body = serde_json::to_vec_pretty(&serde_json::json!({

@@ -275,6 +275,20 @@ pub fn leave_one_out(
     effects: &[EffectName],
     start: StartMode,
 ) -> Result<LooTable, IdentifyError> {
+    leave_one_out_with_progress(drive, ident, logs, effects, start, &crate::progress::Silent)
+}
+
+/// [`leave_one_out`], reporting each finished fold to `progress` (units: logs held out,
+/// one per log; the joint calibration over every log that follows the folds is not
+/// counted and takes about as long as one fold). Results are those of [`leave_one_out`].
+pub fn leave_one_out_with_progress(
+    drive: &DriveParams,
+    ident: &IdentifyParams,
+    logs: &[BenchLog],
+    effects: &[EffectName],
+    start: StartMode,
+    progress: &dyn crate::progress::Progress,
+) -> Result<LooTable, IdentifyError> {
     if logs.len() < 2 {
         return Err(IdentifyError::Config {
             key: "leave-one-out".into(),
@@ -355,9 +369,14 @@ pub fn leave_one_out(
         ))
     };
     use rayon::prelude::*;
+    let counter = crate::progress::Counter::new(prepared.len(), progress);
     let folds: Vec<(LooRow, Vec<f64>)> = (0..prepared.len())
         .into_par_iter()
-        .map(fold)
+        .map(|k| {
+            let r = fold(k);
+            counter.tick();
+            r
+        })
         .collect::<Result<_, _>>()?;
 
     // Joint calibration on every log: the shared parameters and how well they are pinned.

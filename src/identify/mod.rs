@@ -239,6 +239,21 @@ pub fn diagnose(
     logs: &[BenchLog],
     options: &DiagnoseOptions,
 ) -> Result<Diagnosis, IdentifyError> {
+    diagnose_with_progress(source, logs, options, &crate::progress::Silent)
+}
+
+/// [`diagnose`], reporting each candidate effect judged to `progress` (units: candidate
+/// fits, each cross-validated over the held-out folds). The total is counted up front as
+/// if every round of the search ran (8 then 7 candidates by default: 15); when the search
+/// stops early the total is lowered at the end to the candidates actually judged. The
+/// base calibration before the first candidate is not counted (the bar shows `0/total`
+/// meanwhile). Results are those of [`diagnose`].
+pub fn diagnose_with_progress(
+    source: &(impl IdentifySource + ?Sized),
+    logs: &[BenchLog],
+    options: &DiagnoseOptions,
+    progress: &dyn crate::progress::Progress,
+) -> Result<Diagnosis, IdentifyError> {
     if logs.is_empty() {
         return Err(IdentifyError::NoLogs);
     }
@@ -296,6 +311,10 @@ pub fn diagnose(
         // A free ratio and an output scale error are the same column.
         .filter(|e| !(ratio_free && *e == EffectName::EncoderScaleError))
         .collect();
+    // Each round judges every candidate left and takes at most one out of the pool.
+    let rounds = ident.max_effects.min(pool.len());
+    let most_judged: usize = (0..rounds).map(|r| pool.len() - r).sum();
+    let judged = crate::progress::Counter::new(most_judged, progress);
     let mut chosen: Vec<EffectName> = Vec::new();
     let mut current = rmse_base;
     let mut scores: Vec<CandidateScore> = Vec::new();
@@ -310,18 +329,17 @@ pub fn diagnose(
             .map(|e| {
                 let mut effs = chosen.clone();
                 effs.push(*e);
-                (
-                    *e,
-                    cross_validate(
-                        &prepared,
-                        &ident,
-                        &full_drive,
-                        &fold_drives,
-                        &split.folds,
-                        &split.full,
-                        &effs,
-                    ),
-                )
+                let r = cross_validate(
+                    &prepared,
+                    &ident,
+                    &full_drive,
+                    &fold_drives,
+                    &split.folds,
+                    &split.full,
+                    &effs,
+                );
+                judged.tick();
+                (*e, r)
             })
             .collect();
         let mut best: Option<(usize, f64)> = None;
@@ -417,6 +435,12 @@ pub fn diagnose(
                 }
             }
         }
+    }
+
+    // The search stopped before its last possible round: the candidates judged (one
+    // score each) are all the work there was.
+    if scores.len() < most_judged {
+        progress.update(scores.len(), scores.len());
     }
 
     // Final extended model: base parameters free again together with the effects.
