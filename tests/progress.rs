@@ -46,16 +46,18 @@ fn recorder() -> std::sync::Mutex<Vec<(usize, usize)>> {
     std::sync::Mutex::new(Vec::new())
 }
 
-/// Small logs of one synthetic instrument: `n` records of 10 s, seeds 1.. .
+/// Small logs of one synthetic instrument with hidden `effects`: `n` records of 10 s,
+/// seeds 1.. .
 fn small_logs(
     sc: &cable_servo::scenario::Scenario,
+    effects: &[(cable_servo::identify::EffectName, f64)],
     n: u64,
 ) -> Vec<cable_servo::identify::BenchLog> {
     (1..=n)
         .map(|seed| {
             let mut l = cable_servo::identify::synthesize(
                 sc,
-                &[],
+                effects,
                 seed,
                 &cable_servo::identify::SynthOptions::default(),
             )
@@ -79,7 +81,7 @@ fn leave_one_out_ticks_once_per_fold() {
     )
     .expect("built-in scenario");
     let ident = sc.identify.clone().unwrap_or_default();
-    let logs = small_logs(&sc, 3);
+    let logs = small_logs(&sc, &[], 3);
     let seen = recorder();
     let sink = |d: usize, t: usize| seen.lock().expect("recorder").push((d, t));
     let with = leave_one_out_with_progress(&sc.drive, &ident, &logs, &[], StartMode::Detect, &sink)
@@ -115,7 +117,12 @@ fn diagnosis_counts_candidates_judged() {
         &["quasi_static.duration_s=10".to_string()],
     )
     .expect("built-in scenario");
-    let logs = small_logs(&sc, 1);
+    // A hidden ratio shape gives the search something to judge.
+    let logs = small_logs(
+        &sc,
+        &[(cable_servo::identify::EffectName::AngleDependentRatio, 2e-4)],
+        1,
+    );
     let options = DiagnoseOptions::default();
     let seen = recorder();
     let sink = |d: usize, t: usize| seen.lock().expect("recorder").push((d, t));
@@ -127,6 +134,7 @@ fn diagnosis_counts_candidates_judged() {
     assert_eq!(seen[0], (0, bound), "{seen:?}");
     assert!(seen.iter().all(|(d, t)| d <= t && *t <= bound), "{seen:?}");
     let judged = with.candidates.len();
+    assert!(judged > 0, "nothing judged: {seen:?}");
     assert_eq!(seen.last(), Some(&(judged, judged)), "{seen:?}");
     let without = diagnose(&sc, &logs, &options).expect("diagnosis");
     assert_eq!(
