@@ -83,6 +83,11 @@ $bin run davinci_tool4_loop --set closed_loop.compensate_effects=true \
   --out "$work/davinci_tool4_loop-extended" >/dev/null || [ $? -eq 4 ]
 keep "$work/davinci_tool4_loop-extended" pointing_error.png summary.json
 
+# The margins of the shipped tracking loop, written as a review would read them; its
+# report.html is the example of the self-contained page every results directory holds.
+$bin margins eots_tracking --out "$work/eots_tracking-margins" >/dev/null
+keep "$work/eots_tracking-margins" bode.png nyquist.png nichols.png pole_zero.png step.png margins.json report.html
+
 rm -rf "$ref"
 mv "$ref.new" "$ref"
 du -sh "$ref"
