@@ -70,8 +70,11 @@ pub struct SearchSize {
     /// Factor each way of each gain's grid around the scenario's `kp`, `ki`, `kd`
     /// (10, 30, 10).
     pub span: [f64; 3],
-    /// Nonlinear seeds from the linear ranking per load-feedforward setting (2; 1 in
-    /// tests); the scenario's own gains are a further seed when signable.
+    /// Nonlinear seeds from the linear ranking per load-feedforward setting, mutually
+    /// distant (10; 1 in tests): each is judged once and the search goes on from the
+    /// best-judged first while the budget lasts, so more seeds cost a verdict each and
+    /// guard against a local optimum. The scenario's own gains are a further seed when
+    /// signable.
     pub seeds: usize,
     /// Largest pattern-search step, grid points (4; 1 in tests).
     pub first_step: usize,
@@ -89,7 +92,7 @@ impl SearchSize {
         SearchSize {
             grid: 25,
             span: [10.0, 30.0, 10.0],
-            seeds: 4,
+            seeds: 10,
             first_step: 4,
             max_verdicts: 150,
             sensitivity_step: 0.05,
@@ -148,7 +151,8 @@ pub struct TuneOptions {
 }
 
 /// Filters a tune may search besides the gains. Each asked filter multiplies the
-/// variants: the derivative filter's corner at 0.5, 1 and 2 times the scenario's; no notch
+/// variants: the derivative filter's corner at the scenario's and at 0.5 and 2 times it
+/// where below the Nyquist frequency; no notch
 /// or a notch 20 dB deep and half its centre wide at 0.8, 1 and 1.25 times the cable
 /// resonance; no lead-lag or a lead of 4:1 (about 37 deg) centred at 0.67, 1 and 1.5
 /// times the scenario's design's crossover. Every variant is screened on the exact linear
@@ -808,15 +812,18 @@ fn tune_filters(
         .ok_or_else(|| DesignError::Unsuitable("not a closed-loop study".into()))?;
     let fs = ctl.sample_rate_hz;
     let f = &options.filters;
-    let corners: Vec<f64> = if f.derivative {
-        [0.5, 1.0, 2.0]
-            .iter()
-            .map(|k| k * ctl.derivative_filter_hz)
-            .filter(|&c| c < 0.45 * fs)
-            .collect()
-    } else {
-        vec![ctl.derivative_filter_hz]
-    };
+    // The scenario's own corner always, whatever the rate (it is the comparison); the
+    // others only below the Nyquist frequency, where a corner still filters.
+    let own_corner = ctl.derivative_filter_hz;
+    let mut corners = vec![own_corner];
+    if f.derivative {
+        for k in [0.5, 2.0] {
+            let c = k * own_corner;
+            if c < 0.45 * fs {
+                corners.push(c);
+            }
+        }
+    }
     use closed_loop::filters::FilterSpec;
     let mut notches: Vec<Option<FilterSpec>> = vec![None];
     if f.notch {
@@ -897,10 +904,14 @@ fn tune_filters(
     let own = variants
         .iter()
         .position(|(r, _)| {
-            r.derivative_filter_hz == ctl.derivative_filter_hz
-                && r.command_filters == ctl.command_filters
+            r.derivative_filter_hz == own_corner && r.command_filters == ctl.command_filters
         })
-        .unwrap_or(0);
+        .ok_or_else(|| {
+            DesignError::Unsuitable(
+                "the scenario's own filters are refused at this rate; give filters it accepts"
+                    .into(),
+            )
+        })?;
     let mut order: Vec<usize> = (0..variants.len())
         .filter(|&i| variants[i].0.best_linear_compliance_mrad_per_nm.is_some())
         .collect();
