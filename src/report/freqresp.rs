@@ -157,7 +157,7 @@ pub fn write_outputs(dir: &Path, scenario: &Scenario, r: &FreqResponse) -> Resul
 }
 
 /// Phase in degrees, unwrapped along the series so a curve does not jump by 360 deg.
-fn unwrapped(phases_deg: impl Iterator<Item = f64>) -> Vec<f64> {
+pub(super) fn unwrapped(phases_deg: impl Iterator<Item = f64>) -> Vec<f64> {
     let mut out: Vec<f64> = Vec::new();
     for p in phases_deg {
         // The first point on the branch (-360, 0] (lag is what loops have), the rest
@@ -289,25 +289,7 @@ pub fn plot(
             equal_aspect: true,
             ..Panel::default()
         };
-        let (cx, cy): (Vec<f64>, Vec<f64>) = (0..=360)
-            .map(|k| {
-                let t = (k as f64).to_radians();
-                (-1.0 + t.cos() / max_ms, t.sin() / max_ms)
-            })
-            .unzip();
-        if max_ms.is_finite() && max_ms > 1.0 {
-            ny.traces.push(Trace::line(
-                format!(
-                    "requirement Ms <= {}: L stays outside |1 + L| = {}",
-                    crate::compact(max_ms),
-                    crate::compact(1.0 / max_ms)
-                ),
-                cx,
-                cy,
-                [214, 39, 40],
-                Dash::Dashed,
-            ));
-        }
+        ny.traces.extend(super::margins::ms_requirement(max_ms));
         let exact_l: Vec<Complex<f64>> = dense.iter().map(|&f| lin.loop_gain(f)).collect();
         ny.traces.push(Trace::line(
             "exact linear reference",

@@ -158,21 +158,6 @@ fn db(c: Complex<f64>) -> f64 {
     20.0 * c.norm().log10()
 }
 
-/// Phase in degrees, continuous along the curve, starting on (-360, 0].
-fn unwrapped(l: &[Complex<f64>]) -> Vec<f64> {
-    let mut out: Vec<f64> = Vec::with_capacity(l.len());
-    for c in l {
-        let p = c.arg().to_degrees();
-        let v = match out.last() {
-            Some(&prev) => p - 360.0 * ((p - prev) / 360.0).round(),
-            None if p > 0.0 => p - 360.0,
-            None => p,
-        };
-        out.push(v);
-    }
-    out
-}
-
 /// The -180 deg + k 360 deg nearest to `phase`.
 fn nearest_critical(phase: f64) -> f64 {
     -180.0 + 360.0 * ((phase + 180.0) / 360.0).round()
@@ -281,7 +266,7 @@ fn bode(name: &str, models: &LoopModels) -> Option<AnnotatedFigure> {
         let r = &m.loop_response;
         let l: Vec<Complex<f64>> = (0..r.len()).map(|k| r.at(k)).collect();
         let dbs: Vec<f64> = l.iter().map(|&c| db(c)).collect();
-        let ph = unwrapped(&l);
+        let ph = super::freqresp::unwrapped(l.iter().map(|c| c.arg().to_degrees()));
         all_db.extend(dbs.iter().copied());
         all_ph.extend(ph.iter().copied());
         let (c, dash) = (colour(i), Dash::nth(i));
@@ -468,20 +453,7 @@ fn nyquist(name: &str, p: &ClosedLoopParams, models: &LoopModels) -> Option<Anno
         width: 1,
         ..Trace::line("|L| = 1", ux, uy, GUIDE_RGB, Dash::Dotted)
     });
-    if max_ms.is_finite() && max_ms > 1.0 {
-        let (cx, cy) = circle(-1.0, 0.0, 1.0 / max_ms);
-        plane.traces.push(Trace::line(
-            format!(
-                "requirement Ms <= {}: L stays outside |1 + L| = {}",
-                crate::compact(max_ms),
-                crate::compact(1.0 / max_ms)
-            ),
-            cx,
-            cy,
-            CRITICAL_RGB,
-            Dash::Dashed,
-        ));
-    }
+    plane.traces.extend(ms_requirement(max_ms));
     for (i, m) in models.points.iter().enumerate() {
         let r = &m.loop_response;
         let (c, dash) = (colour(i), Dash::nth(i));
@@ -587,7 +559,7 @@ fn nichols(name: &str, p: &ClosedLoopParams, models: &LoopModels) -> Option<Anno
     for (i, m) in models.points.iter().enumerate() {
         let r = &m.loop_response;
         let l: Vec<Complex<f64>> = (0..r.len()).map(|k| r.at(k)).collect();
-        let ph = unwrapped(&l);
+        let ph = super::freqresp::unwrapped(l.iter().map(|c| c.arg().to_degrees()));
         let dbs: Vec<f64> = l.iter().map(|&c| db(c)).collect();
         // The view: where |L| is within +-40 dB, the region the contours describe.
         all_ph.extend(
@@ -962,5 +934,24 @@ fn step(name: &str, models: &LoopModels) -> Option<AnnotatedFigure> {
         panels: vec![chart],
         notes,
         panel_height: 640,
+    })
+}
+
+/// The Ms requirement on a Nyquist plane: the circle `|1 + L| = 1 / Ms_max` about -1 that
+/// the loop must stay outside (none when no finite limit above 1 is set).
+pub(super) fn ms_requirement(max_ms: f64) -> Option<Trace> {
+    (max_ms.is_finite() && max_ms > 1.0).then(|| {
+        let (cx, cy) = circle(-1.0, 0.0, 1.0 / max_ms);
+        Trace::line(
+            format!(
+                "requirement Ms <= {}: L stays outside |1 + L| = {}",
+                crate::compact(max_ms),
+                crate::compact(1.0 / max_ms)
+            ),
+            cx,
+            cy,
+            CRITICAL_RGB,
+            Dash::Dashed,
+        )
     })
 }
