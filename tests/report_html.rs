@@ -85,6 +85,12 @@ fn cases() -> Vec<Case> {
             setup: None,
         },
         Case {
+            name: "margins",
+            args: strings(&[&["margins"][..], &short].concat()),
+            verdict: "pass",
+            setup: None,
+        },
+        Case {
             name: "freqresp",
             args: strings(&[
                 "freqresp",
