@@ -759,13 +759,16 @@ pub fn run_sweep(
             "statistics": if sampled { answers.0.clone() } else { serde_json::Value::Null },
         }),
     )?;
+    // The scenario's own pointing target; a study without a loop is drawn against the
+    // tool's 0.1 mrad.
+    let target = Some(scenario.closed_loop.as_ref().map_or(0.1, |c| c.target_mrad));
     let drawn = if sampled {
         report::sweep::plot_samples(
             &dir,
             &parameter_columns,
             &figure_columns,
             &table.rows,
-            Some(0.1),
+            target,
             3,
         )
     } else {
@@ -774,7 +777,7 @@ pub fn run_sweep(
             &parameter_columns,
             &figure_columns,
             &table.rows,
-            Some(0.1),
+            target,
             3,
         )
     };
