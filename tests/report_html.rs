@@ -513,17 +513,21 @@ impl Cdp {
         self.to.flush().expect("the browser reads");
         let deadline = Instant::now() + Duration::from_secs(30);
         loop {
-            let left = deadline.saturating_duration_since(Instant::now());
-            let v = self
-                .from
-                .recv_timeout(left)
-                .unwrap_or_else(|e| panic!("no answer to {method}: {e}"));
+            let v = self.next_message(deadline, &format!("answer to {method}"));
             if v["id"].as_u64() == Some(id) {
                 assert!(v["error"].is_null(), "{method}: {v}");
                 return v["result"].clone();
             }
             self.events.push(v);
         }
+    }
+
+    /// The browser's next message, failing the test with `what` at `deadline`.
+    fn next_message(&mut self, deadline: Instant, what: &str) -> Value {
+        let left = deadline.saturating_duration_since(Instant::now());
+        self.from
+            .recv_timeout(left)
+            .unwrap_or_else(|e| panic!("no {what}: {e}"))
     }
 
     /// Wait for an event of the session, keeping every event seen.
@@ -537,11 +541,7 @@ impl Cdp {
         }
         let deadline = Instant::now() + Duration::from_secs(30);
         loop {
-            let left = deadline.saturating_duration_since(Instant::now());
-            let v = self
-                .from
-                .recv_timeout(left)
-                .unwrap_or_else(|e| panic!("no {method}: {e}"));
+            let v = self.next_message(deadline, method);
             let hit = v["method"] == method && v["sessionId"] == session;
             self.events.push(v);
             if hit {

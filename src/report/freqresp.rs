@@ -13,7 +13,7 @@ use crate::analysis::freqresp::{
 use crate::analysis::linear::LinearLoop;
 use crate::plot::{
     family_colour, save_annotated, save_panels, AnnotatedFigure, Arrowhead, Chart, Dash, Mark,
-    Panel, Series, Shape, Trace, REFERENCE_RGB,
+    Series, Shape, Trace, REFERENCE_RGB,
 };
 use crate::scenario::Scenario;
 
@@ -281,15 +281,7 @@ pub fn plot(
     );
     written.extend(save_panels(&title, &[mag, phase], &dir.join("bode"))?);
     if r.point.gives_loop_gain() {
-        let mut ny = Panel {
-            x_label: "Re L".into(),
-            y_label: "Im L".into(),
-            x_range: (-3.0, 1.5),
-            y_range: (-2.0, 2.0),
-            equal_aspect: true,
-            ..Panel::default()
-        };
-        ny.traces.extend(super::margins::ms_requirement(max_ms));
+        let mut ny = super::margins::nyquist_plane(max_ms);
         let exact_l: Vec<Complex<f64>> = dense.iter().map(|&f| lin.loop_gain(f)).collect();
         ny.traces.push(Trace::line(
             "exact linear reference",

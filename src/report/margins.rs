@@ -436,15 +436,7 @@ fn circle(cx: f64, cy: f64, r: f64) -> (Vec<f64>, Vec<f64>) {
 
 fn nyquist(name: &str, p: &ClosedLoopParams, models: &LoopModels) -> Option<AnnotatedFigure> {
     let max_ms = p.requirements.max_ms;
-    let mut plane = Panel {
-        title: String::new(),
-        x_label: "Re L".into(),
-        y_label: "Im L".into(),
-        x_range: (-3.0, 1.5),
-        y_range: (-2.0, 2.0),
-        equal_aspect: true,
-        ..Panel::default()
-    };
+    let mut plane = nyquist_plane(max_ms);
     let mut notes = vec![
         "Positive frequencies, 0.1 Hz to Nyquist; arrows point to rising frequency; dots mark 1, 2 and 5 per decade.".to_string(),
     ];
@@ -453,7 +445,6 @@ fn nyquist(name: &str, p: &ClosedLoopParams, models: &LoopModels) -> Option<Anno
         width: 1,
         ..Trace::line("|L| = 1", ux, uy, GUIDE_RGB, Dash::Dotted)
     });
-    plane.traces.extend(ms_requirement(max_ms));
     for (i, m) in models.points.iter().enumerate() {
         let r = &m.loop_response;
         let (c, dash) = (colour(i), Dash::nth(i));
@@ -937,9 +928,23 @@ fn step(name: &str, models: &LoopModels) -> Option<AnnotatedFigure> {
     })
 }
 
+/// The Nyquist plane near -1 (equal aspect) with the Ms requirement drawn on it.
+pub(super) fn nyquist_plane(max_ms: f64) -> Panel {
+    let mut plane = Panel {
+        x_label: "Re L".into(),
+        y_label: "Im L".into(),
+        x_range: (-3.0, 1.5),
+        y_range: (-2.0, 2.0),
+        equal_aspect: true,
+        ..Panel::default()
+    };
+    plane.traces.extend(ms_requirement(max_ms));
+    plane
+}
+
 /// The Ms requirement on a Nyquist plane: the circle `|1 + L| = 1 / Ms_max` about -1 that
 /// the loop must stay outside (none when no finite limit above 1 is set).
-pub(super) fn ms_requirement(max_ms: f64) -> Option<Trace> {
+fn ms_requirement(max_ms: f64) -> Option<Trace> {
     (max_ms.is_finite() && max_ms > 1.0).then(|| {
         let (cx, cy) = circle(-1.0, 0.0, 1.0 / max_ms);
         Trace::line(
