@@ -9,7 +9,8 @@ use cable_servo::identify::{diagnose, effect_value, DiagnoseOptions, EffectName}
 use cable_servo::io::benchlog::{read_bench_log, write_bench_log};
 use cable_servo::scenario::Scenario;
 use support::rates::{
-    claimed_rates, clean_rate, opts, opts_every, opts_for, run_effect, scenario, size_range, truth,
+    claimed_rates, clean_rate, opts, opts_every, opts_for, run_effect, scenario, size_range,
+    size_tolerance, truth,
 };
 use support::truth::{oracle_jump_mrad, truth_log, Instrument, Ringing, TruthOptions};
 
@@ -90,6 +91,49 @@ effect_tests! {
     finds_angle_dependent_ratio => EffectName::AngleDependentRatio;
     finds_load_compliance => EffectName::LoadCompliance;
     finds_distributed_friction_memory => EffectName::DistributedFrictionMemory;
+}
+
+/// A link that gives way with the load (negative compliance: it adds to the spans' own
+/// stretch) is found and sized as well as a drive stiffer than the cable model, and the
+/// report says which way it went.
+#[test]
+fn finds_load_compliance_of_either_sign() {
+    let e = EffectName::LoadCompliance;
+    let mut named = 0;
+    for seed in 0..SEEDS_EXTENDED {
+        let sign = if seed % 2 == 0 { -1.0 } else { 1.0 };
+        let v = sign * support::rates::size_of(e, seed + 100);
+        let sc = scenario(seed % 4 >= 2);
+        let log = truth(&sc, &[(e, v)], 100 + seed);
+        let d = diagnose(&sc, &[log], &opts_every()).expect("diagnosis");
+        let est = effect_value(&d, e);
+        eprintln!("compliance {v:.3e} seed {seed}: {} {est:?}", d.cause);
+        if d.cause != e.as_str() {
+            continue;
+        }
+        named += 1;
+        let est = est.expect("a named effect has a size");
+        assert!(
+            (est - v).abs() <= size_tolerance(e) * v.abs(),
+            "seed {seed}: {est:e} for {v:e}"
+        );
+        let said = d
+            .directions
+            .iter()
+            .find(|x| x.effect == e.as_str())
+            .expect("direction of the compliance");
+        let want = if v < 0.0 {
+            "gives way with the load"
+        } else {
+            "stiffer"
+        };
+        assert!(said.meaning.contains(want), "{v:e}: {}", said.meaning);
+    }
+    let (rate, _) = claimed_rates(e);
+    assert!(
+        named >= (rate * SEEDS_EXTENDED as f64).ceil() as usize,
+        "named {named}/{SEEDS_EXTENDED}"
+    );
 }
 
 /// Below the smallest size of the ranges above: at a tenth of it an effect may be found

@@ -35,8 +35,10 @@ pub enum EffectName {
     /// (1e-4 to 0.05).
     AngleDependentRatio,
     /// Output deflection proportional to the transmitted load beyond the capstan model's
-    /// spans (cable stretch outside the wrap, jaw and pin flexibility), rad/(N m) (>= 0;
-    /// 1e-4 to 1 from gimbal drums to surgical jaws).
+    /// spans, rad/(N m), either sign (magnitudes 1e-4 to 1 from gimbal drums to surgical
+    /// jaws): negative when the output gives way with the load (cable stretch outside the
+    /// wrap, jaw and pin flexibility), positive when the drive is stiffer under a steady
+    /// load than the cable model.
     LoadCompliance,
     /// Friction memory over many contacts with different thresholds (Prandtl-Ishlinskii sum
     /// of play operators on the input angle, non-negative weights): the lag grows gradually
@@ -130,8 +132,40 @@ impl EffectName {
             EffectName::CableTransport => "cable creep over the wraps: error keeps evolving after a reversal instead of jumping once",
             EffectName::ThermalDrift => "slow drift of the error with time, independent of motion",
             EffectName::AngleDependentRatio => "transmission ratio changes smoothly over the stroke: error a smooth curve of the input angle, the same going up and down",
-            EffectName::LoadCompliance => "the output gives way in proportion to the load it carries (cable outside the wraps, jaw and pin flexibility)",
+            EffectName::LoadCompliance => "the output moves in proportion to the load it carries: a flexible link, or a drive stiffer than the cable model",
             EffectName::DistributedFrictionMemory => "friction at many contacts: after a reversal the lag builds up gradually over the input travel",
+        }
+    }
+}
+
+impl EffectName {
+    /// Which way a signed effect of size `value` went, in words (`None` for effects whose
+    /// size has no sign: runouts carry theirs in a phase; frictions, lags and transport
+    /// are magnitudes).
+    pub fn direction(self, value: f64) -> Option<&'static str> {
+        let up = value > 0.0;
+        match self {
+            EffectName::LoadCompliance => Some(if up {
+                "stiffer under steady load than the cable model: the output moves against the spans' stretch"
+            } else {
+                "the output gives way with the load, like a flexible link"
+            }),
+            EffectName::EncoderDelay => Some(if up {
+                "the output encoder's reading lags the input's"
+            } else {
+                "the input encoder's reading lags the output's"
+            }),
+            EffectName::EncoderScaleError => Some(if up {
+                "the output encoder reads more than the angle turned"
+            } else {
+                "the output encoder reads less than the angle turned"
+            }),
+            EffectName::ThermalDrift => Some(if up {
+                "the output drifts forward (+theta_out) with time"
+            } else {
+                "the output drifts backward (-theta_out) with time"
+            }),
+            _ => None,
         }
     }
 }

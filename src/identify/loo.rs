@@ -204,28 +204,17 @@ fn rate(log: &BenchLog) -> f64 {
 }
 
 /// Refuse logs that cannot be one instrument on one bench: different sample rates, encoder
-/// resolutions or nominal ratios; a log without a reversal.
+/// resolutions or transmission ratios (judged away from the reversals, where the load
+/// cannot move it: [`super::instrument::travel_ratio`]); a log without a reversal.
 pub fn check_logs(raw: &[BenchLog], prepared: &[Prepared]) -> Result<(), IdentifyError> {
     let Some(first) = raw.first() else {
         return Err(IdentifyError::NoLogs);
     };
     let r0 = rate(first);
     let p0 = &prepared[0];
-    let slope = |p: &Prepared| {
-        // Least-squares slope of output on input angle: the nominal ratio's inverse.
-        let n = p.th_in.len() as f64;
-        let mi = p.th_in.iter().sum::<f64>() / n;
-        let mo = p.th_out.iter().sum::<f64>() / n;
-        let sxy: f64 = p
-            .th_in
-            .iter()
-            .zip(&p.th_out)
-            .map(|(a, b)| (a - mi) * (b - mo))
-            .sum();
-        let sxx: f64 = p.th_in.iter().map(|a| (a - mi) * (a - mi)).sum();
-        sxy / sxx.max(1e-300)
-    };
-    let s0 = slope(p0);
+    // The whole-log slope of output on input moves with the load (free travel narrows as
+    // tension takes up slack); the travel ratio far from reversals does not.
+    let s0 = super::instrument::travel_ratio(p0);
     for (l, p) in raw.iter().zip(prepared).skip(1) {
         let bad = |message: String| IdentifyError::BadLog {
             log: l.source.clone(),
@@ -246,12 +235,13 @@ pub fn check_logs(raw: &[BenchLog], prepared: &[Prepared]) -> Result<(), Identif
                 )));
             }
         }
-        let s = slope(p);
-        if (s / s0 - 1.0).abs() > 0.05 {
-            return Err(bad(format!(
-                "output turns {s:.4} rad per input rad, {} turns {s0:.4}: a different instrument (ratio differs by more than 5 %); calibrate each instrument on its own",
-                first.source
-            )));
+        if let (Some(s), Some(s0)) = (super::instrument::travel_ratio(p), s0) {
+            if (s / s0 - 1.0).abs() > 0.05 {
+                return Err(bad(format!(
+                    "away from its reversals the output turns {s:.4} rad per input rad, in {} {s0:.4}: a different instrument (its transmission ratio differs by more than 5 %, which no load changes); calibrate each instrument on its own",
+                    first.source
+                )));
+            }
         }
     }
     for p in prepared {

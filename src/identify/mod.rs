@@ -7,6 +7,8 @@
 pub mod effects;
 pub mod estimates;
 pub mod extra_effects;
+pub mod identifiability;
+pub mod instrument;
 pub mod lm;
 pub mod loo;
 pub mod model;
@@ -485,9 +487,13 @@ pub fn diagnose_with_progress(
     let (ext_resid, ext_pred) = ev_final.residual(&ext_fit, &split.full)?;
     let residual_whiteness = whiteness::ljung_box(&ext_resid, 10, 150);
     let np = nl_final.len() + ext_fit.coef.len();
-    let cov = ev_final
-        .covariance(&ext_fit, &split.full)
-        .unwrap_or_else(|_| nalgebra::DMatrix::from_element(np, np, f64::NAN));
+    let analysis = ev_final
+        .identifiability(&ext_fit, &split.full)
+        .unwrap_or_else(|_| identifiability::Analysis {
+            cov: nalgebra::DMatrix::from_element(np, np, f64::NAN),
+            unseen: vec![false; np],
+        });
+    let cov = analysis.cov.clone();
     let ext_drive = with_base(&drive_for, &nl_final, &ext_fit.x);
     let (mut params, drive_out, mut effects_out) =
         estimates::parameters(&drive0, &ext_drive, &nl_final, &ext_fit, &cov);
@@ -518,6 +524,23 @@ pub fn diagnose_with_progress(
         })
         .collect();
 
+    let directions: Vec<EffectDirection> = chosen
+        .iter()
+        .filter_map(|e| {
+            let v = params.iter().find(|p| p.name == e.as_str())?.value;
+            Some(EffectDirection {
+                effect: e.to_string(),
+                value: v,
+                meaning: e.direction(v)?.to_string(),
+            })
+        })
+        .collect();
+    let not_identifiable = identifiability::not_identifiable(
+        &params,
+        &analysis,
+        &raw_columns(&nl_final, &ext_fit.lin),
+    );
+
     let (rmse_base, rmse_ext) = match &split.outer {
         None => (rmse_base, current),
         Some(outer) => {
@@ -544,7 +567,7 @@ pub fn diagnose_with_progress(
     };
     let structure_ratio = rmse_ext / floor;
     let unexplained_structure = structure_ratio > ident.none_within_floor;
-    let cause = if let Some(c) = chosen.first() {
+    let mut cause = if let Some(c) = chosen.first() {
         c.to_string()
     } else if rmse_base / floor > ident.none_within_floor {
         "unexplained".to_string()
@@ -567,6 +590,16 @@ pub fn diagnose_with_progress(
             &play_folds,
         )?)
     };
+
+    // An extension that a deadband fitted to the same logs beats, held out, has not shown
+    // that it names what the drive does: the effects it found are kept in `causes`, but
+    // no cause is claimed.
+    let beats_play_operator = play_operator
+        .as_ref()
+        .map(|p| rmse_ext * 1e3 < p.rmse_heldout_mrad);
+    if beats_play_operator == Some(false) && !chosen.is_empty() {
+        cause = "unexplained".to_string();
+    }
 
     // Traces for plots, with the fitted ratio and each log's encoder zero removed.
     let ic_ext = drive_out.ratio();
@@ -625,6 +658,8 @@ pub fn diagnose_with_progress(
         params,
         candidates: scores,
         play_operator,
+        beats_play_operator,
+        directions,
         holdout: split.text,
         logs: prepared.iter().map(|l| l.source.clone()).collect(),
         ignored_columns: logs
@@ -637,6 +672,7 @@ pub fn diagnose_with_progress(
         effects: effects_out,
         traces,
         params_on_bound: model::on_bounds(&nl_final, &ext_fit.x),
+        not_identifiable,
         fits_on_limit: [
             ("base calibration", &base_fit),
             ("extended calibration", &ext_fit),
@@ -651,6 +687,34 @@ pub fn diagnose_with_progress(
         })
         .collect(),
     })
+}
+
+/// The parameter-table names of the fitted coefficients that are reported as they are
+/// (not derived from several), with their columns in the covariance: nonlinear first,
+/// then linear in the fit's order.
+fn raw_columns(nl: &[(NlParam, f64, f64, f64)], lin: &[LinParam]) -> Vec<(String, usize)> {
+    let mut out: Vec<(String, usize)> = nl
+        .iter()
+        .enumerate()
+        .map(|(k, n)| (n.0.name().to_string(), k))
+        .collect();
+    for (i, p) in lin.iter().enumerate() {
+        let name = match p {
+            LinParam::Offset(k) => format!("encoder_zero[{k}]"),
+            LinParam::ModulusScale => "cable_modulus_n".into(),
+            LinParam::InverseRatio => "ratio".into(),
+            LinParam::Effect(
+                e @ (EffectName::EncoderDelay
+                | EffectName::EncoderScaleError
+                | EffectName::ThermalDrift
+                | EffectName::LoadCompliance),
+                0,
+            ) => e.to_string(),
+            LinParam::Effect(..) => continue,
+        };
+        out.push((name, nl.len() + i));
+    }
+    out
 }
 
 /// Base calibration with effects in place: returns the drive calibrated on the final mask,

@@ -613,8 +613,9 @@ impl<'a> Evaluator<'a> {
     fn lin_bounds(&self, name: LinParam, d: &Design) -> Option<(f64, f64)> {
         let id = &self.spec.ident;
         match name {
-            // Compliance and friction lag only ever make the output give way or lag.
-            LinParam::Effect(EffectName::LoadCompliance, _) => Some((0.0, 100.0)),
+            // Compliance of either sign: a link that gives way with the load adds to the
+            // spans' stretch (negative), a drive stiffer than the cable model takes from it.
+            LinParam::Effect(EffectName::LoadCompliance, _) => Some((-100.0, 100.0)),
             // A contact's weight at most 10 rad/rad; a load-scaled one at the logs' largest
             // torque.
             LinParam::Effect(EffectName::DistributedFrictionMemory, j)
@@ -813,6 +814,15 @@ impl<'a> Evaluator<'a> {
     /// Covariance of (nonlinear, linear) parameters at a fit: `s^2 (J^T J)^-1` with the
     /// nonlinear columns by finite differences at fixed linear coefficients.
     pub fn covariance(&mut self, f: &Fitted, mask: &[bool]) -> Result<DMatrix<f64>, IdentifyError> {
+        Ok(self.identifiability(f, mask)?.cov)
+    }
+
+    /// [`Evaluator::covariance`] with the parameters the data cannot pin.
+    pub fn identifiability(
+        &mut self,
+        f: &Fitted,
+        mask: &[bool],
+    ) -> Result<super::identifiability::Analysis, IdentifyError> {
         let nl = self.nonlinear();
         let d0 = self.design(&f.x)?;
         let p0 = Self::predict(&d0, &f.coef);
@@ -846,13 +856,7 @@ impl<'a> Evaluator<'a> {
         }
         let dof = (rows.len() as f64 - np as f64).max(1.0);
         let s2 = f.cost / dof;
-        let jtj = j.transpose() * &j;
-        // Pseudo-inverse so an unidentifiable direction shows as a huge std, not a crash.
-        let tol = 1e-14 * jtj.norm();
-        let inv = jtj
-            .pseudo_inverse(tol)
-            .map_err(|e| IdentifyError::Fit(e.to_string()))?;
-        Ok(inv * s2)
+        Ok(super::identifiability::analyse(&j, s2))
     }
 }
 

@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 
-use super::whiteness;
+use super::{identifiability, whiteness};
 use super::{startup, EffectName, EffectsParams};
 use crate::physics::DriveParams;
 
@@ -79,6 +79,17 @@ pub struct ParamEstimate {
     pub std: f64,
     /// Unit.
     pub unit: String,
+}
+
+/// The sign of an effect found, with what it means.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct EffectDirection {
+    /// Effect name.
+    pub effect: String,
+    /// Its fitted size, with sign, in the effect's unit.
+    pub value: f64,
+    /// What the sign means for the drive.
+    pub meaning: String,
 }
 
 /// Held-out score of one candidate.
@@ -187,6 +198,16 @@ pub struct Diagnosis {
     pub candidates: Vec<CandidateScore>,
     /// Play-operator (deadband) model for comparison.
     pub play_operator: Option<BaselineScore>,
+    /// Whether the extended model's held-out error is below the play operator's (absent
+    /// when the play operator was skipped). When it is not, `cause` is `unexplained`
+    /// whatever `causes` holds: the effects found improve on the base model but describe
+    /// the logs less well than a deadband does.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beats_play_operator: Option<bool>,
+    /// Which way each signed effect found went, in words (compliance: a link giving way
+    /// with the load, or a drive stiffer than the cable model).
+    #[serde(default)]
+    pub directions: Vec<EffectDirection>,
     /// How data was held out.
     pub holdout: String,
     /// Logs used.
@@ -203,6 +224,11 @@ pub struct Diagnosis {
     /// Parameters of the extended calibration that ended on a bound, each a sentence.
     #[serde(default)]
     pub params_on_bound: Vec<String>,
+    /// Parameters the logs do not pin (uncertainty larger than the value, correlation
+    /// above 0.99 with another, or a direction the data does not see), each with why:
+    /// their values are one of many that fit as well, and their `std` means little.
+    #[serde(default)]
+    pub not_identifiable: Vec<identifiability::NotIdentifiable>,
     /// The extended model's residual along each logged variable, strongest first: which
     /// variable the structure that remains follows (the residual plot to look at).
     #[serde(default)]

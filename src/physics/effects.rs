@@ -63,9 +63,12 @@ pub struct EffectsParams {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub angle_dependent_ratio_stroke_rad: Option<[f64; 2]>,
     /// Output deflection per transmitted torque `M` beyond the spans, rad/(N m): `+c M`
-    /// on the output angle (3.1 for the da Vinci jaw). The closed loop puts it, with the
-    /// friction memory, in a massless link between the drum and the output sensor.
-    /// Allowed: 0 to 100.
+    /// on the output angle. Negative: the output gives way with the load like a flexible
+    /// link, adding to the spans' stretch (a jaw or pin, typically -1e-4 to -1e-2 on
+    /// instruments); positive: the drive is stiffer under a steady load than the cable
+    /// model (3.1 for the da Vinci jaw). The closed loop puts it, with the friction
+    /// memory, in a massless link between the drum and the output sensor.
+    /// Allowed: -100 to 100.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub load_compliance_rad_per_nm: Option<f64>,
     /// Play thresholds of the distributed friction memory, rad of input.
@@ -139,7 +142,7 @@ impl EffectsParams {
         check(
             "load_compliance_rad_per_nm",
             self.load_compliance_rad_per_nm,
-            0.0,
+            -100.0,
             100.0,
         )?;
         if let Some(c) = &self.angle_dependent_ratio_coefs {

@@ -43,16 +43,40 @@ pub fn summary_text(d: &Diagnosis) -> String {
     for b in &d.params_on_bound {
         let _ = writeln!(s, "On a bound: {b}");
     }
-    let verdict = match d.cause.as_str() {
-        "none" => "nothing beyond sensor noise: the calibrated base model explains the data".to_string(),
-        "unexplained" => "structure remains that no effect in the library explains (look at the residual plots: resonance, sensor fault, load not logged?)".to_string(),
-        c => {
+    let lost_to_play = d
+        .play_operator
+        .as_ref()
+        .filter(|_| d.beats_play_operator == Some(false) && !d.causes.is_empty());
+    let verdict = match (d.cause.as_str(), lost_to_play) {
+        ("unexplained", Some(p)) => format!(
+            "not established: the extended model with {} improves on the base model but loses to a play operator (deadband) fitted to the same log(s), held out ({:.2} against {:.2} mrad); the drive does something the library does not hold",
+            d.causes.join(" and "),
+            d.rmse_extended_mrad,
+            p.rmse_heldout_mrad
+        ),
+        ("none", _) => "nothing beyond sensor noise: the calibrated base model explains the data".to_string(),
+        ("unexplained", None) => "structure remains that no effect in the library explains (look at the residual plots: resonance, sensor fault, load not logged?)".to_string(),
+        (c, _) => {
             let m = c.parse::<EffectName>().map(|e| e.meaning()).unwrap_or("");
             format!("{c} ({m})")
         }
     };
     let _ = writeln!(s, "\nCAUSE: {verdict}");
-    if d.causes.len() > 1 {
+    for d in &d.directions {
+        let unit = d
+            .effect
+            .parse::<EffectName>()
+            .map(|e| e.unit())
+            .unwrap_or("");
+        let _ = writeln!(
+            s,
+            "  {} = {} {unit}: {}",
+            d.effect,
+            crate::compact(d.value),
+            d.meaning
+        );
+    }
+    if d.causes.len() > 1 && d.cause != "unexplained" {
         let _ = writeln!(
             s,
             "All effects found, strongest first: {}",
@@ -67,8 +91,13 @@ pub fn summary_text(d: &Diagnosis) -> String {
     if let Some(p) = &d.play_operator {
         let _ = writeln!(
             s,
-            "Play-operator (deadband) model for comparison: {:.4} mrad held out",
-            p.rmse_heldout_mrad
+            "Play-operator (deadband) model for comparison: {:.4} mrad held out: the extended model {} it",
+            p.rmse_heldout_mrad,
+            if d.rmse_extended_mrad < p.rmse_heldout_mrad {
+                "beats"
+            } else {
+                "does not beat"
+            }
         );
     }
     if let Some(w) = &d.residual_whiteness {
@@ -115,11 +144,22 @@ pub fn summary_text(d: &Diagnosis) -> String {
     }
     let _ = writeln!(s, "\nParameters (value +- 1 sigma):");
     for p in &d.params {
-        let _ = writeln!(
-            s,
-            "  {:<28} {:>14.6e} +- {:<10.2e} {}",
-            p.name, p.value, p.std, p.unit
-        );
+        match d.not_identifiable.iter().find(|n| n.name == p.name) {
+            Some(n) => {
+                let _ = writeln!(
+                    s,
+                    "  {:<28} {:>14.6e}    {}; not identifiable: {}",
+                    p.name, p.value, p.unit, n.reason
+                );
+            }
+            None => {
+                let _ = writeln!(
+                    s,
+                    "  {:<28} {:>14.6e} +- {:<10.2e} {}",
+                    p.name, p.value, p.std, p.unit
+                );
+            }
+        }
     }
     let _ = writeln!(
         s,
