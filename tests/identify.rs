@@ -239,6 +239,50 @@ fn two_effects_are_both_named() {
     }
 }
 
+/// Two effects that share the structure so that neither passes a strict gate alone (each
+/// explains less than 90 % of it) are found together by the joint search of pairs; with
+/// the pair search's fallback only, a clean log stays `none`.
+#[test]
+fn a_pair_that_passes_only_together_is_found() {
+    let effects = [
+        (EffectName::EncoderDelay, 6e-4),
+        (EffectName::InputPulleyRunout, 1e-3),
+    ];
+    for seed in 0..3u64 {
+        let mut sc = scenario(seed == 1);
+        if let Some(i) = sc.identify.as_mut() {
+            i.min_explained_fraction = 0.9;
+        }
+        let log = truth(&sc, &effects, 40 + seed);
+        let d = diagnose(&sc, &[log], &opts()).expect("diagnosis");
+        let mut got: Vec<&str> = d.causes.iter().map(String::as_str).collect();
+        got.sort_unstable();
+        assert_eq!(
+            got,
+            ["encoder_delay", "input_pulley_runout"],
+            "seed {seed}: {:?}",
+            d.candidates
+        );
+        let pair = d
+            .candidates
+            .iter()
+            .find(|c| c.accepted)
+            .expect("an accepted candidate");
+        assert!(
+            pair.name.contains(" + ") && pair.verdict.contains("pair"),
+            "seed {seed}: the single effects passed alone: {:?}",
+            d.candidates
+        );
+        for (e, v) in effects {
+            let est = effect_value(&d, e).expect("sized").abs();
+            assert!((est - v).abs() < 0.1 * v, "seed {seed}: {e} {est} vs {v}");
+        }
+        let clean = truth(&sc, &[], 60 + seed);
+        let d = diagnose(&sc, &[clean], &opts()).expect("diagnosis");
+        assert_eq!(d.cause, "none", "seed {seed}: {:?}", d.candidates);
+    }
+}
+
 /// Three logs of one instrument; the middle one held out.
 #[test]
 fn several_logs_and_held_out_log() {

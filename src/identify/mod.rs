@@ -4,6 +4,7 @@
 //! Computation layer: takes an [`IdentifySetup`] and logs in memory; imports physics,
 //! measurement and study, never files, plots or scenarios.
 
+pub mod baseline;
 pub mod effects;
 pub mod estimates;
 pub mod extra_effects;
@@ -182,6 +183,24 @@ fn with_base(drive: &DriveParams, spec_nl: &[(NlParam, f64, f64, f64)], x: &[f64
 /// Held-out RMSE, held-out count and the fit on the final mask.
 type CvResult = Result<(f64, usize, Fitted), IdentifyError>;
 
+/// How many of the candidates that improve on the current model, best first, are paired
+/// when none passes the gate alone (up to fifteen pairs).
+const PAIR_POOL: usize = 6;
+
+/// The score of a candidate whose fit failed: no numbers, the reason in the verdict.
+fn failed_score(name: String, round: usize, err: &IdentifyError) -> CandidateScore {
+    CandidateScore {
+        name,
+        rmse_heldout_mrad: f64::NAN,
+        gain_percent: f64::NAN,
+        explained_fraction: f64::NAN,
+        score: f64::NAN,
+        accepted: false,
+        round,
+        verdict: format!("fit failed: {err}"),
+    }
+}
+
 /// Cross-validated held-out residuals of a model with `effects` on top of per-fold base
 /// drives; returns (held-out RMSE, held-out count, fit on the final mask).
 fn cross_validate(
@@ -219,6 +238,9 @@ pub struct IdentifySetup<'a> {
     pub identify: Option<&'a IdentifyParams>,
     /// Prescribed input motion, duration and rate (synthetic logs).
     pub quasi_static: Option<&'a QuasiStaticParams>,
+    /// Calibrated effects of the instrument (`[effects]`): when present, a log is first
+    /// judged against the whole calibrated model as given.
+    pub effects: Option<&'a EffectsParams>,
 }
 
 /// Anything an identification setup can be read from: a setup itself, or a scenario
@@ -313,7 +335,8 @@ pub fn diagnose_with_progress(
         // A free ratio and an output scale error are the same column.
         .filter(|e| !(ratio_free && *e == EffectName::EncoderScaleError))
         .collect();
-    // Each round judges every candidate left and takes at most one out of the pool.
+    // Each round judges every candidate left and takes one out of the pool (two, when
+    // only a pair passes the gate).
     let rounds = ident.max_effects.min(pool.len());
     let most_judged: usize = (0..rounds).map(|r| pool.len() - r).sum();
     let judged = crate::progress::Counter::new(most_judged, progress);
@@ -344,35 +367,14 @@ pub fn diagnose_with_progress(
                 (*e, r)
             })
             .collect();
-        let mut best: Option<(usize, f64)> = None;
-        for (e, r) in results {
-            let (rmse, fit) = match r {
-                Ok((rmse, _, fit)) => (rmse, fit),
-                Err(err) => {
-                    scores.push(CandidateScore {
-                        name: e.to_string(),
-                        rmse_heldout_mrad: f64::NAN,
-                        gain_percent: f64::NAN,
-                        explained_fraction: f64::NAN,
-                        score: f64::NAN,
-                        accepted: false,
-                        round,
-                        verdict: format!("fit failed: {err}"),
-                    });
-                    continue;
-                }
-            };
+        let judge = |rmse: f64, fit: &Fitted| -> (bool, &'static str, f64, f64, f64) {
             let gain = 100.0 * (1.0 - rmse / current);
             let excess = (current * current - floor * floor).max(1e-30);
             let explained = (current * current - rmse * rmse) / excess;
             let k = fit.coef.len() + fit.x.len();
             let score = n_held * (rmse * rmse).max(1e-300).ln() + k as f64 * n_held.ln();
-            let physical = plausible(&fit, drive0.ratio());
+            let physical = plausible(fit, drive0.ratio());
             let gain_mrad = (current - rmse) * 1e3;
-            let ok = gain >= ident.min_gain_percent
-                && gain_mrad >= ident.min_gain_mrad
-                && explained >= ident.min_explained_fraction
-                && physical;
             let verdict = if !physical {
                 "size outside physical bounds (stands in for something else)"
             } else if gain < ident.min_gain_percent {
@@ -384,6 +386,23 @@ pub fn diagnose_with_progress(
             } else {
                 "qualifies"
             };
+            (verdict == "qualifies", verdict, gain, explained, score)
+        };
+        let mut best: Option<(usize, f64)> = None;
+        // Candidates that improve on the current model, for the joint search of pairs.
+        let mut helpful: Vec<(EffectName, f64)> = Vec::new();
+        for (e, r) in results {
+            let (rmse, fit) = match r {
+                Ok((rmse, _, fit)) => (rmse, fit),
+                Err(err) => {
+                    scores.push(failed_score(e.to_string(), round, &err));
+                    continue;
+                }
+            };
+            let (ok, verdict, gain, explained, score) = judge(rmse, &fit);
+            if rmse < current && plausible(&fit, drive0.ratio()) {
+                helpful.push((e, rmse));
+            }
             scores.push(CandidateScore {
                 name: e.to_string(),
                 rmse_heldout_mrad: rmse * 1e3,
@@ -404,17 +423,87 @@ pub fn diagnose_with_progress(
                 }
             }
         }
-        let Some((idx, rmse)) = best else { break };
-        scores[idx].accepted = true;
-        scores[idx].verdict = "accepted (best qualifying)".into();
-        let e: EffectName = pool
-            .iter()
-            .copied()
-            .find(|p| p.as_str() == scores[idx].name)
-            .ok_or_else(|| IdentifyError::Fit("candidate bookkeeping".into()))?;
-        chosen.push(e);
-        pool.retain(|p| *p != e);
-        current = rmse;
+        let accepted: Vec<EffectName> = if let Some((idx, rmse)) = best {
+            scores[idx].accepted = true;
+            scores[idx].verdict = "accepted (best qualifying)".into();
+            current = rmse;
+            pool.iter()
+                .copied()
+                .filter(|p| p.as_str() == scores[idx].name)
+                .collect()
+        } else if chosen.len() + 2 <= ident.max_effects && helpful.len() >= 2 {
+            // No effect passes the gate alone: two that each carry part of the structure
+            // are judged together, held out, among the most helpful few.
+            helpful.sort_by(|a, b| a.1.total_cmp(&b.1));
+            helpful.truncate(PAIR_POOL);
+            let pairs: Vec<(EffectName, EffectName)> = (0..helpful.len())
+                .flat_map(|i| (i + 1..helpful.len()).map(move |j| (i, j)))
+                .map(|(i, j)| (helpful[i].0, helpful[j].0))
+                .collect();
+            let results: Vec<((EffectName, EffectName), CvResult)> = pairs
+                .par_iter()
+                .map(|(a, b)| {
+                    let mut effs = chosen.clone();
+                    effs.extend([*a, *b]);
+                    let r = cross_validate(
+                        &prepared,
+                        &ident,
+                        &full_drive,
+                        &fold_drives,
+                        &split.folds,
+                        &split.full,
+                        &effs,
+                    );
+                    ((*a, *b), r)
+                })
+                .collect();
+            let mut best_pair: Option<(usize, f64, (EffectName, EffectName), Fitted)> = None;
+            for ((a, b), r) in results {
+                let name = format!("{a} + {b}");
+                let (rmse, fit) = match r {
+                    Ok((rmse, _, fit)) => (rmse, fit),
+                    Err(err) => {
+                        scores.push(failed_score(name, round, &err));
+                        continue;
+                    }
+                };
+                let (ok, verdict, gain, explained, score) = judge(rmse, &fit);
+                scores.push(CandidateScore {
+                    name,
+                    rmse_heldout_mrad: rmse * 1e3,
+                    gain_percent: gain,
+                    explained_fraction: explained,
+                    score,
+                    accepted: false,
+                    round,
+                    verdict: verdict.to_string(),
+                });
+                if ok && best_pair.as_ref().is_none_or(|p| rmse < p.1) {
+                    best_pair = Some((scores.len() - 1, rmse, (a, b), fit));
+                }
+            }
+            match best_pair {
+                Some((idx, rmse, (a, b), fit)) => {
+                    scores[idx].accepted = true;
+                    scores[idx].verdict =
+                        "accepted as a pair (neither passes alone; judged together, held out)"
+                            .into();
+                    current = rmse;
+                    chosen_fit = Some(fit);
+                    vec![a, b]
+                }
+                None => Vec::new(),
+            }
+        } else {
+            Vec::new()
+        };
+        if accepted.is_empty() {
+            break;
+        }
+        for e in accepted {
+            chosen.push(e);
+            pool.retain(|p| *p != e);
+        }
         // The base calibration absorbed part of the accepted effect; free it again with
         // the effect in place so the next round does not pick up the leftover bias.
         if nl
@@ -441,8 +530,9 @@ pub fn diagnose_with_progress(
 
     // The search stopped before its last possible round: the candidates judged (one
     // score each) are all the work there was.
-    if scores.len() < most_judged {
-        progress.update(scores.len(), scores.len());
+    let singles_judged = scores.iter().filter(|c| !c.name.contains(" + ")).count();
+    if singles_judged < most_judged {
+        progress.update(singles_judged, singles_judged);
     }
 
     // Final extended model: base parameters free again together with the effects.
@@ -644,8 +734,21 @@ pub fn diagnose_with_progress(
     }
 
     let residual_signatures = loo::residual_signatures(&prepared, &ext_resid, floor);
+    // The instrument as calibrated, judged on these logs before anything is refitted.
+    let calibrated_model = match scenario.effects {
+        Some(fx) if *fx != EffectsParams::default() => {
+            let c = baseline::score(&drive0, fx, &prepared)?;
+            Some(CalibratedModelScore {
+                rmse_mrad: c.rmse_mrad,
+                per_log_mrad: c.per_log_mrad,
+                residual_signatures: loo::residual_signatures(&prepared, &c.residual, floor),
+            })
+        }
+        _ => None,
+    };
     Ok(Diagnosis {
         residual_signatures,
+        calibrated_model,
         cause,
         causes: chosen.iter().map(|c| c.to_string()).collect(),
         rmse_base_mrad: rmse_base * 1e3,

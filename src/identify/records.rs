@@ -81,6 +81,19 @@ pub struct ParamEstimate {
     pub unit: String,
 }
 
+/// The scenario's calibrated model replayed on the logs as given: drive and every effect at
+/// their calibrated values, only each log's encoder zero fitted on it (one number per
+/// log, so its error is as good as held out).
+#[derive(Clone, Debug, Serialize)]
+pub struct CalibratedModelScore {
+    /// RMS transmission error over the logs, mrad.
+    pub rmse_mrad: f64,
+    /// The same per log, in `logs` order, mrad.
+    pub per_log_mrad: Vec<f64>,
+    /// What its residual still follows, strongest first.
+    pub residual_signatures: Vec<ResidualSignature>,
+}
+
 /// The sign of an effect found, with what it means.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct EffectDirection {
@@ -233,6 +246,10 @@ pub struct Diagnosis {
     /// variable the structure that remains follows (the residual plot to look at).
     #[serde(default)]
     pub residual_signatures: Vec<ResidualSignature>,
+    /// The scenario's calibrated model (`[effects]`) as given, on these logs: absent when
+    /// the scenario carries no effects.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibrated_model: Option<CalibratedModelScore>,
     /// What was cut from the start of each log (start-up transient), in `logs` order.
     pub start_cuts: Vec<startup::StartCut>,
     /// Calibrated drive.

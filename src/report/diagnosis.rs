@@ -24,6 +24,45 @@ pub fn summary_text(d: &Diagnosis) -> String {
         d.logs.join(", ")
     );
     let _ = writeln!(s, "Held out: {}", d.holdout);
+    if let Some(c) = &d.calibrated_model {
+        let play = d
+            .play_operator
+            .as_ref()
+            .map(|p| {
+                format!(
+                    "; a play operator fitted here: {:.2} mrad held out",
+                    p.rmse_heldout_mrad
+                )
+            })
+            .unwrap_or_default();
+        let _ = writeln!(
+            s,
+            "Calibrated model of the scenario, as given (only each log's encoder zero fitted): {:.2} mrad RMS; the base capstan model recalibrated here: {:.2} mrad held out{play}.",
+            c.rmse_mrad, d.rmse_base_mrad
+        );
+        let beats_play = d
+            .play_operator
+            .as_ref()
+            .is_none_or(|p| c.rmse_mrad < p.rmse_heldout_mrad);
+        let verdict = match (c.rmse_mrad < d.rmse_base_mrad, beats_play) {
+            (true, true) => "The calibrated model beats both on this log",
+            (true, false) => "The calibrated model beats the base model but not the play operator on this log",
+            (false, true) => "The calibrated model beats the play operator but not the recalibrated base model on this log",
+            (false, false) => "The calibrated model beats neither on this log: the instrument has changed, or this log shows what its calibration did not see",
+        };
+        let follows = c
+            .residual_signatures
+            .first()
+            .filter(|g| g.ratio_to_floor > 1.0)
+            .map(|g| {
+                format!(
+                    "; what it leaves follows {} most ({:.2} mrad, {:.1}x the noise floor)",
+                    g.variable, g.binned_rms_mrad, g.ratio_to_floor
+                )
+            })
+            .unwrap_or_default();
+        let _ = writeln!(s, "{verdict}{follows}.");
+    }
     for (log, columns) in &d.ignored_columns {
         let _ = writeln!(
             s,

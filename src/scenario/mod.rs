@@ -380,6 +380,7 @@ impl crate::identify::IdentifySource for Scenario {
             load: &self.load,
             identify: self.identify.as_ref(),
             quasi_static: self.quasi_static.as_ref(),
+            effects: self.effects.as_ref(),
         }
     }
 }
