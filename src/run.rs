@@ -975,6 +975,7 @@ pub fn run_leave_one_out(
         paths,
         effects,
         start,
+        false,
         out,
         json,
         save_model,
@@ -990,6 +991,7 @@ pub fn run_leave_one_out_with_progress(
     paths: &[PathBuf],
     effects: &[crate::identify::EffectName],
     start: crate::identify::startup::StartMode,
+    keep_segments: bool,
     out: &OutputOptions,
     json: Option<&Path>,
     save_model: Option<&Path>,
@@ -1011,6 +1013,7 @@ pub fn run_leave_one_out_with_progress(
         &logs,
         &effects,
         start,
+        keep_segments,
         progress,
     )?;
     let text = crate::identify::loo::loo_text(&table);

@@ -13,6 +13,7 @@ pub mod model;
 pub mod play;
 pub mod records;
 pub mod resolution;
+pub mod segments;
 pub mod startup;
 pub mod synth;
 pub mod whiteness;
@@ -39,10 +40,12 @@ struct Split {
     text: String,
 }
 
+/// `keep` marks the rows outside excluded segments: every mask is restricted to them.
 fn make_split(
     logs: &[Prepared],
     ident: &IdentifyParams,
     opts: &DiagnoseOptions,
+    keep: &[bool],
 ) -> Result<Split, IdentifyError> {
     let n: usize = logs.iter().map(|l| l.t.len()).sum();
     if !opts.holdout_logs.is_empty() {
@@ -63,7 +66,10 @@ fn make_split(
             let held = opts.holdout_logs.contains(&k);
             train.extend(std::iter::repeat_n(!held, l.t.len()));
         }
-        let test: Vec<bool> = train.iter().map(|t| !t).collect();
+        let test: Vec<bool> = train.iter().zip(keep).map(|(t, k)| !t && *k).collect();
+        for (t, k) in train.iter_mut().zip(keep) {
+            *t &= *k;
+        }
         let names: Vec<&str> = opts
             .holdout_logs
             .iter()
@@ -81,7 +87,8 @@ fn make_split(
             ),
         });
     }
-    let all = vec![true; n];
+    let all = keep.to_vec();
+    debug_assert_eq!(all.len(), n);
     Ok(Split {
         folds: block_folds(logs, ident.holdout_blocks, &all),
         outer: None,
@@ -126,13 +133,23 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
 }
 
 /// Noise floor of the residual: robust high-frequency spread, or quantisation when larger.
-pub(crate) fn noise_floor(logs: &[Prepared], resid: &[f64], ic: f64) -> f64 {
+/// Only differences between neighbouring rows both in `keep` count.
+pub(crate) fn noise_floor(logs: &[Prepared], resid: &[f64], keep: &[bool], ic: f64) -> f64 {
     let mut d: Vec<f64> = Vec::new();
     let mut start = 0;
     for l in logs {
-        let r = &resid[start..start + l.t.len()];
-        d.extend(r.windows(2).map(|w| (w[1] - w[0]).abs()));
-        start += l.t.len();
+        let r = start..start + l.t.len();
+        d.extend(
+            resid[r.clone()]
+                .windows(2)
+                .zip(keep[r.clone()].windows(2))
+                .filter(|(_, k)| k[0] && k[1])
+                .map(|(w, _)| (w[1] - w[0]).abs()),
+        );
+        start = r.end;
+    }
+    if d.is_empty() {
+        d.push(0.0);
     }
     d.sort_by(|a, b| a.total_cmp(b));
     // RMS of first differences (exact for white noise of any distribution, including
@@ -271,7 +288,10 @@ pub fn diagnose_with_progress(
         .iter()
         .map(|l| model::prepare(l, ident.max_rate_hz))
         .collect::<Result<_, _>>()?;
-    let split = make_split(&prepared, &ident, options)?;
+    let (segments_per_log, keep_per_log) =
+        segments::detect_all(&cut_logs, &prepared, options.keep_segments);
+    let keep: Vec<bool> = keep_per_log.iter().flatten().copied().collect();
+    let split = make_split(&prepared, &ident, options, &keep)?;
     let drive0 = scenario.drive.clone();
 
     // Base model: full calibration, then per fold from there.
@@ -293,7 +313,7 @@ pub fn diagnose_with_progress(
     let n_held = held.len().max(1) as f64;
     let (base_resid, base_pred) = ev.residual(&base_fit, &split.full)?;
     let ic_fit = fitted_ratio(&drive0, &base_fit);
-    let floor = noise_floor(&prepared, &base_resid, ic_fit).max(1e-12);
+    let floor = noise_floor(&prepared, &base_resid, &keep, ic_fit).max(1e-12);
 
     // Candidates.
     let ratio_free = ident.is_unknown("ratio");
@@ -483,7 +503,13 @@ pub fn diagnose_with_progress(
     };
     let nl_final = ev_final.nonlinear();
     let (ext_resid, ext_pred) = ev_final.residual(&ext_fit, &split.full)?;
-    let residual_whiteness = whiteness::ljung_box(&ext_resid, 10, 150);
+    let kept_resid: Vec<f64> = ext_resid
+        .iter()
+        .zip(&keep)
+        .filter(|(_, k)| **k)
+        .map(|(r, _)| *r)
+        .collect();
+    let residual_whiteness = whiteness::ljung_box(&kept_resid, 10, 150);
     let np = nl_final.len() + ext_fit.coef.len();
     let cov = ev_final
         .covariance(&ext_fit, &split.full)
@@ -606,11 +632,15 @@ pub fn diagnose_with_progress(
             base_rad,
             extended_rad,
             held_out: options.holdout_logs.contains(&k),
+            excluded: segments::shades(
+                &segments_per_log[k],
+                cut_logs[k].t_s.first().copied().unwrap_or(0.0),
+            ),
         });
         start = r.end;
     }
 
-    let residual_signatures = loo::residual_signatures(&prepared, &ext_resid, floor);
+    let residual_signatures = loo::residual_signatures(&prepared, &ext_resid, &keep, floor);
     Ok(Diagnosis {
         residual_signatures,
         cause,
@@ -633,6 +663,7 @@ pub fn diagnose_with_progress(
             .map(|l| (l.source.clone(), l.extra_columns.clone()))
             .collect(),
         start_cuts,
+        excluded_segments: segments_per_log.into_iter().flatten().collect(),
         drive: drive_out,
         effects: effects_out,
         traces,
