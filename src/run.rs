@@ -984,7 +984,8 @@ pub fn run_leave_one_out(
 }
 
 /// [`run_leave_one_out`], reporting each log held out to `progress`
-/// ([`crate::identify::loo::leave_one_out_with_progress`]).
+/// ([`crate::identify::loo::leave_one_out_with_segments`]); `keep_segments` fits and scores
+/// the stretches flagged as not the drive instead of excluding them.
 #[allow(clippy::too_many_arguments)]
 pub fn run_leave_one_out_with_progress(
     scenario: &Scenario,
@@ -1007,7 +1008,7 @@ pub fn run_leave_one_out_with_progress(
         .iter()
         .map(|p| crate::io::benchlog::read_bench_log(p))
         .collect::<Result<_, _>>()?;
-    let table = crate::identify::loo::leave_one_out_with_progress(
+    let table = crate::identify::loo::leave_one_out_with_segments(
         &scenario.drive,
         &ident,
         &logs,

@@ -291,23 +291,27 @@ pub fn leave_one_out(
     effects: &[EffectName],
     start: StartMode,
 ) -> Result<LooTable, IdentifyError> {
-    leave_one_out_with_progress(
-        drive,
-        ident,
-        logs,
-        effects,
-        start,
-        false,
-        &crate::progress::Silent,
-    )
+    leave_one_out_with_progress(drive, ident, logs, effects, start, &crate::progress::Silent)
 }
 
 /// [`leave_one_out`], reporting each finished fold to `progress` (units: logs held out,
 /// one per log; the joint calibration over every log that follows the folds is not
-/// counted and takes about as long as one fold). Results are those of [`leave_one_out`];
-/// `keep_segments` fits and scores the stretches flagged as not the drive instead of
-/// excluding them (they are still reported).
+/// counted and takes about as long as one fold). Results are those of [`leave_one_out`].
 pub fn leave_one_out_with_progress(
+    drive: &DriveParams,
+    ident: &IdentifyParams,
+    logs: &[BenchLog],
+    effects: &[EffectName],
+    start: StartMode,
+    progress: &dyn crate::progress::Progress,
+) -> Result<LooTable, IdentifyError> {
+    leave_one_out_with_segments(drive, ident, logs, effects, start, false, progress)
+}
+
+/// [`leave_one_out_with_progress`]; `keep_segments` fits and scores the stretches of the
+/// logs flagged as not the drive ([`super::segments::detect`]) instead of excluding them
+/// (they are still reported, as `"kept"`).
+pub fn leave_one_out_with_segments(
     drive: &DriveParams,
     ident: &IdentifyParams,
     logs: &[BenchLog],

@@ -33,6 +33,10 @@ pub const STUCK_MIN_S: f64 = 0.1;
 /// constant reading for the reading to count as stuck.
 pub const STUCK_FACTOR: f64 = 4.0;
 
+/// An input stretch moving faster than this many times its motion's own peak speed is named
+/// a jerk (a held reading, which lags the motion, never reaches 1).
+pub const JERK_SPEED: f64 = 1.5;
+
 /// Shortest run of flagged samples that counts, s (an isolated outlier sample does not).
 pub const MIN_RUN_S: f64 = 0.01;
 
@@ -71,7 +75,7 @@ impl Reason {
     /// Words for the console, the JSON and the plots' legend.
     pub fn words(self, channel: Channel) -> String {
         match (self, channel) {
-            (Reason::Jerk, c) => format!("{c} jerk (far faster than its motion)"),
+            (Reason::Jerk, c) => format!("{c} jerk or jump (faster than its motion ever moves)"),
             (Reason::Departure, c) => format!("{c} departs from its motion"),
             (Reason::Stuck, Channel::Input) => "input stuck while output moves".into(),
             (Reason::Stuck, Channel::Output) => "output stuck while input moves".into(),
@@ -126,17 +130,39 @@ enum Shape {
 }
 
 /// The input's own periodic motion: `offset + a sin(w t) + b cos(w t)` for a sine, or
-/// `offset + amp tri(w t + phase)` for a triangle.
+/// `offset + amp tri(w t + phase, turn)` for a triangle.
 #[derive(Clone, Copy, Debug)]
 struct Motion {
     shape: Shape,
     w: f64,
     c: [f64; 3],
     phase: f64,
+    turn: f64,
 }
 
-fn tri(p: f64) -> f64 {
-    std::f64::consts::FRAC_2_PI * p.sin().asin()
+/// Triangle scan of unit amplitude in phase `p` (period 2 pi, rising through 0 at `p = 0`
+/// like a sine) whose turnarounds are parabolic over `turn` of each half period: the scan
+/// the scenarios' `triangle` motion makes.
+fn tri(p: f64, turn: f64) -> f64 {
+    let half = std::f64::consts::PI;
+    let tau = (p + 0.5 * half).rem_euclid(2.0 * half);
+    let (local, sign) = if tau < half {
+        (tau, 1.0)
+    } else {
+        (tau - half, -1.0)
+    };
+    let ta = 0.5 * turn.max(1e-3) * half;
+    let v = 2.0 / (half - ta);
+    let a = v / ta;
+    let y = if local < ta {
+        0.5 * a * local * local
+    } else if local <= half - ta {
+        0.5 * a * ta * ta + v * (local - ta)
+    } else {
+        let s = half - local;
+        2.0 - 0.5 * a * s * s
+    };
+    sign * (y - 1.0)
 }
 
 impl Motion {
@@ -145,7 +171,15 @@ impl Motion {
             Shape::Sine => {
                 self.c[0] + self.c[1] * (self.w * t).sin() + self.c[2] * (self.w * t).cos()
             }
-            Shape::Triangle => self.c[0] + self.c[1] * tri(self.w * t + self.phase),
+            Shape::Triangle => self.c[0] + self.c[1] * tri(self.w * t + self.phase, self.turn),
+        }
+    }
+
+    /// Amplitude, rad.
+    fn amplitude(&self) -> f64 {
+        match self.shape {
+            Shape::Sine => self.c[1].hypot(self.c[2]),
+            Shape::Triangle => self.c[1].abs(),
         }
     }
 
@@ -244,6 +278,7 @@ fn fit_motion(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
                     w,
                     c,
                     phase: 0.0,
+                    turn: 0.0,
                 },
                 sse,
             )
@@ -273,38 +308,77 @@ fn fit_motion(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
         }
     }
     let (s, s_sse) = sine(tau * 0.5 * (lo + hi))?;
-    // Triangle: a triangle's fundamental has its frequency and phase, so it starts from the
-    // sine's and only the phase is refined.
-    let triangle = |phase: f64| {
-        lsq(x, |i| [1.0, tri(s.w * t[i] + phase)], &sub).map(|(c2, sse)| {
+    // Triangle: a triangle's fundamental has about its frequency and phase, so it starts
+    // from the sine's; turnaround fraction, phase and frequency are then refined in turn.
+    let triangle = |w: f64, phase: f64, turn: f64| {
+        lsq(x, |i| [1.0, tri(w * t[i] + phase, turn)], &sub).map(|(c2, sse)| {
             (
                 Motion {
                     shape: Shape::Triangle,
-                    w: s.w,
+                    w,
                     c: [c2[0], c2[1], 0.0],
                     phase,
+                    turn,
                 },
                 sse,
             )
         })
     };
-    let p0 = s.c[2].atan2(s.c[1]);
-    let (mut lo, mut hi) = (p0 - 0.1, p0 + 0.1);
-    for _ in 0..20 {
-        let a = lo + (hi - lo) / 3.0;
-        let b = hi - (hi - lo) / 3.0;
-        let fa = triangle(a).map_or(f64::INFINITY, |r| r.1);
-        let fb = triangle(b).map_or(f64::INFINITY, |r| r.1);
-        if fa < fb {
-            hi = b;
-        } else {
-            lo = a;
-        }
+    let cost =
+        |w: f64, phase: f64, turn: f64| triangle(w, phase, turn).map_or(f64::INFINITY, |r| r.1);
+    let (mut w, mut phase): (f64, f64) = (s.w, s.c[2].atan2(s.c[1]));
+    // The turnaround fraction from a coarse grid first: the cost has side minima in it.
+    let mut turn = (1..20)
+        .map(|k| k as f64 * 0.05)
+        .map(|v| (cost(w, phase, v), v))
+        .fold((f64::INFINITY, 0.5), |a, b| if b.0 < a.0 { b } else { a })
+        .1;
+    let (mut dw, mut dp, mut dturn): (f64, f64, f64) = (0.01 * s.w, 0.1, 0.05);
+    for _ in 0..4 {
+        turn = golden(
+            |v| cost(w, phase, v),
+            (turn - dturn).max(0.001),
+            (turn + dturn).min(0.999),
+        );
+        phase = golden(|v| cost(w, v, turn), phase - dp, phase + dp);
+        // The phase is referred to t = 0: a frequency change turns it about the middle of
+        // the record.
+        let tm = 0.5 * (t[rows[0]] + t[*rows.last()?]);
+        let (w0, p0) = (w, phase);
+        w = golden(|v| cost(v, p0 - (v - w0) * tm, turn), w - dw, w + dw);
+        phase = p0 - (w - w0) * tm;
+        dw *= 0.3;
+        dp *= 0.3;
+        dturn *= 0.3;
     }
-    match triangle(0.5 * (lo + hi)) {
+    match triangle(w, phase, turn) {
         Some((m, sse)) if sse < s_sse => Some(m),
         _ => Some(s),
     }
+}
+
+/// Minimum of a unimodal `f` on `[lo, hi]` by golden-section search (30 steps).
+fn golden(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64) -> f64 {
+    let r = 0.5 * (5f64.sqrt() - 1.0);
+    let mut a = hi - r * (hi - lo);
+    let mut b = lo + r * (hi - lo);
+    let (mut fa, mut fb) = (f(a), f(b));
+    for _ in 0..30 {
+        if fa < fb {
+            hi = b;
+            b = a;
+            fb = fa;
+            a = hi - r * (hi - lo);
+            fa = f(a);
+        } else {
+            lo = a;
+            a = b;
+            fa = fb;
+            b = lo + r * (hi - lo);
+            fb = f(b);
+        }
+    }
+    0.5 * (lo + hi)
 }
 
 /// Runs of `flag` at least `min_len` long, as index ranges (inclusive start, exclusive end).
@@ -337,66 +411,91 @@ fn input_departures(t: &[f64], x: &[f64], q_in: f64, dt: f64) -> (Vec<Raw>, Opti
     let h = ((0.01 / dt).round() as usize).max(1);
     let min_len = ((MIN_RUN_S / dt).round() as usize).max(3);
     let pad = ((PAD_S / dt).round() as usize).max(1);
+    let all: Vec<usize> = (0..n).collect();
+    let Some(mut m) = fit_motion(t, x, &all) else {
+        return (Vec::new(), None);
+    };
+    let resid = |m: &Motion| -> Vec<f64> { (0..n).map(|i| x[i] - m.at(t[i])).collect() };
     let mut use_row = vec![true; n];
-    let mut found = Vec::new();
-    let mut motion = None;
-    // Twice: the second fit leaves out what the first flagged, so a large event does not
-    // bend the motion it is judged against.
-    for _ in 0..2 {
-        let rows: Vec<usize> = (0..n).filter(|i| use_row[*i]).collect();
-        let Some(m) = fit_motion(t, x, &rows) else {
-            return (Vec::new(), None);
-        };
-        motion = Some(m);
-        let r: Vec<f64> = (0..n).map(|i| x[i] - m.at(t[i])).collect();
-        let v: Vec<f64> = (0..n)
-            .map(|i| {
-                let a = i.saturating_sub(h);
-                let b = (i + h).min(n - 1);
-                (r[b] - r[a]) / (t[b] - t[a]).max(1e-300)
-            })
-            .collect();
-        let kept = |s: &[f64]| -> Vec<f64> {
-            s.iter()
-                .zip(&use_row)
-                .filter(|(_, u)| **u)
-                .map(|(v, _)| *v)
-                .collect()
-        };
-        let (sr, mr) = robust(&kept(&r));
-        let (sv, mv) = robust(&kept(&v));
-        // Floors: ten encoder steps, and the speed one step over the difference window
-        // reads, ten times; both far above what quantisation alone can produce.
-        let tr = (ROBUST_K * sr).max(10.0 * q_in).max(1e-12);
-        let tv = (ROBUST_K * sv)
-            .max(10.0 * q_in / (2.0 * h as f64 * dt))
-            .max(1e-12);
-        let far: Vec<bool> = r.iter().map(|e| (e - mr).abs() > tr).collect();
-        let fast: Vec<bool> = v.iter().map(|e| (e - mv).abs() > tv).collect();
-        found.clear();
-        for (a, b) in runs(&fast, min_len) {
-            found.push((Channel::Input, Reason::Jerk, a, b));
+    // Rows far off the motion (beyond a share of its amplitude, 1 % then 0.3 % then
+    // 0.1 %, and the robust threshold) are left out of the fit, with their padding, and the
+    // motion refitted: a fault then does not bend the motion it is judged against, while
+    // the motion's own shape (its turnarounds, which a bent fit also misses, by less) stays
+    // in the fit. A refit is kept only when it fits its rows better.
+    for share in [0.01, 0.003, 0.001] {
+        let r = resid(&m);
+        let (sr, mr) = robust(&r);
+        let gross = (ROBUST_K * sr).max(share * m.amplitude()).max(10.0 * q_in);
+        let far: Vec<usize> = (0..n).filter(|i| (r[*i] - mr).abs() > gross).collect();
+        if far.is_empty() {
+            continue;
         }
-        for (a, b) in runs(&far, min_len) {
-            // A jerk's excursion is part of the jerk, not a separate departure.
-            let inside = found
-                .iter()
-                .any(|f| f.1 == Reason::Jerk && f.2 <= b + pad && a <= f.3 + pad);
-            if !inside {
-                found.push((Channel::Input, Reason::Departure, a, b));
-            }
-        }
+        let before = use_row.clone();
         use_row = vec![true; n];
-        for f in &found {
-            for u in &mut use_row[f.2.saturating_sub(pad)..(f.3 + pad).min(n)] {
+        for i in far {
+            for u in &mut use_row[i.saturating_sub(pad)..(i + pad + 1).min(n)] {
                 *u = false;
             }
         }
-        if found.is_empty() {
-            break;
+        let rows: Vec<usize> = (0..n).filter(|i| use_row[*i]).collect();
+        let cost = |mm: &Motion| {
+            rows.iter()
+                .map(|&i| (x[i] - mm.at(t[i])).powi(2))
+                .sum::<f64>()
+        };
+        match fit_motion(t, x, &rows) {
+            Some(m2) if cost(&m2) <= cost(&m) => m = m2,
+            _ => {
+                use_row = before;
+                break;
+            }
         }
     }
-    (found, motion)
+    let r = resid(&m);
+    let v: Vec<f64> = (0..n)
+        .map(|i| {
+            let a = i.saturating_sub(h);
+            let b = (i + h).min(n - 1);
+            (r[b] - r[a]) / (t[b] - t[a]).max(1e-300)
+        })
+        .collect();
+    let kept = |s: &[f64]| -> Vec<f64> {
+        s.iter()
+            .zip(&use_row)
+            .filter(|(_, u)| **u)
+            .map(|(v, _)| *v)
+            .collect()
+    };
+    let (sr, mr) = robust(&kept(&r));
+    let (sv, mv) = robust(&kept(&v));
+    // Floors: ten encoder steps, and the speed one step over the difference window reads,
+    // ten times; both far above what quantisation alone can produce.
+    let tr = (ROBUST_K * sr).max(10.0 * q_in).max(1e-12);
+    let tv = (ROBUST_K * sv)
+        .max(10.0 * q_in / (2.0 * h as f64 * dt))
+        .max(1e-12);
+    // Flagged where the input is far off its motion or far faster than it; named a jerk
+    // when it moves faster than the motion itself ever does ([`JERK_SPEED`] times its
+    // peak speed), a departure otherwise.
+    let flag: Vec<bool> = (0..n)
+        .map(|i| (r[i] - mr).abs() > tr || (v[i] - mv).abs() > tv)
+        .collect();
+    let peak_speed = (1..n)
+        .map(|i| ((m.at(t[i]) - m.at(t[i - 1])) / (t[i] - t[i - 1]).max(1e-300)).abs())
+        .fold(0.0f64, f64::max);
+    let found = runs(&flag, min_len)
+        .into_iter()
+        .map(|(a, b)| {
+            let fastest = v[a..b].iter().fold(0.0f64, |p, e| p.max((e - mv).abs()));
+            let reason = if fastest > JERK_SPEED * peak_speed {
+                Reason::Jerk
+            } else {
+                Reason::Departure
+            };
+            (Channel::Input, reason, a, b)
+        })
+        .collect();
+    (found, Some(m))
 }
 
 /// Runs of exactly constant `x` at least [`STUCK_MIN_S`] long during which `other` moves
@@ -437,11 +536,12 @@ fn stuck(
     }
     // Through play at each reversal a reading holds while the other moves: the largest
     // travels of the log, about one per reversal; their median is the log's own deadband,
-    // and one stuck stretch among them does not move it.
+    // and one stuck stretch among them does not move it. A reversal without a held
+    // reading (play under one count, or noise dithering it) counts as no travel.
     let mut travels: Vec<f64> = all.iter().map(|r| r.2).collect();
     travels.sort_by(|p, q| q.total_cmp(p));
-    let top = &travels[..(reversals + 1).clamp(1, travels.len())];
-    let typical = median(top);
+    travels.resize(travels.len().max(reversals + 1), 0.0);
+    let typical = median(&travels[..reversals + 1]);
     let threshold = (STUCK_FACTOR * typical).max(20.0 * q).max(1e-9);
     all.into_iter()
         .filter(|(a, b, travel)| b - a >= min_len && *travel > threshold)
@@ -681,6 +781,27 @@ mod tests {
             (s[0].start_s - 9.95).abs() < 0.03 && (s[0].end_s - 10.25).abs() < 0.03,
             "{s:?}"
         );
+    }
+
+    #[test]
+    fn the_scenarios_triangle_scan_is_its_own_motion() {
+        let sig = crate::signal::Signal::Triangle {
+            amplitude_rad: 10.0,
+            frequency_hz: 0.1,
+            turn_fraction: 0.2,
+        };
+        let t: Vec<f64> = (0..3001).map(|i| i as f64 * 0.01).collect();
+        let x: Vec<f64> = t.iter().map(|t| sig.at(*t).value).collect();
+        for (k, v) in x.iter().enumerate().step_by(250) {
+            assert!((v - 10.0 * tri(std::f64::consts::TAU * 0.1 * t[k], 0.2)).abs() < 1e-9);
+        }
+        let rows: Vec<usize> = (0..t.len()).collect();
+        let m = fit_motion(&t, &x, &rows).expect("motion");
+        let worst = t
+            .iter()
+            .zip(&x)
+            .fold(0.0f64, |a, (t, x)| a.max((x - m.at(*t)).abs()));
+        assert!(worst < 1e-3, "{m:?}: {worst}");
     }
 
     #[test]
