@@ -247,6 +247,65 @@ fn exclusion_turns_a_stuck_output_back_into_none() {
     assert_eq!(listed, 1);
     assert_eq!(excluded, "none");
     assert_ne!(kept, "none");
+    // The written report lists it and its figures shade it.
+    let d = diagnose(&sc, std::slice::from_ref(&log), &opts()).expect("diagnosis");
+    let g = &d.excluded_segments[0];
+    assert_eq!(g.channel, Channel::Output);
+    assert!(g.start_s <= 12.3 && g.end_s >= 13.29, "{g:?}");
+    assert_eq!(d.traces[0].excluded.len(), 1);
+    assert!(d.traces[0].excluded[0]
+        .2
+        .starts_with("excluded: output stuck"));
+    let dir = std::env::temp_dir().join(format!("segments-report-{}", std::process::id()));
+    let files = cable_servo::report::diagnosis::write_diagnosis(&dir, &d, None).expect("report");
+    let text = std::fs::read_to_string(dir.join("report.txt")).expect("report.txt");
+    assert!(
+        text.contains("Not the drive:") && text.contains("output stuck"),
+        "{text}"
+    );
+    assert!(files.iter().any(|f| f.to_string_lossy().contains("error")));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Leave-one-out over two logs, one with a stuck output: the stretch is listed and its rows
+/// are not scored; kept on request.
+#[test]
+fn leave_one_out_excludes_the_stretch() {
+    use cable_servo::identify::loo::leave_one_out_with_segments;
+    let sc = scenario(false);
+    let ident = sc.identify.clone().unwrap_or_default();
+    let clean = truth(&sc, &[], 7000);
+    let mut faulty = truth(&sc, &[], 7001);
+    let a = faulty.t_s.iter().position(|t| *t >= 15.0).expect("inside");
+    let held = faulty.theta_out_rad[a] - 0.04;
+    for v in &mut faulty.theta_out_rad[a..a + 80] {
+        *v = held;
+    }
+    let logs = [clean, faulty];
+    let run = |keep: bool| {
+        leave_one_out_with_segments(
+            &sc.drive,
+            &ident,
+            &logs,
+            &[],
+            StartMode::Detect,
+            keep,
+            &cable_servo::progress::Silent,
+        )
+        .expect("leave-one-out")
+    };
+    let t = run(false);
+    assert_eq!(t.excluded_segments.len(), 1, "{:?}", t.excluded_segments);
+    assert_eq!(t.excluded_segments[0].channel, Channel::Output);
+    assert!(t.rows[1].rows < t.rows[0].rows, "{:?}", t.rows);
+    let k = run(true);
+    assert_eq!(k.excluded_segments[0].action, "kept");
+    assert_eq!(k.rows[1].rows, k.rows[0].rows);
+    eprintln!(
+        "faulty log held out: base {:.4} mrad excluded, {:.4} mrad kept",
+        t.rows[1].base_mrad, k.rows[1].base_mrad
+    );
+    assert!(t.rows[1].base_mrad < 0.1 * k.rows[1].base_mrad);
 }
 
 /// A hidden input-pulley runout under an input jerk (the output following): excluded, the

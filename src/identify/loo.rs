@@ -364,7 +364,8 @@ pub fn leave_one_out_with_segments(
             let mut ev = Evaluator::new(spec(drive, ident, effs), &prepared);
             let x0 = x0.filter(|x| x.len() == ev.nonlinear().len());
             let f = ev.fit(&train, x0, 30)?;
-            let (r, _) = ev.residual(&f, &train)?;
+            let (mut r, _) = ev.residual(&f, &train)?;
+            super::recenter_unfitted(&prepared, &mut r, &train, &keep);
             let held: Vec<f64> = r[ranges[k].clone()].to_vec();
             Ok(Fold {
                 held_rms: rms(&kept(&r, &ranges[k])),

@@ -194,6 +194,30 @@ fn with_base(drive: &DriveParams, spec_nl: &[(NlParam, f64, f64, f64)], x: &[f64
     d
 }
 
+/// For logs without a fitted row in `fit`, the encoder zero [`Evaluator::residual`] takes
+/// from the whole log, taken again from its rows in `keep` only: an excluded stretch (a
+/// reading stuck at a wrong value) must not set the zero the kept rows are scored about.
+pub(crate) fn recenter_unfitted(logs: &[Prepared], resid: &mut [f64], fit: &[bool], keep: &[bool]) {
+    let mut start = 0;
+    for l in logs {
+        let r = start..start + l.t.len();
+        start = r.end;
+        if fit[r.clone()].iter().any(|m| *m) {
+            continue;
+        }
+        let (sum, count) = r
+            .clone()
+            .filter(|i| keep[*i])
+            .fold((0.0, 0usize), |(s, c), i| (s + resid[i], c + 1));
+        if count > 0 && count < l.t.len() {
+            let mean = sum / count as f64;
+            for v in &mut resid[r] {
+                *v -= mean;
+            }
+        }
+    }
+}
+
 /// Held-out RMSE, held-out count and the fit on the final mask.
 type CvResult = Result<(f64, usize, Fitted), IdentifyError>;
 
@@ -206,6 +230,7 @@ fn cross_validate(
     fold_drives: &[DriveParams],
     folds: &[(Vec<bool>, Vec<bool>)],
     full_mask: &[bool],
+    keep: &[bool],
     effects: &[EffectName],
 ) -> CvResult {
     let mut ev = Evaluator::new(spec_for(full_drive, ident, effects, false), logs);
@@ -214,7 +239,8 @@ fn cross_validate(
     for ((train, test), drive) in folds.iter().zip(fold_drives) {
         let mut evf = Evaluator::new(spec_for(drive, ident, effects, false), logs);
         let f = evf.fit(train, Some(&full.x), 10)?;
-        let (r, _) = evf.residual(&f, train)?;
+        let (mut r, _) = evf.residual(&f, train)?;
+        recenter_unfitted(logs, &mut r, train, keep);
         held.extend(r.iter().zip(test).filter(|(_, t)| **t).map(|(r, _)| *r));
     }
     Ok((rms(held.iter().copied()), held.len(), full))
@@ -311,7 +337,8 @@ pub fn diagnose_with_progress(
     }
     let rmse_base = rms(held.iter().copied());
     let n_held = held.len().max(1) as f64;
-    let (base_resid, base_pred) = ev.residual(&base_fit, &split.full)?;
+    let (mut base_resid, base_pred) = ev.residual(&base_fit, &split.full)?;
+    recenter_unfitted(&prepared, &mut base_resid, &split.full, &keep);
     let ic_fit = fitted_ratio(&drive0, &base_fit);
     let floor = noise_floor(&prepared, &base_resid, &keep, ic_fit).max(1e-12);
 
@@ -356,6 +383,7 @@ pub fn diagnose_with_progress(
                     &fold_drives,
                     &split.folds,
                     &split.full,
+                    &keep,
                     &effs,
                 );
                 judged.tick();
@@ -502,7 +530,8 @@ pub fn diagnose_with_progress(
         }
     };
     let nl_final = ev_final.nonlinear();
-    let (ext_resid, ext_pred) = ev_final.residual(&ext_fit, &split.full)?;
+    let (mut ext_resid, ext_pred) = ev_final.residual(&ext_fit, &split.full)?;
+    recenter_unfitted(&prepared, &mut ext_resid, &split.full, &keep);
     let kept_resid: Vec<f64> = ext_resid
         .iter()
         .zip(&keep)
@@ -549,7 +578,16 @@ pub fn diagnose_with_progress(
         Some(outer) => {
             let folds = std::slice::from_ref(outer);
             let bd = std::slice::from_ref(&base_drive);
-            let b = cross_validate(&prepared, &ident, &base_drive, bd, folds, &split.full, &[])?;
+            let b = cross_validate(
+                &prepared,
+                &ident,
+                &base_drive,
+                bd,
+                folds,
+                &split.full,
+                &keep,
+                &[],
+            )?;
             let drives = std::slice::from_ref(&full_drive);
             let e = if chosen.is_empty() {
                 b.0
@@ -561,6 +599,7 @@ pub fn diagnose_with_progress(
                     drives,
                     folds,
                     &split.full,
+                    &keep,
                     &chosen,
                 )?
                 .0
