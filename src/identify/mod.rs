@@ -223,6 +223,7 @@ type CvResult = Result<(f64, usize, Fitted), IdentifyError>;
 
 /// Cross-validated held-out residuals of a model with `effects` on top of per-fold base
 /// drives; returns (held-out RMSE, held-out count, fit on the final mask).
+#[allow(clippy::too_many_arguments)]
 fn cross_validate(
     logs: &[Prepared],
     ident: &IdentifyParams,
