@@ -310,6 +310,11 @@ enum Command {
         /// the one left out beside a play operator fitted to it (needs two or more logs).
         #[arg(long = "leave-one-out")]
         leave_one_out: bool,
+        /// Fit and score the stretches flagged as not the drive (a jerk, a stuck reading,
+        /// a departure from the input's motion) instead of excluding them; they are still
+        /// reported, marked "kept".
+        #[arg(long = "keep-segments")]
+        keep_segments: bool,
         /// Effect of the extension scored by --leave-one-out (repeatable; default: the
         /// scenario's [identify] candidates).
         #[arg(long = "extension", value_name = "EFFECT")]
@@ -749,6 +754,7 @@ fn main() -> ExitCode {
             holdout,
             cut_start,
             leave_one_out,
+            keep_segments,
             extension,
             out,
             json,
@@ -776,6 +782,7 @@ fn main() -> ExitCode {
             let options = cable_servo::identify::DiagnoseOptions {
                 holdout_logs: holdout,
                 start,
+                keep_segments,
                 ..Default::default()
             };
             if leave_one_out {
@@ -798,6 +805,7 @@ fn main() -> ExitCode {
                     &data,
                     &effects,
                     start,
+                    keep_segments,
                     &OutputOptions { dir, force },
                     json.as_deref(),
                     save_model.as_deref(),

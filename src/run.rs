@@ -975,6 +975,7 @@ pub fn run_leave_one_out(
         paths,
         effects,
         start,
+        false,
         out,
         json,
         save_model,
@@ -983,13 +984,15 @@ pub fn run_leave_one_out(
 }
 
 /// [`run_leave_one_out`], reporting each log held out to `progress`
-/// ([`crate::identify::loo::leave_one_out_with_progress`]).
+/// ([`crate::identify::loo::leave_one_out_with_segments`]); `keep_segments` fits and scores
+/// the stretches flagged as not the drive instead of excluding them.
 #[allow(clippy::too_many_arguments)]
 pub fn run_leave_one_out_with_progress(
     scenario: &Scenario,
     paths: &[PathBuf],
     effects: &[crate::identify::EffectName],
     start: crate::identify::startup::StartMode,
+    keep_segments: bool,
     out: &OutputOptions,
     json: Option<&Path>,
     save_model: Option<&Path>,
@@ -1005,12 +1008,13 @@ pub fn run_leave_one_out_with_progress(
         .iter()
         .map(|p| crate::io::benchlog::read_bench_log(p))
         .collect::<Result<_, _>>()?;
-    let table = crate::identify::loo::leave_one_out_with_progress(
+    let table = crate::identify::loo::leave_one_out_with_segments(
         &scenario.drive,
         &ident,
         &logs,
         &effects,
         start,
+        keep_segments,
         progress,
     )?;
     let text = crate::identify::loo::loo_text(&table);

@@ -56,7 +56,13 @@ fn the_calibrated_scenario_replays_to_the_held_out_error_of_its_fold() {
     let log = read_bench_log(&log_path).expect("log");
     let (cut, _) = startup::cut_start(&log, startup::StartMode::Detect);
     let p = model::prepare(&cut, ident.max_rate_hz).expect("prepared");
-    let s = baseline::score(&sc.drive, &fx, std::slice::from_ref(&p)).expect("replay");
+    let s = baseline::score(
+        &sc.drive,
+        &fx,
+        std::slice::from_ref(&p),
+        &vec![true; p.t.len()],
+    )
+    .expect("replay");
     let want = guide_tool4_00();
     assert!(
         (s.rmse_mrad - want).abs() <= 0.006,

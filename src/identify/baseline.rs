@@ -18,23 +18,32 @@ pub struct CalibratedScore {
     pub rmse_mrad: f64,
     /// The same per log, in input order, mrad.
     pub per_log_mrad: Vec<f64>,
-    /// Residual, stacked over the logs, rad (for the signatures).
+    /// Residual on every row (excluded ones too), stacked over the logs, rad (for the
+    /// signatures, which take the same mask).
     #[serde(skip)]
     pub residual: Vec<f64>,
 }
 
-/// Replay `drive` with `effects` on `logs` and score it, fitting only each log's encoder
-/// zero (the mean of its residual). Typical: a few ms per 20 s log.
+/// Replay `drive` with `effects` on `logs` and score it on the rows `keep` (stacked over
+/// the logs; rows of stretches that are not the drive are false), fitting only each log's
+/// encoder zero (the mean of its kept residual). The replay runs through every row in time
+/// order. Typical: a few ms per 20 s log.
 pub fn score(
     drive: &DriveParams,
     effects: &EffectsParams,
     logs: &[Prepared],
+    keep: &[bool],
 ) -> Result<CalibratedScore, IdentifyError> {
     let ic = drive.ratio();
     let mut residual = Vec::new();
     let mut per_log = Vec::with_capacity(logs.len());
     let (mut sum, mut count) = (0.0, 0usize);
+    let mut row = 0;
     for l in logs {
+        let kept: Vec<bool> = (row..row + l.t.len())
+            .map(|i| keep.get(i).copied().unwrap_or(true))
+            .collect();
+        row += l.t.len();
         let mb = effects.bearing_friction();
         let torque: Vec<f64> = l
             .torque
@@ -69,11 +78,17 @@ pub fn score(
                 th_out - th_in / ic - pred
             })
             .collect();
-        let zero = r.iter().sum::<f64>() / r.len().max(1) as f64;
-        let ss: f64 = r.iter().map(|v| (v - zero) * (v - zero)).sum();
-        per_log.push((ss / r.len().max(1) as f64).sqrt() * 1e3);
+        let used: Vec<f64> = r
+            .iter()
+            .zip(&kept)
+            .filter(|(_, k)| **k)
+            .map(|(v, _)| *v)
+            .collect();
+        let zero = used.iter().sum::<f64>() / used.len().max(1) as f64;
+        let ss: f64 = used.iter().map(|v| (v - zero) * (v - zero)).sum();
+        per_log.push((ss / used.len().max(1) as f64).sqrt() * 1e3);
         sum += ss;
-        count += r.len();
+        count += used.len();
         residual.extend(r.iter().map(|v| v - zero));
     }
     Ok(CalibratedScore {

@@ -69,16 +69,29 @@ pub fn binned_structure(resid: &[f64], signal: &[f64]) -> f64 {
 /// How strongly `resid` (rad, the logs' samples in order) follows the input angle, the
 /// transmitted load and the input velocity of `logs`: the RMS of its bin means along each
 /// ([`binned_structure`]), over the noise floor `floor` (rad); strongest first.
+/// Only rows in `keep` count.
 pub fn residual_signatures(
     logs: &[Prepared],
     resid: &[f64],
+    keep: &[bool],
     floor: f64,
 ) -> Vec<super::ResidualSignature> {
     let along = |pick: fn(&Prepared) -> &[f64]| -> Vec<f64> {
-        logs.iter().flat_map(|l| pick(l).iter().copied()).collect()
+        logs.iter()
+            .flat_map(|l| pick(l).iter().copied())
+            .zip(keep)
+            .filter(|(_, k)| **k)
+            .map(|(v, _)| v)
+            .collect()
     };
+    let resid: Vec<f64> = resid
+        .iter()
+        .zip(keep)
+        .filter(|(_, k)| **k)
+        .map(|(r, _)| *r)
+        .collect();
     signatures(
-        resid,
+        &resid,
         &[
             ("input angle", along(|l| &l.th_in)),
             ("transmitted load", along(|l| &l.torque)),
@@ -109,11 +122,11 @@ fn signatures(
     out
 }
 
-fn residual_verdict(p: &Prepared, resid: &[f64], rmse: f64, floor: f64) -> String {
+fn residual_verdict(p: &Prepared, resid: &[f64], keep: &[bool], rmse: f64, floor: f64) -> String {
     if rmse <= 2.0 * floor {
         return "within twice the noise floor".into();
     }
-    match residual_signatures(std::slice::from_ref(p), resid, floor)
+    match residual_signatures(std::slice::from_ref(p), resid, keep, floor)
         .first()
         .filter(|g| g.ratio_to_floor > 1.0)
     {
@@ -141,6 +154,9 @@ pub struct LooTable {
     pub on_bound: Vec<String>,
     /// What was cut from each log's start.
     pub start_cuts: Vec<StartCut>,
+    /// Stretches of the logs that are not the drive ([`super::segments::detect`]), neither
+    /// fitted nor scored unless `action` is `"kept"`; empty when nothing was flagged.
+    pub excluded_segments: Vec<super::segments::Segment>,
     /// How far input-pulley runout can be told from a ratio shape over the stroke (0..1).
     pub runout_separability: f64,
     /// Limits and warnings in words.
@@ -279,6 +295,21 @@ pub fn leave_one_out_with_progress(
     start: StartMode,
     progress: &dyn crate::progress::Progress,
 ) -> Result<LooTable, IdentifyError> {
+    leave_one_out_with_segments(drive, ident, logs, effects, start, false, progress)
+}
+
+/// [`leave_one_out_with_progress`]; `keep_segments` fits and scores the stretches of the
+/// logs flagged as not the drive ([`super::segments::detect`]) instead of excluding them
+/// (they are still reported, as `"kept"`).
+pub fn leave_one_out_with_segments(
+    drive: &DriveParams,
+    ident: &IdentifyParams,
+    logs: &[BenchLog],
+    effects: &[EffectName],
+    start: StartMode,
+    keep_segments: bool,
+    progress: &dyn crate::progress::Progress,
+) -> Result<LooTable, IdentifyError> {
     if logs.len() < 2 {
         return Err(IdentifyError::Config {
             key: "leave-one-out".into(),
@@ -295,6 +326,8 @@ pub fn leave_one_out_with_progress(
         .map(|l| model::prepare(l, ident.max_rate_hz))
         .collect::<Result<_, _>>()?;
     check_logs(&cut, &prepared)?;
+    let (segments, keep_per_log) = super::segments::detect_all(&cut, &prepared, keep_segments);
+    let keep: Vec<bool> = keep_per_log.iter().flatten().copied().collect();
     let n: usize = prepared.iter().map(|p| p.t.len()).sum();
     let ranges: Vec<std::ops::Range<usize>> = prepared
         .iter()
@@ -306,20 +339,29 @@ pub fn leave_one_out_with_progress(
         .collect();
 
     let fold = |k: usize| -> Result<(LooRow, Vec<f64>), IdentifyError> {
-        let train: Vec<bool> = (0..n).map(|i| !ranges[k].contains(&i)).collect();
+        let train: Vec<bool> = (0..n).map(|i| !ranges[k].contains(&i) && keep[i]).collect();
+        let kept = |r: &[f64], g: &std::ops::Range<usize>| -> Vec<f64> {
+            r[g.clone()]
+                .iter()
+                .zip(&keep[g.clone()])
+                .filter(|(_, k)| **k)
+                .map(|(v, _)| *v)
+                .collect()
+        };
         // The extension starts from the base calibration when it adds no nonlinear
         // parameter (the layouts agree), which saves most of its iterations.
         let score = |effs: &[EffectName], x0: Option<&[f64]>| -> Result<Fold, IdentifyError> {
             let mut ev = Evaluator::new(spec(drive, ident, effs), &prepared);
             let x0 = x0.filter(|x| x.len() == ev.nonlinear().len());
             let f = ev.fit(&train, x0, 30)?;
-            let (r, _) = ev.residual(&f, &train)?;
+            let (mut r, _) = ev.residual(&f, &train)?;
+            super::recenter_unfitted(&prepared, &mut r, &train, &keep);
             let held: Vec<f64> = r[ranges[k].clone()].to_vec();
             Ok(Fold {
-                held_rms: rms(&held),
+                held_rms: rms(&kept(&r, &ranges[k])),
                 held,
                 x: f.x,
-                per_log_rms: ranges.iter().map(|g| rms(&r[g.clone()])).collect(),
+                per_log_rms: ranges.iter().map(|g| rms(&kept(&r, g))).collect(),
             })
         };
         let base_fold = score(&[], None)?;
@@ -331,12 +373,12 @@ pub fn leave_one_out_with_progress(
             ..
         } = score(effects, Some(&xb))?;
         let one = std::slice::from_ref(&prepared[k]);
-        let all = vec![true; prepared[k].t.len()];
-        let folds = super::block_folds(one, ident.holdout_blocks, &all);
+        let keep_k = &keep_per_log[k];
+        let folds = super::block_folds(one, ident.holdout_blocks, keep_k);
         let play = play::cross_validate(one, drive, ident, &folds)
             .ok()
             .map(|b| b.rmse_heldout_mrad);
-        let floor = super::noise_floor(one, &ext_resid, drive.ratio());
+        let floor = super::noise_floor(one, &ext_resid, keep_k, drive.ratio());
         let q = {
             let p = &prepared[k];
             ((p.q_out.powi(2) + (p.q_in / drive.ratio()).powi(2)) / 12.0).sqrt()
@@ -347,12 +389,12 @@ pub fn leave_one_out_with_progress(
         Ok((
             LooRow {
                 log: prepared[k].source.clone(),
-                rows: prepared[k].t.len(),
+                rows: keep_k.iter().filter(|k| **k).count(),
                 base_mrad: base * 1e3,
                 extended_mrad: ext * 1e3,
                 play_mrad: play,
                 floor_mrad: floor * 1e3,
-                residual: residual_verdict(&prepared[k], &ext_resid, ext, floor),
+                residual: residual_verdict(&prepared[k], &ext_resid, keep_k, ext, floor),
                 pull_percent: 0.0,
             },
             others,
@@ -370,7 +412,7 @@ pub fn leave_one_out_with_progress(
         .collect::<Result<_, _>>()?;
 
     // Joint calibration on every log: the shared parameters and how well they are pinned.
-    let all = vec![true; n];
+    let all = keep.clone();
     let mut ev = Evaluator::new(spec(drive, ident, effects), &prepared);
     let f: Fitted = ev.fit(&all, None, 40)?;
     let nl = ev.nonlinear();
@@ -424,7 +466,15 @@ pub fn leave_one_out_with_progress(
     let (joint_resid, _) = ev.residual(&f, &all)?;
     let joint: Vec<f64> = ranges
         .iter()
-        .map(|g| rms(&joint_resid[g.clone()]))
+        .map(|g| {
+            let v: Vec<f64> = joint_resid[g.clone()]
+                .iter()
+                .zip(&keep[g.clone()])
+                .filter(|(_, k)| **k)
+                .map(|(v, _)| *v)
+                .collect();
+            rms(&v)
+        })
         .collect();
     let mut rows = Vec::with_capacity(folds.len());
     let mut pulling = Vec::new();
@@ -490,6 +540,7 @@ pub fn leave_one_out_with_progress(
         not_pinned,
         on_bound,
         start_cuts,
+        excluded_segments: segments.into_iter().flatten().collect(),
         runout_separability: sep,
         notes,
         disagreeing: pulling,
@@ -541,6 +592,9 @@ pub fn loo_text(t: &LooTable) -> String {
     );
     for c in t.start_cuts.iter().filter(|c| c.cut_s > 0.0) {
         let _ = writeln!(s, "Start-up: {}: {}", c.log, c.reason);
+    }
+    for g in &t.excluded_segments {
+        let _ = writeln!(s, "{}", super::segments::describe(g));
     }
     let _ = writeln!(
         s,

@@ -16,6 +16,7 @@ pub mod model;
 pub mod play;
 pub mod records;
 pub mod resolution;
+pub mod segments;
 pub mod startup;
 pub mod synth;
 pub mod whiteness;
@@ -42,10 +43,12 @@ struct Split {
     text: String,
 }
 
+/// `keep` marks the rows outside excluded segments: every mask is restricted to them.
 fn make_split(
     logs: &[Prepared],
     ident: &IdentifyParams,
     opts: &DiagnoseOptions,
+    keep: &[bool],
 ) -> Result<Split, IdentifyError> {
     let n: usize = logs.iter().map(|l| l.t.len()).sum();
     if !opts.holdout_logs.is_empty() {
@@ -66,7 +69,10 @@ fn make_split(
             let held = opts.holdout_logs.contains(&k);
             train.extend(std::iter::repeat_n(!held, l.t.len()));
         }
-        let test: Vec<bool> = train.iter().map(|t| !t).collect();
+        let test: Vec<bool> = train.iter().zip(keep).map(|(t, k)| !t && *k).collect();
+        for (t, k) in train.iter_mut().zip(keep) {
+            *t &= *k;
+        }
         let names: Vec<&str> = opts
             .holdout_logs
             .iter()
@@ -84,7 +90,8 @@ fn make_split(
             ),
         });
     }
-    let all = vec![true; n];
+    let all = keep.to_vec();
+    debug_assert_eq!(all.len(), n);
     Ok(Split {
         folds: block_folds(logs, ident.holdout_blocks, &all),
         outer: None,
@@ -129,13 +136,23 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
 }
 
 /// Noise floor of the residual: robust high-frequency spread, or quantisation when larger.
-pub(crate) fn noise_floor(logs: &[Prepared], resid: &[f64], ic: f64) -> f64 {
+/// Only differences between neighbouring rows both in `keep` count.
+pub(crate) fn noise_floor(logs: &[Prepared], resid: &[f64], keep: &[bool], ic: f64) -> f64 {
     let mut d: Vec<f64> = Vec::new();
     let mut start = 0;
     for l in logs {
-        let r = &resid[start..start + l.t.len()];
-        d.extend(r.windows(2).map(|w| (w[1] - w[0]).abs()));
-        start += l.t.len();
+        let r = start..start + l.t.len();
+        d.extend(
+            resid[r.clone()]
+                .windows(2)
+                .zip(keep[r.clone()].windows(2))
+                .filter(|(_, k)| k[0] && k[1])
+                .map(|(w, _)| (w[1] - w[0]).abs()),
+        );
+        start = r.end;
+    }
+    if d.is_empty() {
+        d.push(0.0);
     }
     d.sort_by(|a, b| a.total_cmp(b));
     // RMS of first differences (exact for white noise of any distribution, including
@@ -180,6 +197,30 @@ fn with_base(drive: &DriveParams, spec_nl: &[(NlParam, f64, f64, f64)], x: &[f64
     d
 }
 
+/// For logs without a fitted row in `fit`, the encoder zero [`Evaluator::residual`] takes
+/// from the whole log, taken again from its rows in `keep` only: an excluded stretch (a
+/// reading stuck at a wrong value) must not set the zero the kept rows are scored about.
+pub(crate) fn recenter_unfitted(logs: &[Prepared], resid: &mut [f64], fit: &[bool], keep: &[bool]) {
+    let mut start = 0;
+    for l in logs {
+        let r = start..start + l.t.len();
+        start = r.end;
+        if fit[r.clone()].iter().any(|m| *m) {
+            continue;
+        }
+        let (sum, count) = r
+            .clone()
+            .filter(|i| keep[*i])
+            .fold((0.0, 0usize), |(s, c), i| (s + resid[i], c + 1));
+        if count > 0 && count < l.t.len() {
+            let mean = sum / count as f64;
+            for v in &mut resid[r] {
+                *v -= mean;
+            }
+        }
+    }
+}
+
 /// Held-out RMSE, held-out count and the fit on the final mask.
 type CvResult = Result<(f64, usize, Fitted), IdentifyError>;
 
@@ -203,6 +244,7 @@ fn failed_score(name: String, round: usize, err: &IdentifyError) -> CandidateSco
 
 /// Cross-validated held-out residuals of a model with `effects` on top of per-fold base
 /// drives; returns (held-out RMSE, held-out count, fit on the final mask).
+#[allow(clippy::too_many_arguments)]
 fn cross_validate(
     logs: &[Prepared],
     ident: &IdentifyParams,
@@ -210,6 +252,7 @@ fn cross_validate(
     fold_drives: &[DriveParams],
     folds: &[(Vec<bool>, Vec<bool>)],
     full_mask: &[bool],
+    keep: &[bool],
     effects: &[EffectName],
 ) -> CvResult {
     let mut ev = Evaluator::new(spec_for(full_drive, ident, effects, false), logs);
@@ -218,7 +261,8 @@ fn cross_validate(
     for ((train, test), drive) in folds.iter().zip(fold_drives) {
         let mut evf = Evaluator::new(spec_for(drive, ident, effects, false), logs);
         let f = evf.fit(train, Some(&full.x), 10)?;
-        let (r, _) = evf.residual(&f, train)?;
+        let (mut r, _) = evf.residual(&f, train)?;
+        recenter_unfitted(logs, &mut r, train, keep);
         held.extend(r.iter().zip(test).filter(|(_, t)| **t).map(|(r, _)| *r));
     }
     Ok((rms(held.iter().copied()), held.len(), full))
@@ -295,7 +339,10 @@ pub fn diagnose_with_progress(
         .iter()
         .map(|l| model::prepare(l, ident.max_rate_hz))
         .collect::<Result<_, _>>()?;
-    let split = make_split(&prepared, &ident, options)?;
+    let (segments_per_log, keep_per_log) =
+        segments::detect_all(&cut_logs, &prepared, options.keep_segments);
+    let keep: Vec<bool> = keep_per_log.iter().flatten().copied().collect();
+    let split = make_split(&prepared, &ident, options, &keep)?;
     let drive0 = scenario.drive.clone();
 
     // Base model: full calibration, then per fold from there.
@@ -315,9 +362,10 @@ pub fn diagnose_with_progress(
     }
     let rmse_base = rms(held.iter().copied());
     let n_held = held.len().max(1) as f64;
-    let (base_resid, base_pred) = ev.residual(&base_fit, &split.full)?;
+    let (mut base_resid, base_pred) = ev.residual(&base_fit, &split.full)?;
+    recenter_unfitted(&prepared, &mut base_resid, &split.full, &keep);
     let ic_fit = fitted_ratio(&drive0, &base_fit);
-    let floor = noise_floor(&prepared, &base_resid, ic_fit).max(1e-12);
+    let floor = noise_floor(&prepared, &base_resid, &keep, ic_fit).max(1e-12);
 
     // Candidates.
     let ratio_free = ident.is_unknown("ratio");
@@ -361,6 +409,7 @@ pub fn diagnose_with_progress(
                     &fold_drives,
                     &split.folds,
                     &split.full,
+                    &keep,
                     &effs,
                 );
                 judged.tick();
@@ -452,6 +501,7 @@ pub fn diagnose_with_progress(
                         &fold_drives,
                         &split.folds,
                         &split.full,
+                        &keep,
                         &effs,
                     );
                     ((*a, *b), r)
@@ -574,8 +624,15 @@ pub fn diagnose_with_progress(
         }
     };
     let nl_final = ev_final.nonlinear();
-    let (ext_resid, ext_pred) = ev_final.residual(&ext_fit, &split.full)?;
-    let residual_whiteness = whiteness::ljung_box(&ext_resid, 10, 150);
+    let (mut ext_resid, ext_pred) = ev_final.residual(&ext_fit, &split.full)?;
+    recenter_unfitted(&prepared, &mut ext_resid, &split.full, &keep);
+    let kept_resid: Vec<f64> = ext_resid
+        .iter()
+        .zip(&keep)
+        .filter(|(_, k)| **k)
+        .map(|(r, _)| *r)
+        .collect();
+    let residual_whiteness = whiteness::ljung_box(&kept_resid, 10, 150);
     let np = nl_final.len() + ext_fit.coef.len();
     let analysis = ev_final
         .identifiability(&ext_fit, &split.full)
@@ -636,7 +693,16 @@ pub fn diagnose_with_progress(
         Some(outer) => {
             let folds = std::slice::from_ref(outer);
             let bd = std::slice::from_ref(&base_drive);
-            let b = cross_validate(&prepared, &ident, &base_drive, bd, folds, &split.full, &[])?;
+            let b = cross_validate(
+                &prepared,
+                &ident,
+                &base_drive,
+                bd,
+                folds,
+                &split.full,
+                &keep,
+                &[],
+            )?;
             let drives = std::slice::from_ref(&full_drive);
             let e = if chosen.is_empty() {
                 b.0
@@ -648,6 +714,7 @@ pub fn diagnose_with_progress(
                     drives,
                     folds,
                     &split.full,
+                    &keep,
                     &chosen,
                 )?
                 .0
@@ -729,19 +796,23 @@ pub fn diagnose_with_progress(
             base_rad,
             extended_rad,
             held_out: options.holdout_logs.contains(&k),
+            excluded: segments::shades(
+                &segments_per_log[k],
+                cut_logs[k].t_s.first().copied().unwrap_or(0.0),
+            ),
         });
         start = r.end;
     }
 
-    let residual_signatures = loo::residual_signatures(&prepared, &ext_resid, floor);
+    let residual_signatures = loo::residual_signatures(&prepared, &ext_resid, &keep, floor);
     // The instrument as calibrated, judged on these logs before anything is refitted.
     let calibrated_model = match scenario.effects {
         Some(fx) if *fx != EffectsParams::default() => {
-            let c = baseline::score(&drive0, fx, &prepared)?;
+            let c = baseline::score(&drive0, fx, &prepared, &keep)?;
             Some(CalibratedModelScore {
                 rmse_mrad: c.rmse_mrad,
                 per_log_mrad: c.per_log_mrad,
-                residual_signatures: loo::residual_signatures(&prepared, &c.residual, floor),
+                residual_signatures: loo::residual_signatures(&prepared, &c.residual, &keep, floor),
             })
         }
         _ => None,
@@ -771,6 +842,7 @@ pub fn diagnose_with_progress(
             .map(|l| (l.source.clone(), l.extra_columns.clone()))
             .collect(),
         start_cuts,
+        excluded_segments: segments_per_log.into_iter().flatten().collect(),
         drive: drive_out,
         effects: effects_out,
         traces,

@@ -65,6 +65,9 @@ pub struct DiagnoseOptions {
     /// Start-up handling: detect a load step at each log's start (default) or cut a fixed
     /// time; what is cut is neither fitted nor scored.
     pub start: startup::StartMode,
+    /// Fit and score the stretches [`super::segments::detect`] flags as not the drive
+    /// (they are still reported, as `"kept"`); default false: they are excluded.
+    pub keep_segments: bool,
 }
 
 /// One estimated parameter.
@@ -160,6 +163,9 @@ pub struct Trace {
     pub extended_rad: Vec<f64>,
     /// Whether the sample was held out in the log-level split.
     pub held_out: bool,
+    /// Stretches flagged as not the drive, in this trace's time: (from, to, legend label),
+    /// s.
+    pub excluded: Vec<(f64, f64, String)>,
 }
 
 /// How strongly the extended model's residual follows one logged variable: the RMS of the
@@ -252,6 +258,10 @@ pub struct Diagnosis {
     pub calibrated_model: Option<CalibratedModelScore>,
     /// What was cut from the start of each log (start-up transient), in `logs` order.
     pub start_cuts: Vec<startup::StartCut>,
+    /// Stretches of the logs that are not the drive (a jerk, a stuck reading, a departure
+    /// from the input's motion), in `logs` order then time; their rows are neither fitted
+    /// nor scored unless `action` is `"kept"`. Empty when nothing was flagged.
+    pub excluded_segments: Vec<super::segments::Segment>,
     /// Calibrated drive.
     pub drive: DriveParams,
     /// Identified effects, as stored in a scenario.

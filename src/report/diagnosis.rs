@@ -73,6 +73,9 @@ pub fn summary_text(d: &Diagnosis) -> String {
     for c in d.start_cuts.iter().filter(|c| c.cut_s > 0.0) {
         let _ = writeln!(s, "Start-up: {}: {}", c.log, c.reason);
     }
+    for g in &d.excluded_segments {
+        let _ = writeln!(s, "{}", crate::identify::segments::describe(g));
+    }
     for f in &d.fits_on_limit {
         let _ = writeln!(
             s,
@@ -266,7 +269,18 @@ pub fn write_diagnosis(
 /// Error traces and residual signatures: the shape of the residual against time, input
 /// angle, output angle, transmitted load and velocity is what names a cause.
 fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
-    use crate::plot::{save_chart, save_panels, Chart, HBand, Series};
+    use crate::plot::{save_chart, save_panels, Chart, HBand, Series, XShade};
+    // Stretches flagged as not the drive, shaded on a log's time axis.
+    let shades = |t: &crate::identify::Trace| -> Vec<XShade> {
+        t.excluded
+            .iter()
+            .map(|(lo, hi, label)| XShade {
+                lo: *lo,
+                hi: *hi,
+                label: label.clone(),
+            })
+            .collect()
+    };
     let perr = |e: crate::plot::PlotError| IdentifyError::Write {
         path: dir.display().to_string(),
         message: e.to_string(),
@@ -310,6 +324,7 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
                 Series::line("base model", t.t_s.clone(), mr(&t.base_rad)),
                 Series::line("extended model", t.t_s.clone(), mr(&t.extended_rad)),
             ],
+            x_shades: shades(t),
             ..Chart::default()
         });
     }
@@ -356,7 +371,23 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
         };
     for base in [true, false] {
         let charts = vec![
-            against("time (s)", &|t| t.t_s.clone(), base),
+            Chart {
+                // Every log's flagged stretches on the shared time axis, named by log when
+                // there are several.
+                x_shades: d
+                    .traces
+                    .iter()
+                    .flat_map(|t| {
+                        shades(t).into_iter().map(|mut s| {
+                            if d.traces.len() > 1 {
+                                s.label = format!("{}: {}", short(&t.log), s.label);
+                            }
+                            s
+                        })
+                    })
+                    .collect(),
+                ..against("time (s)", &|t| t.t_s.clone(), base)
+            },
             against("input angle (rad)", &|t| t.theta_in_rad.clone(), base),
             against("output angle (rad)", &|t| t.theta_out_rad.clone(), base),
             against("transmitted load (N m)", &|t| t.load_nm.clone(), base),

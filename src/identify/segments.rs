@@ -1,0 +1,827 @@
+//! Stretches of a bench log that are not the drive, kept out of fitting and scoring.
+//!
+//! Real benches record events the quasi-static drive model has no business explaining: the
+//! input spindle jerked by its motor (a rad in a fifth of a second, the output following
+//! dynamically), an encoder reading that drops to a wrong value and holds it while the
+//! other channel moves on, an input that leaves its commanded motion for a moment. Fitted as
+//! physics, such a stretch of a few hundred milliseconds can outweigh every effect the
+//! diagnosis looks for. Each detector judges the log by its own statistics (median and MAD
+//! of the quantity it watches) so that encoder quantisation and sensor noise, which set
+//! those statistics, never trigger on a clean log; everything is linear in the log length.
+
+use serde::Serialize;
+
+use crate::measurement::BenchLog;
+
+/// Padding added on each side of a flagged stretch, s: covers the detectors' own windows
+/// (10 ms differences) and the 25 ms derivative windows of the prepared velocities, so no
+/// kept row is computed from a flagged sample.
+pub const PAD_S: f64 = 0.05;
+
+/// A departure or a speed beyond this many robust standard deviations (1.4826 MAD) of the
+/// log's own input-minus-motion residual is flagged: for Gaussian noise it is never
+/// reached, and a smooth structure the motion model misses (harmonics of the spindle's
+/// controller) peaks near 1.4 standard deviations.
+pub const ROBUST_K: f64 = 10.0;
+
+/// A reading is stuck when it stays exactly constant for at least this long, s, while the
+/// other channel moves more than [`STUCK_FACTOR`] times the log's own largest travels
+/// through play at its reversals.
+pub const STUCK_MIN_S: f64 = 0.1;
+
+/// How many times its own typical deadband travel the other channel must move during a
+/// constant reading for the reading to count as stuck.
+pub const STUCK_FACTOR: f64 = 4.0;
+
+/// An input stretch moving faster than this many times its motion's own peak speed is named
+/// a jerk (a held reading, which lags the motion, never reaches 1).
+pub const JERK_SPEED: f64 = 1.5;
+
+/// Shortest run of flagged samples that counts, s (an isolated outlier sample does not).
+pub const MIN_RUN_S: f64 = 0.01;
+
+/// Which reading a stretch concerns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Channel {
+    /// `theta_in_rad`.
+    Input,
+    /// `theta_out_rad`.
+    Output,
+}
+
+impl std::fmt::Display for Channel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Channel::Input => "input",
+            Channel::Output => "output",
+        })
+    }
+}
+
+/// Why a stretch is not the drive.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Reason {
+    /// The input moves far faster than its own motion elsewhere in the log (a jerk).
+    Jerk,
+    /// The input leaves the motion it follows everywhere else.
+    Departure,
+    /// The reading holds one value while the other channel moves.
+    Stuck,
+}
+
+impl Reason {
+    /// Words for the console, the JSON and the plots' legend.
+    pub fn words(self, channel: Channel) -> String {
+        match (self, channel) {
+            (Reason::Jerk, c) => format!("{c} jerk or jump (faster than its motion ever moves)"),
+            (Reason::Departure, c) => format!("{c} departs from its motion"),
+            (Reason::Stuck, Channel::Input) => "input stuck while output moves".into(),
+            (Reason::Stuck, Channel::Output) => "output stuck while input moves".into(),
+        }
+    }
+}
+
+/// One stretch of a log that is not the drive.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Segment {
+    /// Log source.
+    pub log: String,
+    /// Reading concerned.
+    pub channel: Channel,
+    /// Start, in the log's own time (`t_s` column), padding included, s.
+    pub start_s: f64,
+    /// End, in the log's own time, padding included, s.
+    pub end_s: f64,
+    /// Why, in words (several reasons joined by `"; "` when stretches merged).
+    pub reason: String,
+    /// `"excluded"` (rows neither fitted nor scored) or `"kept"` (`--keep-segments`).
+    pub action: String,
+    /// End of the rows kept out, s (log time): `end_s`, or for a bad input reading the
+    /// input's next reversal, because the model's friction memory and cable transport were
+    /// fed input travel the drive did not see and only a reversal restarts them.
+    pub excluded_to_s: f64,
+}
+
+/// Median of a copy, `O(n)`; 0 for an empty slice.
+fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mut w = v.to_vec();
+    let k = w.len() / 2;
+    let (_, m, _) = w.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    *m
+}
+
+/// Robust standard deviation (1.4826 MAD) and median.
+fn robust(v: &[f64]) -> (f64, f64) {
+    let m = median(v);
+    let dev: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
+    (1.4826 * median(&dev), m)
+}
+
+/// Shapes of periodic input motion fitted to a log.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Shape {
+    Sine,
+    Triangle,
+}
+
+/// The input's own periodic motion: `offset + a sin(w t) + b cos(w t)` for a sine, or
+/// `offset + amp tri(w t + phase, turn)` for a triangle.
+#[derive(Clone, Copy, Debug)]
+struct Motion {
+    shape: Shape,
+    w: f64,
+    c: [f64; 3],
+    phase: f64,
+    turn: f64,
+}
+
+/// Triangle scan of unit amplitude in phase `p` (period 2 pi, rising through 0 at `p = 0`
+/// like a sine) whose turnarounds are parabolic over `turn` of each half period: the scan
+/// the scenarios' `triangle` motion makes.
+fn tri(p: f64, turn: f64) -> f64 {
+    let half = std::f64::consts::PI;
+    let tau = (p + 0.5 * half).rem_euclid(2.0 * half);
+    let (local, sign) = if tau < half {
+        (tau, 1.0)
+    } else {
+        (tau - half, -1.0)
+    };
+    let ta = 0.5 * turn.max(1e-3) * half;
+    let v = 2.0 / (half - ta);
+    let a = v / ta;
+    let y = if local < ta {
+        0.5 * a * local * local
+    } else if local <= half - ta {
+        0.5 * a * ta * ta + v * (local - ta)
+    } else {
+        let s = half - local;
+        2.0 - 0.5 * a * s * s
+    };
+    sign * (y - 1.0)
+}
+
+impl Motion {
+    fn at(&self, t: f64) -> f64 {
+        match self.shape {
+            Shape::Sine => {
+                self.c[0] + self.c[1] * (self.w * t).sin() + self.c[2] * (self.w * t).cos()
+            }
+            Shape::Triangle => self.c[0] + self.c[1] * tri(self.w * t + self.phase, self.turn),
+        }
+    }
+
+    /// Amplitude, rad.
+    fn amplitude(&self) -> f64 {
+        match self.shape {
+            Shape::Sine => self.c[1].hypot(self.c[2]),
+            Shape::Triangle => self.c[1].abs(),
+        }
+    }
+
+    /// Phase of the motion's extremes (where the input reverses) after time `t`, s.
+    fn next_reversal(&self, t: f64) -> f64 {
+        // Extremes of sin(w t + p) are at w t + p = pi/2 + k pi.
+        let p = match self.shape {
+            Shape::Sine => self.c[2].atan2(self.c[1]),
+            Shape::Triangle => self.phase,
+        };
+        let half = std::f64::consts::PI;
+        let k = ((self.w * t + p - std::f64::consts::FRAC_PI_2) / half).floor() + 1.0;
+        (k * half + std::f64::consts::FRAC_PI_2 - p) / self.w
+    }
+}
+
+/// Least squares of `y` on the columns `cols` over rows `use_row`, with the SSE.
+fn lsq<const N: usize>(
+    y: &[f64],
+    cols: impl Fn(usize) -> [f64; N],
+    rows: &[usize],
+) -> Option<([f64; N], f64)> {
+    let mut a = [[0.0; N]; N];
+    let mut b = [0.0; N];
+    for &i in rows {
+        let c = cols(i);
+        for j in 0..N {
+            b[j] += c[j] * y[i];
+            for k in 0..N {
+                a[j][k] += c[j] * c[k];
+            }
+        }
+    }
+    let x = nalgebra::DMatrix::from_fn(N, N, |j, k| a[j][k])
+        .lu()
+        .solve(&nalgebra::DVector::from_column_slice(&b))?;
+    let sse: f64 = rows
+        .iter()
+        .map(|&i| {
+            let c = cols(i);
+            let p: f64 = (0..N).map(|k| c[k] * x[k]).sum();
+            (y[i] - p).powi(2)
+        })
+        .sum();
+    let mut out = [0.0; N];
+    out.copy_from_slice(x.as_slice());
+    sse.is_finite().then_some((out, sse))
+}
+
+/// Fit the input's periodic motion (sine or triangle, whichever fits better) on rows
+/// `rows`; `None` when the input does not reverse at least twice.
+fn fit_motion(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
+    if rows.len() < 20 {
+        return None;
+    }
+    let vals: Vec<f64> = rows.iter().map(|&i| x[i]).collect();
+    let mid = median(&vals);
+    let mut sorted = vals.clone();
+    sorted.sort_by(|a, b| a.total_cmp(b));
+    let amp = 0.5 * (sorted[sorted.len() * 95 / 100] - sorted[sorted.len() * 5 / 100]);
+    if amp <= 0.0 {
+        return None;
+    }
+    // Crossings of the midline with hysteresis of a quarter amplitude give the frequency.
+    let band = 0.25 * amp;
+    let mut side = 0.0f64;
+    let mut crossings = 0usize;
+    for v in &vals {
+        let s = if *v > mid + band {
+            1.0
+        } else if *v < mid - band {
+            -1.0
+        } else {
+            0.0
+        };
+        if s != 0.0 {
+            if side != 0.0 && s != side {
+                crossings += 1;
+            }
+            side = s;
+        }
+    }
+    let span = t[*rows.last()?] - t[rows[0]];
+    if crossings < 2 || span <= 0.0 {
+        return None;
+    }
+    let f0 = crossings as f64 / (2.0 * span);
+    // The search runs on at most 1000 rows, the residual on all of them.
+    let stride = (rows.len() / 1000).max(1);
+    let sub: Vec<usize> = rows.iter().step_by(stride).copied().collect();
+    let sine = |w: f64| {
+        lsq(x, |i| [1.0, (w * t[i]).sin(), (w * t[i]).cos()], &sub).map(|(c, sse)| {
+            (
+                Motion {
+                    shape: Shape::Sine,
+                    w,
+                    c,
+                    phase: 0.0,
+                    turn: 0.0,
+                },
+                sse,
+            )
+        })
+    };
+    // Sine: a grid over +-20 % of the crossing estimate, then golden-section refinement.
+    let tau = std::f64::consts::TAU;
+    let mut grid_best = (f64::INFINITY, f0);
+    for g in 0..=40 {
+        let f = f0 * (0.8 + 0.4 * g as f64 / 40.0);
+        if let Some((_, sse)) = sine(tau * f) {
+            if sse < grid_best.0 {
+                grid_best = (sse, f);
+            }
+        }
+    }
+    let (mut lo, mut hi) = (grid_best.1 - 0.01 * f0, grid_best.1 + 0.01 * f0);
+    for _ in 0..25 {
+        let a = lo + (hi - lo) / 3.0;
+        let b = hi - (hi - lo) / 3.0;
+        let fa = sine(tau * a).map_or(f64::INFINITY, |r| r.1);
+        let fb = sine(tau * b).map_or(f64::INFINITY, |r| r.1);
+        if fa < fb {
+            hi = b;
+        } else {
+            lo = a;
+        }
+    }
+    let (s, s_sse) = sine(tau * 0.5 * (lo + hi))?;
+    // Triangle: a triangle's fundamental has about its frequency and phase, so it starts
+    // from the sine's; turnaround fraction, phase and frequency are then refined in turn.
+    let triangle = |w: f64, phase: f64, turn: f64| {
+        lsq(x, |i| [1.0, tri(w * t[i] + phase, turn)], &sub).map(|(c2, sse)| {
+            (
+                Motion {
+                    shape: Shape::Triangle,
+                    w,
+                    c: [c2[0], c2[1], 0.0],
+                    phase,
+                    turn,
+                },
+                sse,
+            )
+        })
+    };
+    let cost =
+        |w: f64, phase: f64, turn: f64| triangle(w, phase, turn).map_or(f64::INFINITY, |r| r.1);
+    let (mut w, mut phase): (f64, f64) = (s.w, s.c[2].atan2(s.c[1]));
+    // The turnaround fraction from a coarse grid first: the cost has side minima in it.
+    let mut turn = (1..20)
+        .map(|k| k as f64 * 0.05)
+        .map(|v| (cost(w, phase, v), v))
+        .fold((f64::INFINITY, 0.5), |a, b| if b.0 < a.0 { b } else { a })
+        .1;
+    let (mut dw, mut dp, mut dturn): (f64, f64, f64) = (0.01 * s.w, 0.1, 0.05);
+    for _ in 0..4 {
+        turn = golden(
+            |v| cost(w, phase, v),
+            (turn - dturn).max(0.001),
+            (turn + dturn).min(0.999),
+        );
+        phase = golden(|v| cost(w, v, turn), phase - dp, phase + dp);
+        // The phase is referred to t = 0: a frequency change turns it about the middle of
+        // the record.
+        let tm = 0.5 * (t[rows[0]] + t[*rows.last()?]);
+        let (w0, p0) = (w, phase);
+        w = golden(|v| cost(v, p0 - (v - w0) * tm, turn), w - dw, w + dw);
+        phase = p0 - (w - w0) * tm;
+        dw *= 0.3;
+        dp *= 0.3;
+        dturn *= 0.3;
+    }
+    match triangle(w, phase, turn) {
+        Some((m, sse)) if sse < s_sse => Some(m),
+        _ => Some(s),
+    }
+}
+
+/// Minimum of a unimodal `f` on `[lo, hi]` by golden-section search (30 steps).
+fn golden(f: impl Fn(f64) -> f64, mut lo: f64, mut hi: f64) -> f64 {
+    let r = 0.5 * (5f64.sqrt() - 1.0);
+    let mut a = hi - r * (hi - lo);
+    let mut b = lo + r * (hi - lo);
+    let (mut fa, mut fb) = (f(a), f(b));
+    for _ in 0..30 {
+        if fa < fb {
+            hi = b;
+            b = a;
+            fb = fa;
+            a = hi - r * (hi - lo);
+            fa = f(a);
+        } else {
+            lo = a;
+            a = b;
+            fa = fb;
+            b = lo + r * (hi - lo);
+            fb = f(b);
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// Runs of `flag` at least `min_len` long, as index ranges (inclusive start, exclusive end).
+fn runs(flag: &[bool], min_len: usize) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < flag.len() {
+        if flag[i] {
+            let a = i;
+            while i < flag.len() && flag[i] {
+                i += 1;
+            }
+            if i - a >= min_len {
+                out.push((a, i));
+            }
+        } else {
+            i += 1;
+        }
+    }
+    out
+}
+
+/// A flagged stretch before padding and merging: (channel, reason, first index, end index).
+type Raw = (Channel, Reason, usize, usize);
+
+/// Input stretches that leave the input's own periodic motion: far off it (departure) or
+/// far faster (jerk). Returns them with the fitted motion.
+fn input_departures(t: &[f64], x: &[f64], q_in: f64, dt: f64) -> (Vec<Raw>, Option<Motion>) {
+    let n = t.len();
+    let h = ((0.01 / dt).round() as usize).max(1);
+    let min_len = ((MIN_RUN_S / dt).round() as usize).max(3);
+    let pad = ((PAD_S / dt).round() as usize).max(1);
+    let all: Vec<usize> = (0..n).collect();
+    let Some(mut m) = fit_motion(t, x, &all) else {
+        return (Vec::new(), None);
+    };
+    let resid = |m: &Motion| -> Vec<f64> { (0..n).map(|i| x[i] - m.at(t[i])).collect() };
+    let mut use_row = vec![true; n];
+    // Rows far off the motion (beyond a share of its amplitude, 1 % then 0.3 % then
+    // 0.1 %, and the robust threshold) are left out of the fit, with their padding, and the
+    // motion refitted: a fault then does not bend the motion it is judged against, while
+    // the motion's own shape (its turnarounds, which a bent fit also misses, by less) stays
+    // in the fit. A refit is kept only when it fits its rows better.
+    for share in [0.01, 0.003, 0.001] {
+        let r = resid(&m);
+        let (sr, mr) = robust(&r);
+        let gross = (ROBUST_K * sr).max(share * m.amplitude()).max(10.0 * q_in);
+        let far: Vec<usize> = (0..n).filter(|i| (r[*i] - mr).abs() > gross).collect();
+        if far.is_empty() {
+            continue;
+        }
+        let before = use_row.clone();
+        use_row = vec![true; n];
+        for i in far {
+            for u in &mut use_row[i.saturating_sub(pad)..(i + pad + 1).min(n)] {
+                *u = false;
+            }
+        }
+        let rows: Vec<usize> = (0..n).filter(|i| use_row[*i]).collect();
+        let cost = |mm: &Motion| {
+            rows.iter()
+                .map(|&i| (x[i] - mm.at(t[i])).powi(2))
+                .sum::<f64>()
+        };
+        match fit_motion(t, x, &rows) {
+            Some(m2) if cost(&m2) <= cost(&m) => m = m2,
+            _ => {
+                use_row = before;
+                break;
+            }
+        }
+    }
+    let r = resid(&m);
+    let v: Vec<f64> = (0..n)
+        .map(|i| {
+            let a = i.saturating_sub(h);
+            let b = (i + h).min(n - 1);
+            (r[b] - r[a]) / (t[b] - t[a]).max(1e-300)
+        })
+        .collect();
+    let kept = |s: &[f64]| -> Vec<f64> {
+        s.iter()
+            .zip(&use_row)
+            .filter(|(_, u)| **u)
+            .map(|(v, _)| *v)
+            .collect()
+    };
+    let (sr, mr) = robust(&kept(&r));
+    let (sv, mv) = robust(&kept(&v));
+    // Floors: ten encoder steps, and the speed one step over the difference window reads,
+    // ten times; both far above what quantisation alone can produce.
+    let tr = (ROBUST_K * sr).max(10.0 * q_in).max(1e-12);
+    let tv = (ROBUST_K * sv)
+        .max(10.0 * q_in / (2.0 * h as f64 * dt))
+        .max(1e-12);
+    // Flagged where the input is far off its motion or far faster than it; named a jerk
+    // when it moves faster than the motion itself ever does ([`JERK_SPEED`] times its
+    // peak speed), a departure otherwise.
+    let flag: Vec<bool> = (0..n)
+        .map(|i| (r[i] - mr).abs() > tr || (v[i] - mv).abs() > tv)
+        .collect();
+    let peak_speed = (1..n)
+        .map(|i| ((m.at(t[i]) - m.at(t[i - 1])) / (t[i] - t[i - 1]).max(1e-300)).abs())
+        .fold(0.0f64, f64::max);
+    let found = runs(&flag, min_len)
+        .into_iter()
+        .map(|(a, b)| {
+            let fastest = v[a..b].iter().fold(0.0f64, |p, e| p.max((e - mv).abs()));
+            let reason = if fastest > JERK_SPEED * peak_speed {
+                Reason::Jerk
+            } else {
+                Reason::Departure
+            };
+            (Channel::Input, reason, a, b)
+        })
+        .collect();
+    (found, Some(m))
+}
+
+/// Runs of exactly constant `x` at least [`STUCK_MIN_S`] long during which `other` moves
+/// more than [`STUCK_FACTOR`] times the log's typical travel through play; `gain` converts
+/// the other channel's travel into this one's (rad per rad), `reversals` is about how many
+/// times the motion reverses in the log.
+fn stuck(
+    x: &[f64],
+    other: &[f64],
+    gain: f64,
+    q: f64,
+    dt: f64,
+    reversals: usize,
+    channel: Channel,
+) -> Vec<Raw> {
+    let n = x.len();
+    let min_len = ((STUCK_MIN_S / dt).round() as usize).max(3);
+    let mut all: Vec<(usize, usize, f64)> = Vec::new();
+    let mut a = 0;
+    while a < n {
+        let mut b = a + 1;
+        let tol = 1e-12 * x[a].abs().max(1.0);
+        while b < n && (x[b] - x[a]).abs() <= tol {
+            b += 1;
+        }
+        if b - a >= 2 {
+            let (lo, hi) = other[a..b]
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                    (l.min(*v), h.max(*v))
+                });
+            all.push((a, b, (hi - lo) * gain));
+        }
+        a = b;
+    }
+    if all.is_empty() {
+        return Vec::new();
+    }
+    // Through play at each reversal a reading holds while the other moves: the largest
+    // travels of the log, about one per reversal; their median is the log's own deadband,
+    // and one stuck stretch among them does not move it. A reversal without a held
+    // reading (play under one count, or noise dithering it) counts as no travel.
+    let mut travels: Vec<f64> = all.iter().map(|r| r.2).collect();
+    travels.sort_by(|p, q| q.total_cmp(p));
+    travels.resize(travels.len().max(reversals + 1), 0.0);
+    let typical = median(&travels[..reversals + 1]);
+    let threshold = (STUCK_FACTOR * typical).max(20.0 * q).max(1e-9);
+    all.into_iter()
+        .filter(|(a, b, travel)| b - a >= min_len && *travel > threshold)
+        .map(|(a, b, _)| (channel, Reason::Stuck, a, b))
+        .collect()
+}
+
+/// Stretches of `log` that are not the drive, padded by [`PAD_S`] and merged per channel,
+/// in time order. `action` goes into each segment (`"excluded"` or `"kept"`). Typical cost:
+/// a few milliseconds for 20 000 samples.
+pub fn detect(log: &BenchLog, action: &str) -> Vec<Segment> {
+    let n = log
+        .t_s
+        .len()
+        .min(log.theta_in_rad.len())
+        .min(log.theta_out_rad.len());
+    if n < 40 {
+        return Vec::new();
+    }
+    let t = &log.t_s[..n];
+    let xi = &log.theta_in_rad[..n];
+    let xo = &log.theta_out_rad[..n];
+    if t.iter().chain(xi).chain(xo).any(|v| !v.is_finite()) {
+        return Vec::new();
+    }
+    let span = t[n - 1] - t[0];
+    if span <= 0.0 {
+        return Vec::new();
+    }
+    let dt = span / (n - 1) as f64;
+    let q_in = super::resolution::encoder_step(xi);
+    let q_out = super::resolution::encoder_step(xo);
+    let (mut raw, motion) = input_departures(t, xi, q_in, dt);
+    // Output per input radian (least squares), for converting travels between channels.
+    let mi = xi.iter().sum::<f64>() / n as f64;
+    let mo = xo.iter().sum::<f64>() / n as f64;
+    let sxy: f64 = xi.iter().zip(xo).map(|(a, b)| (a - mi) * (b - mo)).sum();
+    let sxx: f64 = xi.iter().map(|a| (a - mi).powi(2)).sum();
+    let syy: f64 = xo.iter().map(|b| (b - mo).powi(2)).sum();
+    let reversals = motion
+        .map(|m| (m.w * span / std::f64::consts::PI).round() as usize)
+        .unwrap_or(4)
+        .max(2);
+    if sxx > 0.0 && syy > 0.0 {
+        let g_out = (sxy / sxx).abs();
+        let g_in = (sxy / syy).abs();
+        raw.extend(stuck(xo, xi, g_out, q_out, dt, reversals, Channel::Output));
+        raw.extend(stuck(xi, xo, g_in, q_in, dt, reversals, Channel::Input));
+    }
+    // Pad, then merge overlapping stretches of one channel.
+    let mut spans: Vec<(Channel, f64, f64, Vec<Reason>)> = raw
+        .iter()
+        .map(|(c, r, a, b)| {
+            (
+                *c,
+                (t[*a] - PAD_S).max(t[0]),
+                (t[b - 1] + PAD_S).min(t[n - 1]),
+                vec![*r],
+            )
+        })
+        .collect();
+    spans.sort_by(|p, q| (p.0 as u8).cmp(&(q.0 as u8)).then(p.1.total_cmp(&q.1)));
+    let mut merged: Vec<(Channel, f64, f64, Vec<Reason>)> = Vec::new();
+    for s in spans {
+        match merged.last_mut() {
+            Some(m) if m.0 == s.0 && s.1 <= m.2 => {
+                m.2 = m.2.max(s.2);
+                for r in s.3 {
+                    if !m.3.contains(&r) {
+                        m.3.push(r);
+                    }
+                }
+            }
+            _ => merged.push(s),
+        }
+    }
+    let mut out: Vec<Segment> = merged
+        .into_iter()
+        .map(|(channel, start_s, end_s, reasons)| {
+            // A wrong input reading fed the replay travel the drive did not see; a jerk is
+            // real motion the drive did follow.
+            let bad_reading =
+                channel == Channel::Input && reasons.iter().any(|r| *r != Reason::Jerk);
+            let excluded_to_s = match motion {
+                Some(m) if bad_reading => m.next_reversal(end_s).min(t[n - 1]).max(end_s),
+                _ => end_s,
+            };
+            Segment {
+                log: log.source.clone(),
+                channel,
+                start_s,
+                end_s,
+                reason: reasons
+                    .iter()
+                    .map(|r| r.words(channel))
+                    .collect::<Vec<_>>()
+                    .join("; "),
+                action: action.to_string(),
+                excluded_to_s,
+            }
+        })
+        .collect();
+    out.sort_by(|a, b| a.start_s.total_cmp(&b.start_s));
+    out
+}
+
+/// Rows of a prepared log (times `t_rel` from the log's first sample `t0`, rows averaged
+/// over `block_s`) to fit and score: false where a row's samples reach into an excluded
+/// stretch (`start_s` to `excluded_to_s`) of `segments`.
+pub fn keep_rows(t_rel: &[f64], t0: f64, block_s: f64, segments: &[Segment]) -> Vec<bool> {
+    let half = 0.5 * block_s.max(0.0);
+    t_rel
+        .iter()
+        .map(|tr| {
+            let t = tr + t0;
+            !segments
+                .iter()
+                .filter(|s| s.action == "excluded")
+                .any(|s| t + half >= s.start_s && t - half <= s.excluded_to_s)
+        })
+        .collect()
+}
+
+/// One line for the console: log, channel, times, reason and what was done with the rows.
+pub fn describe(s: &Segment) -> String {
+    let what = if s.action != "excluded" {
+        "kept (--keep-segments): fitted and scored".to_string()
+    } else if s.excluded_to_s > s.end_s {
+        format!(
+            "excluded from fitting and scoring, with the rows to the input's next reversal at {:.3} s (the model was fed an input reading the drive did not see)",
+            s.excluded_to_s
+        )
+    } else {
+        "excluded from fitting and scoring".to_string()
+    };
+    format!(
+        "Not the drive: {}: {} {:.3} to {:.3} s: {}; {what}",
+        s.log, s.channel, s.start_s, s.end_s, s.reason
+    )
+}
+
+/// Segments of every log and the rows of each prepared log to fit and score (all of them
+/// when `keep` is set: the segments are then reported as `"kept"`).
+pub fn detect_all(
+    cut: &[BenchLog],
+    prepared: &[super::model::Prepared],
+    keep: bool,
+) -> (Vec<Vec<Segment>>, Vec<Vec<bool>>) {
+    let action = if keep { "kept" } else { "excluded" };
+    cut.iter()
+        .zip(prepared)
+        .map(|(log, p)| {
+            let segs = detect(log, action);
+            let t0 = log.t_s.first().copied().unwrap_or(0.0);
+            let block = if p.t.len() > 1 {
+                (p.t[p.t.len() - 1] - p.t[0]) / (p.t.len() - 1) as f64
+            } else {
+                0.0
+            };
+            let rows = keep_rows(&p.t, t0, block, &segs);
+            (segs, rows)
+        })
+        .unzip()
+}
+
+/// Shaded time intervals of a log's plots, in the prepared log's time (from its first
+/// sample `t0`, s): the rows kept out, labelled `excluded: <reason>` (or `detected, kept:
+/// <reason>` under `--keep-segments`).
+pub fn shades(segments: &[Segment], t0: f64) -> Vec<(f64, f64, String)> {
+    segments
+        .iter()
+        .map(|s| {
+            let label = if s.action == "excluded" {
+                format!("excluded: {}", s.reason)
+            } else {
+                format!("detected, kept: {}", s.reason)
+            };
+            (s.start_s - t0, s.excluded_to_s - t0, label)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn log(t: Vec<f64>, xi: Vec<f64>, xo: Vec<f64>) -> BenchLog {
+        let n = t.len();
+        BenchLog {
+            t_s: t,
+            theta_in_rad: xi,
+            theta_out_rad: xo,
+            load_nm: vec![0.0; n],
+            source: "test".into(),
+            ..BenchLog::default()
+        }
+    }
+
+    fn q(v: f64, step: f64) -> f64 {
+        (v / step).round() * step
+    }
+
+    #[test]
+    fn a_quantised_sine_is_clean_and_a_jerk_is_found() {
+        let n = 20_000;
+        let t: Vec<f64> = (0..n).map(|i| i as f64 * 1e-3).collect();
+        let step_in = std::f64::consts::TAU / 8192.0;
+        let step_out = std::f64::consts::TAU / 4000.0;
+        let xi: Vec<f64> = t
+            .iter()
+            .map(|t| {
+                q(
+                    0.52 + 0.52 * (0.2 * std::f64::consts::PI * t).sin(),
+                    step_in,
+                )
+            })
+            .collect();
+        let xo: Vec<f64> = xi.iter().map(|x| q(0.87 * x, step_out)).collect();
+        assert!(detect(&log(t.clone(), xi.clone(), xo.clone()), "excluded").is_empty());
+        let bump = |t: f64| {
+            if (10.0..10.2).contains(&t) {
+                0.5 * (1.0 - (std::f64::consts::TAU * (t - 10.0) / 0.2).cos())
+            } else {
+                0.0
+            }
+        };
+        let xj: Vec<f64> = xi
+            .iter()
+            .zip(&t)
+            .map(|(x, t)| q(x + bump(*t), step_in))
+            .collect();
+        let xoj: Vec<f64> = xj.iter().map(|x| q(0.87 * x, step_out)).collect();
+        let s = detect(&log(t, xj, xoj), "excluded");
+        assert_eq!(s.len(), 1, "{s:?}");
+        assert_eq!(s[0].channel, Channel::Input);
+        assert!(
+            (s[0].start_s - 9.95).abs() < 0.03 && (s[0].end_s - 10.25).abs() < 0.03,
+            "{s:?}"
+        );
+    }
+
+    #[test]
+    fn the_scenarios_triangle_scan_is_its_own_motion() {
+        let sig = crate::signal::Signal::Triangle {
+            amplitude_rad: 10.0,
+            frequency_hz: 0.1,
+            turn_fraction: 0.2,
+        };
+        let t: Vec<f64> = (0..3001).map(|i| i as f64 * 0.01).collect();
+        let x: Vec<f64> = t.iter().map(|t| sig.at(*t).value).collect();
+        for (k, v) in x.iter().enumerate().step_by(250) {
+            assert!((v - 10.0 * tri(std::f64::consts::TAU * 0.1 * t[k], 0.2)).abs() < 1e-9);
+        }
+        let rows: Vec<usize> = (0..t.len()).collect();
+        let m = fit_motion(&t, &x, &rows).expect("motion");
+        let worst = t
+            .iter()
+            .zip(&x)
+            .fold(0.0f64, |a, (t, x)| a.max((x - m.at(*t)).abs()));
+        assert!(worst < 1e-3, "{m:?}: {worst}");
+    }
+
+    #[test]
+    fn excluded_rows_cover_the_stretch_and_its_tail() {
+        let seg = Segment {
+            log: "x".into(),
+            channel: Channel::Input,
+            start_s: 1.0,
+            end_s: 1.5,
+            reason: String::new(),
+            action: "excluded".into(),
+            excluded_to_s: 2.0,
+        };
+        let t: Vec<f64> = (0..40).map(|i| i as f64 * 0.1).collect();
+        let keep = keep_rows(&t, 0.0, 0.1, std::slice::from_ref(&seg));
+        assert!(keep[9] && !keep[10] && !keep[20] && keep[21]);
+        let kept = Segment {
+            action: "kept".into(),
+            ..seg
+        };
+        assert!(keep_rows(&t, 0.0, 0.1, &[kept]).iter().all(|k| *k));
+    }
+}
