@@ -458,6 +458,32 @@ mod tests {
         assert_eq!(memory_amplitude(&[0.5, 0.25], &[0.1, 0.2]), 0.1);
     }
 
+    /// Mirrored input angle and mirrored torque give mirrored columns: the law reads only
+    /// the torque's magnitude and the plays are odd in the input.
+    #[test]
+    fn memory_law_columns_are_mirror_symmetric() {
+        let x: Vec<f64> = (0..4000)
+            .map(|i| 0.5 * (i as f64 * 0.003).sin() + 0.01 * (i as f64 * 0.05).sin())
+            .collect();
+        let m: Vec<f64> = (0..4000).map(|i| 0.07 + 0.04 * (i as f64 * 0.001).cos()).collect();
+        let xm: Vec<f64> = x.iter().map(|v| -v).collect();
+        let mm: Vec<f64> = m.iter().map(|v| -v).collect();
+        let r = [0.01, 0.03];
+        let a = memory_law_columns(&x, &m, &r, 9.0);
+        let b = memory_law_columns(&xm, &mm, &r, 9.0);
+        let sa = slack_column(&x, &m, 0.05, 0.09);
+        let sb = slack_column(&xm, &mm, 0.05, 0.09);
+        for i in 0..x.len() {
+            for j in 0..r.len() {
+                assert!((a[j][i] + b[j][i]).abs() < 1e-15);
+            }
+            assert!((sa[i] + sb[i]).abs() < 1e-15);
+        }
+        assert!(sa.iter().any(|v| v.abs() > 0.01));
+        // No growth: the fixed-threshold columns.
+        assert_eq!(memory_law_columns(&x, &m, &r, 0.0), memory_columns(&x, &r));
+    }
+
     #[test]
     fn short_stroke_cannot_tell_runout_from_shape_but_a_revolution_can() {
         let short: Vec<f64> = (0..2000)

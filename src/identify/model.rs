@@ -236,26 +236,16 @@ pub enum MemoryLaw {
     TakenUp,
 }
 
-/// Whether the memory's weights also carry a part growing as `|M|^p` beside the threshold
-/// law.
-pub fn memory_load_weights() -> bool {
-    std::env::var("CS_MEMLAW_P").map_or(true, |v| v != "0")
-}
+/// Whether the calibration gives the memory's weights a part growing as `|M|^p` beside
+/// the threshold law. On the eleven da Vinci logs the threshold law with the slack wins
+/// on its own (the `|M|^p` weights ran their exponent to 5 and lost the heaviest log), so
+/// the calibration leaves them out; scenarios may still carry them.
+pub const MEMORY_LOAD_WEIGHTS: bool = false;
 
-/// Whether the slack's weight is the free travel's own (`1/ratio`) rather than fitted.
-pub fn memory_slack_fixed() -> bool {
-    std::env::var("CS_MEMLAW_SW").is_ok_and(|v| v == "fixed")
-}
-
-/// Whether the slack is fitted.
-pub fn memory_slack() -> bool {
-    std::env::var("CS_MEMLAW_SLACK").map_or(true, |v| v != "0")
-}
-
-/// Whether the memory's thresholds and slack follow the load.
-pub fn memory_law() -> bool {
-    std::env::var("CS_MEMLAW").map_or(true, |v| v != "0")
-}
+/// Points of the coarse scan of each memory-law parameter, and rounds of the scan (the
+/// threshold growth and the slack trade against each other: the second round scans each
+/// with the others at their first-round values).
+const LAW_SCAN: (usize, usize) = (13, 2);
 
 impl NlParam {
     /// Name in reports and saved models: the drive key, the effect's name, or for the
@@ -468,18 +458,17 @@ impl<'a> Evaluator<'a> {
                 EffectName::CableTransport => v.push((NlParam::Effect(*e), 1e-4, 3.0, 0.05)),
                 EffectName::DistributedFrictionMemory => {
                     use super::extra_effects as x;
-                    if memory_load_weights() {
+                    if MEMORY_LOAD_WEIGHTS {
                         let (lo, hi, start) = x::MEMORY_LOAD_EXPONENT;
                         v.push((NlParam::Effect(*e), lo, hi, start));
                     }
-                    if memory_law() {
+                    {
                         // Scaled by the logs' own torques and stroke: a drive without load
                         // has no law to find (its bounds collapse to zero growth).
                         let m = self.max_torque.max(1e-9);
                         let (stroke, _) = self.stroke_and_thresholds();
                         let sl = x::SLACK_STROKE * (stroke.1 - stroke.0);
                         v.push((NlParam::Memory(MemoryLaw::Growth), 0.0, x::GROWTH_AT_MAX / m, 0.0));
-                        if memory_slack() {
                         v.push((NlParam::Memory(MemoryLaw::Slack), 0.0, sl, 0.0));
                         v.push((
                             NlParam::Memory(MemoryLaw::TakenUp),
@@ -487,7 +476,6 @@ impl<'a> Evaluator<'a> {
                             x::TAKEN_UP.1 * m,
                             0.3 * m,
                         ));
-                        }
                     }
                 }
                 _ => {}
@@ -578,8 +566,8 @@ impl<'a> Evaluator<'a> {
                 EffectName::AngleDependentRatio => super::extra_effects::SHAPE_TERMS,
                 EffectName::DistributedFrictionMemory => {
                     super::extra_effects::MEMORY_THRESHOLDS
-                        * (1 + usize::from(memory_load_weights()))
-                        + usize::from(memory_law() && memory_slack() && !memory_slack_fixed())
+                        * (1 + usize::from(MEMORY_LOAD_WEIGHTS))
+                        + 1
                 }
                 _ => 0,
             };
@@ -614,7 +602,7 @@ impl<'a> Evaluator<'a> {
                 .then(|| {
                     use super::extra_effects as xe;
                     let mut c = xe::memory_law_columns(&l.th_in, &l.torque, &thresholds, growth);
-                    if memory_load_weights() {
+                    if MEMORY_LOAD_WEIGHTS {
                         let scaled: Vec<Vec<f64>> = c
                             .iter()
                             .map(|col| {
@@ -626,18 +614,12 @@ impl<'a> Evaluator<'a> {
                             .collect();
                         c.extend(scaled);
                     }
-                    if memory_law() && memory_slack() {
-                        c.push(xe::slack_column(&l.th_in, &l.torque, slack, taken_up));
-                    }
+                    c.push(xe::slack_column(&l.th_in, &l.torque, slack, taken_up));
                     c
                 });
-            // Free travel of the input moves the output by its lag over the ratio.
-            let slack_fixed = memory.as_ref().filter(|_| memory_law() && memory_slack() && memory_slack_fixed()).and_then(|c| c.last());
-            let ic = self.spec.drive.ratio();
             for i in 0..l.t.len() {
                 let b = base[li][i];
-                let f = if self.spec.fit_g { 0.0 } else { b }
-                    + slack_fixed.map_or(0.0, |c| c[i] / ic);
+                let f = if self.spec.fit_g { 0.0 } else { b };
                 fixed.push(f);
                 target.push(self.y[li][i] - f);
                 for (c, name) in cols.iter_mut().zip(&names) {
@@ -707,7 +689,7 @@ impl<'a> Evaluator<'a> {
             // torque.
             LinParam::Effect(EffectName::DistributedFrictionMemory, j)
                 if j >= super::extra_effects::MEMORY_THRESHOLDS
-                    && memory_load_weights()
+                    && MEMORY_LOAD_WEIGHTS
                     && j < 2 * super::extra_effects::MEMORY_THRESHOLDS =>
             {
                 Some((0.0, 10.0 / d.max_load_factor.max(1e-12)))
@@ -878,7 +860,7 @@ impl<'a> Evaluator<'a> {
         };
         // Coarse scan of a single effect parameter first: their costs are often multimodal
         // (transport length, friction torque hidden behind a stiffer cable).
-        let passes: usize = std::env::var("CS_MEMLAW_PASSES").ok().and_then(|v| v.parse().ok()).unwrap_or(2);
+        let (law_points, passes) = LAW_SCAN;
         let scan: Vec<(usize, usize)> = (0..passes)
             .flat_map(|pass| {
                 nl.iter()
@@ -896,7 +878,11 @@ impl<'a> Evaluator<'a> {
                 let n = &nl[k];
                 {
                     let mut best = (f64::INFINITY, start[k]);
-                    let ns: usize = std::env::var("CS_MEMLAW_SCAN").ok().and_then(|v| v.parse().ok()).unwrap_or(7);
+                    let ns = if let NlParam::Memory(_) = n.0 {
+                        law_points
+                    } else {
+                        7
+                    };
                     for g in 0..ns {
                         let f = g as f64 / (ns - 1) as f64;
                         let v = if n.1 > 0.0 {
@@ -924,9 +910,6 @@ impl<'a> Evaluator<'a> {
         } else {
             let lm = levenberg_marquardt(|x| resid(x, self), &start, &lo, &hi, iters)
                 .map_err(|e| IdentifyError::Fit(e.to_string()))?;
-            if std::env::var("CS_MEMLAW_DEBUG").is_ok() {
-                eprintln!("LM start {:?}\n   end {:?} it {} conv {} cost {:e}", start, lm.x, lm.iterations, lm.converged, lm.cost);
-            }
             (lm.x, lm.iterations, lm.converged)
         };
         let d = self.design(&x)?;

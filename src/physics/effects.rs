@@ -636,6 +636,52 @@ mod kinematic_tests {
             .collect()
     }
 
+    /// Turning the other way under a load the other way is the same physics: mirrored
+    /// input and mirrored torque give the mirrored lag, and the law reads only `|M|`.
+    #[test]
+    fn contact_memory_law_is_mirror_symmetric() {
+        let fx = EffectsParams {
+            friction_memory_thresholds_rad: Some(vec![0.01, 0.04]),
+            friction_memory_weights: Some(vec![0.3, 0.2]),
+            friction_memory_threshold_growth_per_nm: Some(9.0),
+            friction_memory_slack_rad: Some(0.05),
+            friction_memory_slack_taken_up_nm: Some(0.04),
+            friction_memory_slack_weight: Some(0.5),
+            ..EffectsParams::default()
+        };
+        assert_eq!(fx.validate(), Ok(()));
+        let mut up = ContactMemory::new(&fx, 0.0).unwrap();
+        let mut down = ContactMemory::new(&fx, 0.0).unwrap();
+        let mut checked = 0.0f64;
+        for k in 0..3000 {
+            let t = k as f64 * 0.01;
+            let x = 0.5 * (0.7 * t).sin() + 0.02 * (5.3 * t).sin();
+            let m = 0.06 + 0.05 * (0.3 * t).sin();
+            let a = up.commit(x, m);
+            let b = down.commit(-x, -m);
+            assert!((a + b).abs() < 1e-15, "{k}: {a} vs {b}");
+            let (la, sa) = up.lag_and_slope(x + 0.003, -m);
+            let (lb, sb) = down.lag_and_slope(-x - 0.003, m);
+            assert!((la + lb).abs() < 1e-15 && (sa - sb).abs() < 1e-15);
+            checked = checked.max(a.abs());
+        }
+        assert!(checked > 0.01, "{checked}");
+        // Thresholds grow with the magnitude of the torque, the slack shrinks to nothing.
+        assert_eq!(contact_threshold(0.01, 9.0, -0.1), contact_threshold(0.01, 9.0, 0.1));
+        assert!((contact_threshold(0.01, 9.0, 0.1) - 0.019).abs() < 1e-15);
+        assert_eq!(slack_width(0.05, 0.04, -0.02), slack_width(0.05, 0.04, 0.02));
+        assert_eq!(slack_width(0.05, 0.04, 0.05), 0.0);
+        // Slack keys go together.
+        let partial = EffectsParams {
+            friction_memory_slack_weight: None,
+            ..fx
+        };
+        assert_eq!(
+            partial.validate().map_err(|e| e.0),
+            Err("friction_memory_slack_rad".to_string())
+        );
+    }
+
     #[test]
     fn contact_memory_is_the_weighted_sum_of_plays_and_its_slope_is_exact() {
         let fx = EffectsParams {
