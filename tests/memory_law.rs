@@ -13,7 +13,7 @@ use cable_servo::physics::EffectsParams;
 use cable_servo::scenario::Scenario;
 
 /// Jaw loads of the logs, N m (one the other way: only magnitudes matter).
-const LOADS: [f64; 4] = [0.02, -0.05, 0.09, 0.13];
+const LOADS: [f64; 4] = [0.02, -0.05, 0.08, 0.11];
 
 /// A law's lag after a long travel at torque `m` (N m), rad: each play's weight times its
 /// half width.
@@ -114,7 +114,7 @@ fn calibrate(sc: &Scenario, logs: &[BenchLog]) -> EffectsParams {
 
 /// Lag at the lightest and the heaviest load, truth and calibration, over three seeds.
 fn run(truth: &EffectsParams) -> Vec<((f64, f64), (f64, f64))> {
-    let (lo, hi) = (0.02, 0.13);
+    let (lo, hi) = (0.02, 0.11);
     (1..=3)
         .map(|seed| {
             let (sc, l) = logs(truth, seed);

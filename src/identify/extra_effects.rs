@@ -335,11 +335,18 @@ pub(crate) fn parameters(
             eff.friction_memory_slack_weight = Some(sw);
         }
         // Reported at the logs' mean torque magnitude: where the data pins it, whatever
-        // the split between the constant and the load-scaled weights.
+        // the split between the constant and the load-scaled weights. Thresholds growing
+        // with the torque are read there too (the basis's factor is the mean `|M|` when
+        // there are no load-scaled weights, `p` being 1 then).
+        let at_mean = if has_load {
+            1.0
+        } else {
+            1.0 + eff.friction_memory_threshold_growth_per_nm.unwrap_or(0.0) * mean_load_factor
+        };
         let grad: Vec<(usize, f64)> = mem[..nt]
             .iter()
             .zip(thresholds)
-            .map(|(a, r)| (a.0, *r))
+            .map(|(a, r)| (a.0, *r * at_mean))
             .chain(
                 mem[nt..]
                     .iter()
@@ -349,7 +356,7 @@ pub(crate) fn parameters(
             .collect();
         out.push(super::ParamEstimate {
             name: EffectName::DistributedFrictionMemory.to_string(),
-            value: memory_amplitude(&w, thresholds)
+            value: at_mean * memory_amplitude(&w, thresholds)
                 + mean_load_factor * memory_amplitude(&v, thresholds),
             std: std_of(&grad),
             unit: EffectName::DistributedFrictionMemory.unit().into(),
@@ -465,7 +472,9 @@ mod tests {
         let x: Vec<f64> = (0..4000)
             .map(|i| 0.5 * (i as f64 * 0.003).sin() + 0.01 * (i as f64 * 0.05).sin())
             .collect();
-        let m: Vec<f64> = (0..4000).map(|i| 0.07 + 0.04 * (i as f64 * 0.001).cos()).collect();
+        let m: Vec<f64> = (0..4000)
+            .map(|i| 0.07 + 0.04 * (i as f64 * 0.001).cos())
+            .collect();
         let xm: Vec<f64> = x.iter().map(|v| -v).collect();
         let mm: Vec<f64> = m.iter().map(|v| -v).collect();
         let r = [0.01, 0.03];

@@ -469,7 +469,10 @@ impl ContactMemory {
         if !fx.has_friction_memory() {
             return None;
         }
-        let thresholds = fx.friction_memory_thresholds_rad.clone().unwrap_or_default();
+        let thresholds = fx
+            .friction_memory_thresholds_rad
+            .clone()
+            .unwrap_or_default();
         let n = thresholds.len();
         let weights = fx
             .friction_memory_weights
@@ -498,10 +501,7 @@ impl ContactMemory {
             .iter()
             .zip(self.weights.iter().zip(&self.load_weights))
             .map(move |(r, (w, wl))| (contact_threshold(*r, self.growth, m_nm), w + wl * f))
-            .chain(
-                self.slack
-                    .map(|(s, mu, w)| (slack_width(s, mu, m_nm), w)),
-            )
+            .chain(self.slack.map(|(s, mu, w)| (slack_width(s, mu, m_nm), w)))
     }
 
     /// Output lag (rad, negative behind the input's direction of travel) at input angle
@@ -532,7 +532,9 @@ impl ContactMemory {
         for j in 0..self.state.len() {
             let r = match self.thresholds.get(j) {
                 Some(r0) => contact_threshold(*r0, self.growth, m_nm),
-                None => self.slack.map_or(0.0, |(s, mu, _)| slack_width(s, mu, m_nm)),
+                None => self
+                    .slack
+                    .map_or(0.0, |(s, mu, _)| slack_width(s, mu, m_nm)),
             };
             self.state[j] = self.state[j].clamp(theta_in - r, theta_in + r);
         }
@@ -667,9 +669,15 @@ mod kinematic_tests {
         }
         assert!(checked > 0.01, "{checked}");
         // Thresholds grow with the magnitude of the torque, the slack shrinks to nothing.
-        assert_eq!(contact_threshold(0.01, 9.0, -0.1), contact_threshold(0.01, 9.0, 0.1));
+        assert_eq!(
+            contact_threshold(0.01, 9.0, -0.1),
+            contact_threshold(0.01, 9.0, 0.1)
+        );
         assert!((contact_threshold(0.01, 9.0, 0.1) - 0.019).abs() < 1e-15);
-        assert_eq!(slack_width(0.05, 0.04, -0.02), slack_width(0.05, 0.04, 0.02));
+        assert_eq!(
+            slack_width(0.05, 0.04, -0.02),
+            slack_width(0.05, 0.04, 0.02)
+        );
         assert_eq!(slack_width(0.05, 0.04, 0.05), 0.0);
         // Slack keys go together.
         let partial = EffectsParams {
