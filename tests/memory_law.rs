@@ -112,8 +112,11 @@ fn calibrate(sc: &Scenario, logs: &[BenchLog]) -> EffectsParams {
     }
 }
 
-/// Lag at the lightest and the heaviest load, truth and calibration, over three seeds.
-fn run(truth: &EffectsParams) -> Vec<((f64, f64), (f64, f64))> {
+/// Lag at the lightest and the heaviest load (rad): calibrated, then the truth's.
+type Ends = ((f64, f64), (f64, f64));
+
+/// [`Ends`] over three seeds.
+fn run(truth: &EffectsParams) -> Vec<Ends> {
     let (lo, hi) = (0.02, 0.11);
     (1..=3)
         .map(|seed| {
@@ -145,7 +148,7 @@ fn contacts() -> Vec<f64> {
 
 /// The change of the lag from the lightest to the heaviest load is recovered with its sign
 /// and within 25 % of its size, the lag at either end within 15 %.
-fn check(rows: &[((f64, f64), (f64, f64))]) {
+fn check(rows: &[Ends]) {
     for ((g0, g1), (w0, w1)) in rows {
         let (dg, dw) = (g1 - g0, w1 - w0);
         assert!(
