@@ -674,12 +674,30 @@ fn plant_carries_the_ratio_shape_and_the_jaw_link() {
     let [lo, hi] = fx.angle_dependent_ratio_stroke_rad.unwrap();
     let thresholds = fx.friction_memory_thresholds_rad.clone().unwrap();
     let weights = fx.friction_memory_weights.clone().unwrap();
-    let load_weights = fx.friction_memory_load_weights_per_nm.clone().unwrap();
-    let p = fx.friction_memory_load_exponent.unwrap();
-    use cable_servo::identify::extra_effects::memory_columns;
-    let lags = memory_columns(&ext.motor_angle_rad, &thresholds);
-    // The transmitted torque is the constant jaw torque once its ramp is over.
+    let n = thresholds.len();
+    let load_weights = fx
+        .friction_memory_load_weights_per_nm
+        .clone()
+        .unwrap_or_else(|| vec![0.0; n]);
+    let p = fx.friction_memory_load_exponent.unwrap_or(1.0);
+    use cable_servo::identify::extra_effects::{memory_law_columns, slack_column};
+    // The transmitted torque is the constant jaw torque once its ramp is over: the
+    // contacts' thresholds and the slack's width are those at that torque.
     let m = -with.load.constant_nm;
+    let torque = vec![m; ext.motor_angle_rad.len()];
+    let growth = fx.friction_memory_threshold_growth_per_nm.unwrap_or(0.0);
+    let lags = memory_law_columns(&ext.motor_angle_rad, &torque, &thresholds, growth);
+    let slack = match (
+        fx.friction_memory_slack_rad,
+        fx.friction_memory_slack_taken_up_nm,
+        fx.friction_memory_slack_weight,
+    ) {
+        (Some(s), Some(mu), Some(w)) => slack_column(&ext.motor_angle_rad, &torque, s, mu)
+            .into_iter()
+            .map(|v| w * v)
+            .collect(),
+        _ => vec![0.0; torque.len()],
+    };
     let mut checked = 0;
     let mut largest = 0.0f64;
     for i in (0..ext.len()).filter(|&i| ext.t_s[i] >= 1.0) {
@@ -693,7 +711,8 @@ fn plant_carries_the_ratio_shape_and_the_jaw_link() {
             + c[2] * (35.0 * u.powi(4) - 30.0 * u * u + 3.0) / 8.0;
         let memory: f64 = (0..thresholds.len())
             .map(|j| (weights[j] + load_weights[j] * m.abs().powf(p)) * lags[j][i])
-            .sum();
+            .sum::<f64>()
+            + slack[i];
         let expect = shape + fx.load_compliance_rad_per_nm.unwrap() * m + memory;
         // The cable's own error is the plain loop's at the same sample: both loops follow
         // the same motor reference, and the cable carries the same constant torque (the

@@ -148,20 +148,9 @@ fn leave_one_out_on_the_shipped_logs_gives_the_table_of_the_guide() {
             row.residual
         );
     }
-    // The guide's claims in words: 11/11 over the base model, 9/11 over the play
-    // operator, losing on tool4_00 and tool4_02, and tool4_00 named as disagreeing.
+    // The guide's claims in words: 11/11 over the base model and over the play operator,
+    // and no log named as disagreeing with the others.
     assert_eq!(t.wins_over_base, 11);
-    assert_eq!(t.wins_over_play, 9);
-    let losers: Vec<&str> = t
-        .rows
-        .iter()
-        .filter(|r| r.play_mrad.is_some_and(|p| r.extended_mrad >= p))
-        .map(|r| r.log.as_str())
-        .collect();
-    assert!(
-        losers.len() == 2 && losers[0].contains("tool4_00") && losers[1].contains("tool4_02"),
-        "{losers:?}"
-    );
-    assert_eq!(t.disagreeing.len(), 1, "{:?}", t.disagreeing);
-    assert!(t.disagreeing[0].contains("tool4_00"), "{:?}", t.disagreeing);
+    assert_eq!(t.wins_over_play, 11);
+    assert!(t.disagreeing.is_empty(), "{:?}", t.disagreeing);
 }

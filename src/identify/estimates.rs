@@ -4,7 +4,7 @@
 use nalgebra::DMatrix;
 
 use super::effects::{EffectName, EffectsParams};
-use super::model::{Fitted, LinParam, NlParam};
+use super::model::{Fitted, LinParam, MemoryLaw, NlParam};
 use super::{Diagnosis, ParamEstimate};
 use crate::physics::DriveParams;
 
@@ -57,6 +57,18 @@ pub(crate) fn parameters(
             NlParam::Effect(EffectName::DistributedFrictionMemory) => {
                 eff.friction_memory_load_exponent = Some(v);
                 "1 (lag growth as |torque|^p)"
+            }
+            NlParam::Memory(MemoryLaw::Growth) => {
+                eff.friction_memory_threshold_growth_per_nm = Some(v);
+                "1/(N m) (contact thresholds grow as 1 + beta |torque|)"
+            }
+            NlParam::Memory(MemoryLaw::Slack) => {
+                eff.friction_memory_slack_rad = Some(v);
+                "rad of input (free travel at no load)"
+            }
+            NlParam::Memory(MemoryLaw::TakenUp) => {
+                eff.friction_memory_slack_taken_up_nm = Some(v);
+                "N m (torque that takes the slack up)"
             }
             NlParam::Effect(_) => continue,
         };

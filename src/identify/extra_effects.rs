@@ -114,6 +114,71 @@ pub fn memory_load_columns(
         .collect()
 }
 
+/// A play operator whose half width changes sample by sample (`width[i]`, rad): the
+/// output stays put until the input is further than the current width from it, and a
+/// width that shrinks pulls it along.
+pub fn varying_play(x: &[f64], width: impl Fn(usize) -> f64) -> Vec<f64> {
+    let mut y = x.first().copied().unwrap_or(0.0);
+    x.iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let r = width(i);
+            y = y.clamp(v - r, v + r);
+            y
+        })
+        .collect()
+}
+
+/// Columns of the distributed friction memory with slip thresholds that grow with the
+/// transmitted torque: `P_(r (1 + growth |M|))(theta_in) - theta_in` for every no-load
+/// threshold `r` (rad of input); `growth` in 1/(N m), torques `M` in N m.
+pub fn memory_law_columns(
+    theta_in: &[f64],
+    torque_nm: &[f64],
+    thresholds: &[f64],
+    growth: f64,
+) -> Vec<Vec<f64>> {
+    if growth == 0.0 {
+        return memory_columns(theta_in, thresholds);
+    }
+    thresholds
+        .iter()
+        .map(|r| {
+            varying_play(theta_in, |i| {
+                crate::physics::effects::contact_threshold(*r, growth, torque_nm[i])
+            })
+            .iter()
+            .zip(theta_in)
+            .map(|(p, x)| p - x)
+            .collect()
+        })
+        .collect()
+}
+
+/// Column of the slack's play: `P_s(theta_in) - theta_in` with the width `s(|M|)` of
+/// [`crate::physics::effects::slack_width`] (`slack` rad at no load, gone at `taken_up`
+/// N m).
+pub fn slack_column(theta_in: &[f64], torque_nm: &[f64], slack: f64, taken_up: f64) -> Vec<f64> {
+    varying_play(theta_in, |i| {
+        crate::physics::effects::slack_width(slack, taken_up, torque_nm[i])
+    })
+    .iter()
+    .zip(theta_in)
+    .map(|(p, x)| p - x)
+    .collect()
+}
+
+/// Bounds of the memory law's nonlinear parameters in a calibration, relative to the
+/// largest torque magnitude `M_max` of the logs (N m) and the input stroke (rad): threshold
+/// growth `0 ..= GROWTH_AT_MAX / M_max` (thresholds up to 21 times their no-load size at
+/// the largest torque), slack `0 ..= SLACK_STROKE x stroke`, take-up torque
+/// `TAKEN_UP.0 .. TAKEN_UP.1` times `M_max`.
+pub const GROWTH_AT_MAX: f64 = 20.0;
+/// See [`GROWTH_AT_MAX`].
+pub const SLACK_STROKE: f64 = 0.2;
+/// See [`GROWTH_AT_MAX`].
+pub const TAKEN_UP: (f64, f64) = (0.05, 1.0);
+
 /// Bounds and start of the friction memory's load exponent `p` in a calibration.
 pub const MEMORY_LOAD_EXPONENT: (f64, f64, f64) = (0.5, 8.0, 1.0);
 
@@ -252,14 +317,36 @@ pub(crate) fn parameters(
     let mem = coefs(EffectName::DistributedFrictionMemory);
     if !mem.is_empty() {
         let nt = thresholds.len().min(mem.len());
+        // Layout: constant weights, then the load-scaled ones when fitted, then the slack's
+        // weight when the law is fitted.
+        let has_load = mem.len() >= 2 * nt;
+        let nv = if has_load { nt } else { 0 };
+        let slack = mem.get(nt + nv).copied();
+        let mem = &mem[..nt + nv];
         let w: Vec<f64> = mem[..nt].iter().map(|x| x.1).collect();
         let v: Vec<f64> = mem[nt..].iter().map(|x| x.1).collect();
+        if let Some((i, sw)) = slack {
+            out.push(super::ParamEstimate {
+                name: "friction_memory_slack_weight".into(),
+                value: sw,
+                std: std_of(&[(i, 1.0)]),
+                unit: "rad/rad".into(),
+            });
+            eff.friction_memory_slack_weight = Some(sw);
+        }
         // Reported at the logs' mean torque magnitude: where the data pins it, whatever
-        // the split between the constant and the load-scaled weights.
+        // the split between the constant and the load-scaled weights. Thresholds growing
+        // with the torque are read there too (the basis's factor is the mean `|M|` when
+        // there are no load-scaled weights, `p` being 1 then).
+        let at_mean = if has_load {
+            1.0
+        } else {
+            1.0 + eff.friction_memory_threshold_growth_per_nm.unwrap_or(0.0) * mean_load_factor
+        };
         let grad: Vec<(usize, f64)> = mem[..nt]
             .iter()
             .zip(thresholds)
-            .map(|(a, r)| (a.0, *r))
+            .map(|(a, r)| (a.0, *r * at_mean))
             .chain(
                 mem[nt..]
                     .iter()
@@ -269,7 +356,7 @@ pub(crate) fn parameters(
             .collect();
         out.push(super::ParamEstimate {
             name: EffectName::DistributedFrictionMemory.to_string(),
-            value: memory_amplitude(&w, thresholds)
+            value: at_mean * memory_amplitude(&w, thresholds)
                 + mean_load_factor * memory_amplitude(&v, thresholds),
             std: std_of(&grad),
             unit: EffectName::DistributedFrictionMemory.unit().into(),
@@ -376,6 +463,34 @@ mod tests {
         assert!(c[105].abs() < 0.05 + 1e-12);
         assert!((c[200] - 0.1).abs() < 1e-12);
         assert_eq!(memory_amplitude(&[0.5, 0.25], &[0.1, 0.2]), 0.1);
+    }
+
+    /// Mirrored input angle and mirrored torque give mirrored columns: the law reads only
+    /// the torque's magnitude and the plays are odd in the input.
+    #[test]
+    fn memory_law_columns_are_mirror_symmetric() {
+        let x: Vec<f64> = (0..4000)
+            .map(|i| 0.5 * (i as f64 * 0.003).sin() + 0.01 * (i as f64 * 0.05).sin())
+            .collect();
+        let m: Vec<f64> = (0..4000)
+            .map(|i| 0.07 + 0.04 * (i as f64 * 0.001).cos())
+            .collect();
+        let xm: Vec<f64> = x.iter().map(|v| -v).collect();
+        let mm: Vec<f64> = m.iter().map(|v| -v).collect();
+        let r = [0.01, 0.03];
+        let a = memory_law_columns(&x, &m, &r, 9.0);
+        let b = memory_law_columns(&xm, &mm, &r, 9.0);
+        let sa = slack_column(&x, &m, 0.05, 0.09);
+        let sb = slack_column(&xm, &mm, 0.05, 0.09);
+        for i in 0..x.len() {
+            for j in 0..r.len() {
+                assert!((a[j][i] + b[j][i]).abs() < 1e-15);
+            }
+            assert!((sa[i] + sb[i]).abs() < 1e-15);
+        }
+        assert!(sa.iter().any(|v| v.abs() > 0.01));
+        // No growth: the fixed-threshold columns.
+        assert_eq!(memory_law_columns(&x, &m, &r, 0.0), memory_columns(&x, &r));
     }
 
     #[test]

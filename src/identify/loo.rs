@@ -425,7 +425,7 @@ pub fn leave_one_out_with_segments(
         match p.0 {
             NlParam::Mu => d.friction_coefficient = *v,
             NlParam::Preload => d.preload_n = *v,
-            NlParam::Effect(_) => {}
+            NlParam::Effect(_) | NlParam::Memory(_) => {}
         }
     }
     let (mut shared, joint_drive, mut eff) = estimates::parameters(drive, &d, &nl, &f, &cov);

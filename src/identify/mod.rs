@@ -191,7 +191,7 @@ fn with_base(drive: &DriveParams, spec_nl: &[(NlParam, f64, f64, f64)], x: &[f64
         match n.0 {
             NlParam::Mu => d.friction_coefficient = *v,
             NlParam::Preload => d.preload_n = *v,
-            NlParam::Effect(_) => {}
+            NlParam::Effect(_) | NlParam::Memory(_) => {}
         }
     }
     d
@@ -594,14 +594,14 @@ pub fn diagnose_with_progress(
         x0.push(match n.0 {
             NlParam::Mu => full_drive.friction_coefficient,
             NlParam::Preload => full_drive.preload_n,
-            NlParam::Effect(e) => chosen_fit
+            NlParam::Effect(_) | NlParam::Memory(_) => chosen_fit
                 .as_ref()
                 .and_then(|f| {
                     let evc =
                         Evaluator::new(spec_for(&full_drive, &ident, &chosen, false), &prepared);
                     evc.nonlinear()
                         .iter()
-                        .position(|m| m.0 == NlParam::Effect(e))
+                        .position(|m| m.0 == n.0)
                         .and_then(|i| f.x.get(i).copied())
                 })
                 .unwrap_or(n.3),
@@ -911,7 +911,7 @@ fn recalibrate(
         .map(|n| match n.0 {
             NlParam::Mu => full_drive.friction_coefficient,
             NlParam::Preload => full_drive.preload_n,
-            NlParam::Effect(_) => fixed
+            NlParam::Effect(_) | NlParam::Memory(_) => fixed
                 .iter()
                 .position(|m| m.0 == n.0)
                 .and_then(|i| fixed_fit.x.get(i).copied())

@@ -41,6 +41,10 @@ pub struct SynthOptions {
     /// A friction-memory contact whose lag grows with the transmitted torque, for
     /// calibrations across loads.
     pub memory_load: Option<MemoryLoad>,
+    /// A friction memory following the `[effects]` law (contact thresholds growing with
+    /// the transmitted torque, a slack it takes up), replayed by the closed loop's own
+    /// contact model on the true input angle and torque.
+    pub memory_law: Option<crate::physics::EffectsParams>,
 }
 
 /// One friction-memory contact (the middle threshold of the identification grid) whose lag
@@ -64,6 +68,7 @@ impl Default for SynthOptions {
             load_noise_nm: 0.002,
             ringing: None,
             memory_load: None,
+            memory_law: None,
         }
     }
 }
@@ -184,6 +189,13 @@ pub fn synthesize(
         let col = &super::extra_effects::memory_columns(&th_in, &[r])[0];
         for k in 0..n {
             out[k] += m.lag_rad_per_nm_p / r * torque[k].abs().powf(m.exponent) * col[k];
+        }
+    }
+    if let Some(fx) = &options.memory_law {
+        if let Some(mut m) = crate::physics::ContactMemory::new(fx, th_in[0]) {
+            for k in 0..n {
+                out[k] += m.commit(th_in[k], torque[k]);
+            }
         }
     }
     if let Some(r) = options.ringing {

@@ -92,6 +92,51 @@ pub struct EffectsParams {
     /// Unit: 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction_memory_load_exponent: Option<f64>,
+    /// Growth `beta` of every contact's slip threshold with the transmitted torque's
+    /// magnitude: threshold `r_j (1 + beta |M|)` (the normal force on a wrap contact is the
+    /// local cable tension, preload plus the load's share). 0 or absent: fixed thresholds;
+    /// about 9 for the da Vinci jaw.
+    /// Allowed: 0 to 1e4.
+    /// Unit: 1/(N m).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction_memory_threshold_growth_per_nm: Option<f64>,
+    /// Free travel of slack and clearances at no load, rad of input: a play whose width
+    /// `s (1 - |M|/M_u)` shrinks as tension takes it up, to nothing at
+    /// `friction_memory_slack_taken_up_nm` (`M_u`). Needs the other two slack keys; 0.18
+    /// (weighing 0.1) for the da Vinci jaw.
+    /// Allowed: 0 to 10.
+    /// Unit: rad.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction_memory_slack_rad: Option<f64>,
+    /// Torque magnitude `M_u` at which the slack is taken up, N m (a fraction of the working
+    /// torque; 0.038 N m for the da Vinci jaw).
+    /// Allowed: above 0, up to 1e4.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction_memory_slack_taken_up_nm: Option<f64>,
+    /// Weight of the slack's play, output rad per input rad (1/ratio for free travel of the
+    /// input alone; non-negative).
+    /// Allowed: 0 to 10.
+    /// Unit: rad/rad.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction_memory_slack_weight: Option<f64>,
+}
+
+/// Slip threshold of a friction contact under transmitted torque `m_nm` (N m): its
+/// no-load threshold `r0` (rad of input) times `1 + growth |M|` (`growth` in 1/(N m)).
+/// Only the torque's magnitude counts: a drive loaded the other way presses its contacts
+/// as hard.
+pub fn contact_threshold(r0: f64, growth: f64, m_nm: f64) -> f64 {
+    r0 * (1.0 + growth * m_nm.abs())
+}
+
+/// Width of the slack's play under transmitted torque `m_nm` (N m): `slack (1 -
+/// |M|/taken_up)` down to 0 at `taken_up` (N m) and beyond (rad of input).
+pub fn slack_width(slack: f64, taken_up: f64, m_nm: f64) -> f64 {
+    if taken_up > 0.0 {
+        slack * (1.0 - m_nm.abs() / taken_up).max(0.0)
+    } else {
+        0.0
+    }
 }
 
 impl EffectsParams {
@@ -185,6 +230,41 @@ impl EffectsParams {
             0.5,
             8.0,
         )?;
+        check(
+            "friction_memory_threshold_growth_per_nm",
+            self.friction_memory_threshold_growth_per_nm,
+            0.0,
+            1e4,
+        )?;
+        check(
+            "friction_memory_slack_rad",
+            self.friction_memory_slack_rad,
+            0.0,
+            10.0,
+        )?;
+        check(
+            "friction_memory_slack_weight",
+            self.friction_memory_slack_weight,
+            0.0,
+            10.0,
+        )?;
+        check(
+            "friction_memory_slack_taken_up_nm",
+            self.friction_memory_slack_taken_up_nm,
+            f64::MIN_POSITIVE,
+            1e4,
+        )?;
+        let slack = [
+            self.friction_memory_slack_rad.is_some(),
+            self.friction_memory_slack_taken_up_nm.is_some(),
+            self.friction_memory_slack_weight.is_some(),
+        ];
+        if slack.iter().any(|b| *b) && !slack.iter().all(|b| *b) {
+            return Err((
+                "friction_memory_slack_rad".into(),
+                "friction_memory_slack_rad, friction_memory_slack_taken_up_nm and friction_memory_slack_weight go together: give all three or none".into(),
+            ));
+        }
         if let Some(v) = &self.friction_memory_load_weights_per_nm {
             let n = self
                 .friction_memory_thresholds_rad
@@ -249,8 +329,22 @@ impl EffectsParams {
     /// Whether the friction memory of many contacts is present with a nonzero weight.
     pub fn has_friction_memory(&self) -> bool {
         let nz = |v: &Option<Vec<f64>>| v.as_ref().is_some_and(|w| w.iter().any(|x| *x != 0.0));
-        self.friction_memory_thresholds_rad.is_some()
-            && (nz(&self.friction_memory_weights) || nz(&self.friction_memory_load_weights_per_nm))
+        (self.friction_memory_thresholds_rad.is_some()
+            && (nz(&self.friction_memory_weights) || nz(&self.friction_memory_load_weights_per_nm)))
+            || self.slack().is_some()
+    }
+
+    /// The slack's `(width at no load, rad; torque that takes it up, N m; weight, rad/rad)`
+    /// when present with a nonzero size.
+    fn slack(&self) -> Option<(f64, f64, f64)> {
+        match (
+            self.friction_memory_slack_rad,
+            self.friction_memory_slack_taken_up_nm,
+            self.friction_memory_slack_weight,
+        ) {
+            (Some(s), Some(m), Some(w)) if s > 0.0 && m > 0.0 && w > 0.0 => Some((s, m, w)),
+            _ => None,
+        }
     }
 
     /// Unmeasured Coulomb torque at the drum, N m (0 when absent).
@@ -353,15 +447,21 @@ pub fn scaled(theta_in: f64, stroke: (f64, f64)) -> f64 {
 
 /// Friction memory spread over many contacts (a Prandtl-Ishlinskii sum of play operators on
 /// the input angle), with its play states. Each contact sticks until the input has moved its
-/// threshold `r_j` past a reversal; its lag `P_r(theta_in) - theta_in` weighs
-/// `w_j + wl_j |M|^p` output rad per input rad, `M` the transmitted torque (N m).
+/// threshold `r_j (1 + beta |M|)` past a reversal; its lag `P_r(theta_in) - theta_in` weighs
+/// `w_j + wl_j |M|^p` output rad per input rad, `M` the transmitted torque (N m). The
+/// slack, when present, is one more play whose width shrinks with `|M|` (see
+/// [`slack_width`]). Only magnitudes of the torque enter.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ContactMemory {
     thresholds: Vec<f64>,
     weights: Vec<f64>,
     load_weights: Vec<f64>,
     load_exponent: f64,
-    /// Play outputs, rad of input.
+    /// Threshold growth with `|M|`, 1/(N m).
+    growth: f64,
+    /// Slack: no-load width (rad), take-up torque (N m), weight (rad/rad).
+    slack: Option<(f64, f64, f64)>,
+    /// Play outputs, rad of input (the slack's last when present).
     state: Vec<f64>,
 }
 
@@ -372,7 +472,10 @@ impl ContactMemory {
         if !fx.has_friction_memory() {
             return None;
         }
-        let thresholds = fx.friction_memory_thresholds_rad.clone()?;
+        let thresholds = fx
+            .friction_memory_thresholds_rad
+            .clone()
+            .unwrap_or_default();
         let n = thresholds.len();
         let weights = fx
             .friction_memory_weights
@@ -382,13 +485,26 @@ impl ContactMemory {
             .friction_memory_load_weights_per_nm
             .clone()
             .unwrap_or_else(|| vec![0.0; n]);
+        let slack = fx.slack();
         Some(ContactMemory {
-            state: vec![theta_in; n],
+            state: vec![theta_in; n + usize::from(slack.is_some())],
             thresholds,
             weights,
             load_weights,
             load_exponent: fx.friction_memory_load_exponent.unwrap_or(1.0),
+            growth: fx.friction_memory_threshold_growth_per_nm.unwrap_or(0.0),
+            slack,
         })
+    }
+
+    /// Every play's `(half width, rad of input; weight, rad/rad)` under torque `m_nm`.
+    fn plays(&self, m_nm: f64) -> impl Iterator<Item = (f64, f64)> + '_ {
+        let f = m_nm.abs().powf(self.load_exponent);
+        self.thresholds
+            .iter()
+            .zip(self.weights.iter().zip(&self.load_weights))
+            .map(move |(r, (w, wl))| (contact_threshold(*r, self.growth, m_nm), w + wl * f))
+            .chain(self.slack.map(|(s, mu, w)| (slack_width(s, mu, m_nm), w)))
     }
 
     /// Output lag (rad, negative behind the input's direction of travel) at input angle
@@ -401,29 +517,29 @@ impl ContactMemory {
     /// sticking contact (its play not at either edge) lags by `-w` per input rad, a
     /// sliding one no further.
     pub fn lag_and_slope(&self, theta_in: f64, m_nm: f64) -> (f64, f64) {
-        let f = m_nm.abs().powf(self.load_exponent);
         let mut lag = 0.0;
         let mut slope = 0.0;
-        for ((r, y), (w, wl)) in self
-            .thresholds
-            .iter()
-            .zip(&self.state)
-            .zip(self.weights.iter().zip(&self.load_weights))
-        {
-            let weight = w + wl * f;
+        for ((r, weight), y) in self.plays(m_nm).zip(&self.state) {
             let p = y.clamp(theta_in - r, theta_in + r);
             lag += weight * (p - theta_in);
-            if (y - theta_in).abs() < *r {
+            if (y - theta_in).abs() < r {
                 slope -= weight;
             }
         }
         (lag, slope)
     }
 
-    /// Move every play to input angle `theta_in` (rad) and return the lag there.
+    /// Move every play to input angle `theta_in` (rad) under torque `m_nm` (N m) and
+    /// return the lag there.
     pub fn commit(&mut self, theta_in: f64, m_nm: f64) -> f64 {
-        for (y, r) in self.state.iter_mut().zip(&self.thresholds) {
-            *y = y.clamp(theta_in - r, theta_in + r);
+        for j in 0..self.state.len() {
+            let r = match self.thresholds.get(j) {
+                Some(r0) => contact_threshold(*r0, self.growth, m_nm),
+                None => self
+                    .slack
+                    .map_or(0.0, |(s, mu, _)| slack_width(s, mu, m_nm)),
+            };
+            self.state[j] = self.state[j].clamp(theta_in - r, theta_in + r);
         }
         self.lag_rad(theta_in, m_nm)
     }
@@ -523,6 +639,58 @@ mod kinematic_tests {
                 y
             })
             .collect()
+    }
+
+    /// Turning the other way under a load the other way is the same physics: mirrored
+    /// input and mirrored torque give the mirrored lag, and the law reads only `|M|`.
+    #[test]
+    fn contact_memory_law_is_mirror_symmetric() {
+        let fx = EffectsParams {
+            friction_memory_thresholds_rad: Some(vec![0.01, 0.04]),
+            friction_memory_weights: Some(vec![0.3, 0.2]),
+            friction_memory_threshold_growth_per_nm: Some(9.0),
+            friction_memory_slack_rad: Some(0.05),
+            friction_memory_slack_taken_up_nm: Some(0.04),
+            friction_memory_slack_weight: Some(0.5),
+            ..EffectsParams::default()
+        };
+        assert_eq!(fx.validate(), Ok(()));
+        let mut up = ContactMemory::new(&fx, 0.0).unwrap();
+        let mut down = ContactMemory::new(&fx, 0.0).unwrap();
+        let mut checked = 0.0f64;
+        for k in 0..3000 {
+            let t = k as f64 * 0.01;
+            let x = 0.5 * (0.7 * t).sin() + 0.02 * (5.3 * t).sin();
+            let m = 0.06 + 0.05 * (0.3 * t).sin();
+            let a = up.commit(x, m);
+            let b = down.commit(-x, -m);
+            assert!((a + b).abs() < 1e-15, "{k}: {a} vs {b}");
+            let (la, sa) = up.lag_and_slope(x + 0.003, -m);
+            let (lb, sb) = down.lag_and_slope(-x - 0.003, m);
+            assert!((la + lb).abs() < 1e-15 && (sa - sb).abs() < 1e-15);
+            checked = checked.max(a.abs());
+        }
+        assert!(checked > 0.01, "{checked}");
+        // Thresholds grow with the magnitude of the torque, the slack shrinks to nothing.
+        assert_eq!(
+            contact_threshold(0.01, 9.0, -0.1),
+            contact_threshold(0.01, 9.0, 0.1)
+        );
+        assert!((contact_threshold(0.01, 9.0, 0.1) - 0.019).abs() < 1e-15);
+        assert_eq!(
+            slack_width(0.05, 0.04, -0.02),
+            slack_width(0.05, 0.04, 0.02)
+        );
+        assert_eq!(slack_width(0.05, 0.04, 0.05), 0.0);
+        // Slack keys go together.
+        let partial = EffectsParams {
+            friction_memory_slack_weight: None,
+            ..fx
+        };
+        assert_eq!(
+            partial.validate().map_err(|e| e.0),
+            Err("friction_memory_slack_rad".to_string())
+        );
     }
 
     #[test]
