@@ -66,7 +66,7 @@ pub struct EffectsParams {
     /// on the output angle. Negative: the output gives way with the load like a flexible
     /// link, adding to the spans' stretch (a jaw or pin, typically -1e-4 to -1e-2 on
     /// instruments); positive: the drive is stiffer under a steady load than the cable
-    /// model (3.1 for the da Vinci jaw). The closed loop puts it, with the friction
+    /// model (3.2 for the da Vinci jaw). The closed loop puts it, with the friction
     /// memory, in a massless link between the drum and the output sensor.
     /// Allowed: -100 to 100.
     #[serde(default, skip_serializing_if = "Option::is_none")]
