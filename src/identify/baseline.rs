@@ -5,7 +5,7 @@
 
 use serde::Serialize;
 
-use super::model::{relaxing_replay, transport_filter, Prepared};
+use super::model::{relaxing_replay, transport_filter, with_bearing_friction, Prepared};
 use super::IdentifyError;
 use crate::physics::effects::{ContactMemory, EffectsParams};
 use crate::physics::DriveParams;
@@ -44,13 +44,7 @@ pub fn score(
             .map(|i| keep.get(i).copied().unwrap_or(true))
             .collect();
         row += l.t.len();
-        let mb = effects.bearing_friction();
-        let torque: Vec<f64> = l
-            .torque
-            .iter()
-            .zip(&l.dir)
-            .map(|(m, d)| m + mb * d)
-            .collect();
+        let torque = with_bearing_friction(l, effects.bearing_friction());
         let rel = effects.preload_relaxation_per_s.unwrap_or(0.0);
         let mut e =
             relaxing_replay(drive, &torque, &l.t, l.duration, rel).map_err(|(i, message)| {

@@ -397,21 +397,25 @@ pub fn diagnose_with_progress(
             break;
         }
         use rayon::prelude::*;
+        // Held-out score of the chosen effects and more, on this round's calibration.
+        let score_with = |effs: &[EffectName]| {
+            cross_validate(
+                &prepared,
+                &ident,
+                &full_drive,
+                &fold_drives,
+                &split.folds,
+                &split.full,
+                &keep,
+                effs,
+            )
+        };
         let results: Vec<(EffectName, CvResult)> = pool
             .par_iter()
             .map(|e| {
                 let mut effs = chosen.clone();
                 effs.push(*e);
-                let r = cross_validate(
-                    &prepared,
-                    &ident,
-                    &full_drive,
-                    &fold_drives,
-                    &split.folds,
-                    &split.full,
-                    &keep,
-                    &effs,
-                );
+                let r = score_with(&effs);
                 judged.tick();
                 (*e, r)
             })
@@ -494,16 +498,7 @@ pub fn diagnose_with_progress(
                 .map(|(a, b)| {
                     let mut effs = chosen.clone();
                     effs.extend([*a, *b]);
-                    let r = cross_validate(
-                        &prepared,
-                        &ident,
-                        &full_drive,
-                        &fold_drives,
-                        &split.folds,
-                        &split.full,
-                        &keep,
-                        &effs,
-                    );
+                    let r = score_with(&effs);
                     ((*a, *b), r)
                 })
                 .collect();

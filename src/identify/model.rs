@@ -144,6 +144,16 @@ pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyErr
     })
 }
 
+/// The torque the cable carries in log `l` when a bearing hides a Coulomb torque `mb`
+/// (N m) from the load sensor: the measured torque plus `mb` along the motion.
+pub fn with_bearing_friction(l: &Prepared, mb: f64) -> Vec<f64> {
+    l.torque
+        .iter()
+        .zip(&l.dir)
+        .map(|(m, d)| m + mb * d)
+        .collect()
+}
+
 /// Transmission error of the memory model along a torque history, rad.
 pub fn replay(drive: &DriveParams, torque: &[f64]) -> Result<Vec<f64>, (usize, String)> {
     let mut d = CableDrive::new(drive.clone(), HysteresisModel::Memory);
@@ -521,12 +531,7 @@ impl<'a> Evaluator<'a> {
         if !self.cache.contains_key(&key) {
             let mut all = Vec::with_capacity(self.logs.len());
             for l in self.logs {
-                let torque: Vec<f64> = l
-                    .torque
-                    .iter()
-                    .zip(&l.dir)
-                    .map(|(m, d)| m + mb * d)
-                    .collect();
+                let torque = with_bearing_friction(l, mb);
                 let fail = |(i, msg): (usize, String)| IdentifyError::Replay {
                     log: l.source.clone(),
                     t_s: l.t.get(i).copied().unwrap_or(0.0),
