@@ -24,7 +24,19 @@ fn lag(fx: &EffectsParams, m: f64) -> f64 {
         .iter()
         .flatten()
         .zip(fx.friction_memory_weights.iter().flatten())
-        .map(|(r, w)| w * contact_threshold(*r, g, m))
+        .enumerate()
+        .map(|(j, (r, w))| {
+            // Weights that grow as |M|^p, where the calibration keeps them.
+            let grown = fx
+                .friction_memory_load_weights_per_nm
+                .as_ref()
+                .map_or(0.0, |v| {
+                    v[j] * m
+                        .abs()
+                        .powf(fx.friction_memory_load_exponent.unwrap_or(1.0))
+                });
+            (w + grown) * contact_threshold(*r, g, m)
+        })
         .sum();
     let slack = match (
         fx.friction_memory_slack_rad,
@@ -101,13 +113,22 @@ fn calibrate(sc: &Scenario, logs: &[BenchLog]) -> EffectsParams {
             .map(|i| f.coef[i])
             .unwrap_or(0.0)
     };
+    let n = thresholds.len();
+    let exponent = nl
+        .iter()
+        .position(|p| p.0 == NlParam::Effect(EffectName::DistributedFrictionMemory))
+        .map(|i| f.x[i]);
+    // The slack's weight follows the contacts' weights and, when kept, their load parts.
+    let slack_column = if exponent.is_some() { 2 * n } else { n };
     EffectsParams {
         friction_memory_thresholds_rad: Some(thresholds.to_vec()),
-        friction_memory_weights: Some((0..thresholds.len()).map(coef).collect()),
+        friction_memory_weights: Some((0..n).map(coef).collect()),
+        friction_memory_load_weights_per_nm: exponent.map(|_| (n..2 * n).map(coef).collect()),
+        friction_memory_load_exponent: exponent,
         friction_memory_threshold_growth_per_nm: x(MemoryLaw::Growth),
         friction_memory_slack_rad: x(MemoryLaw::Slack),
         friction_memory_slack_taken_up_nm: x(MemoryLaw::TakenUp),
-        friction_memory_slack_weight: Some(coef(thresholds.len())),
+        friction_memory_slack_weight: Some(coef(slack_column)),
         ..EffectsParams::default()
     }
 }
