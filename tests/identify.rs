@@ -479,3 +479,56 @@ fn absolute_gain_and_floor_thresholds_decide_as_set() {
     let d = diagnose(&strict, std::slice::from_ref(&log), &opts()).unwrap();
     assert_eq!(d.cause, "none", "ratio {ratio}");
 }
+
+/// A calibrated instrument is the baseline. Calibrated once on a log of a drive with a
+/// compliant link (the diagnosis saved as a scenario, `[effects]` and all), a second log of
+/// the same instrument that also has a pulley runout gets the runout named and sized on
+/// top of it, the compliance not searched again and the saved model carrying both; a log
+/// of the instrument as calibrated gets `none`.
+#[test]
+fn what_is_missing_is_found_on_top_of_a_calibrated_instrument() {
+    let sc = scenario(false);
+    let o = TruthOptions {
+        instrument_seed: Some(77),
+        ..TruthOptions::default()
+    };
+    let log = |fx: &[(EffectName, f64)], seed: u64| {
+        truth_log(&sc, fx, seed, &o)
+            .unwrap_or_else(|e| panic!("truth: {e}"))
+            .log
+    };
+    let compliance = (EffectName::LoadCompliance, -5e-4);
+    let d = diagnose(&sc, &[log(&[compliance], 1)], &opts_every()).expect("calibration");
+    assert_eq!(d.cause, "load_compliance", "{:?}", d.candidates);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("calibrated.toml");
+    cable_servo::report::diagnosis::save_model(&path, &sc, &d).unwrap();
+    let calibrated = Scenario::load(path.to_str().unwrap(), &[]).unwrap();
+    let c = calibrated
+        .effects
+        .as_ref()
+        .and_then(|fx| fx.load_compliance_rad_per_nm)
+        .expect("the calibrated compliance");
+
+    let runout = (EffectName::InputPulleyRunout, 1e-3);
+    let d = diagnose(&calibrated, &[log(&[compliance, runout], 2)], &opts_every()).unwrap();
+    assert!(d.calibrated_model.is_some());
+    assert_eq!(d.cause, "input_pulley_runout", "{:?}", d.candidates);
+    assert!(
+        d.candidates.iter().all(|s| s.name != "load_compliance"),
+        "{:?}",
+        d.candidates
+    );
+    let est = effect_value(&d, runout.0).expect("runout size");
+    assert!(
+        (est - runout.1).abs() <= size_tolerance(runout.0) * runout.1,
+        "runout {est:e} for {:e}",
+        runout.1
+    );
+    assert_eq!(d.effects.load_compliance_rad_per_nm, Some(c));
+    assert!(d.effects.input_pulley_runout.is_some());
+    assert!(d.rmse_extended_mrad < d.rmse_base_mrad);
+
+    let d = diagnose(&calibrated, &[log(&[compliance], 3)], &opts_every()).unwrap();
+    assert_eq!(d.cause, "none", "{:?}", d.candidates);
+}

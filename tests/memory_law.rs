@@ -95,6 +95,7 @@ fn calibrate(sc: &Scenario, logs: &[BenchLog]) -> EffectsParams {
         fit_ratio: false,
         effects: vec![EffectName::DistributedFrictionMemory],
         ident,
+        calibrated: None,
     };
     let mut ev = Evaluator::new(spec, &prepared);
     let all = vec![true; ev.rows()];

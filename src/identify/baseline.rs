@@ -5,9 +5,9 @@
 
 use serde::Serialize;
 
-use super::model::{relaxing_replay, transport_filter, with_bearing_friction, Prepared};
+use super::model::{calibrated_prediction, Prepared};
 use super::IdentifyError;
-use crate::physics::effects::{ContactMemory, EffectsParams};
+use crate::physics::effects::EffectsParams;
 use crate::physics::DriveParams;
 
 /// The calibrated model's error on logs it was not fitted to.
@@ -44,33 +44,9 @@ pub fn score(
             .map(|i| keep.get(i).copied().unwrap_or(true))
             .collect();
         row += l.t.len();
-        let torque = with_bearing_friction(l, effects.bearing_friction());
-        let rel = effects.preload_relaxation_per_s.unwrap_or(0.0);
-        let mut e =
-            relaxing_replay(drive, &torque, &l.t, l.duration, rel).map_err(|(i, message)| {
-                IdentifyError::Replay {
-                    log: l.source.clone(),
-                    t_s: l.t.get(i).copied().unwrap_or(0.0),
-                    message,
-                }
-            })?;
-        if let Some(tc) = effects.cable_transport_rad.filter(|v| *v > 0.0) {
-            e = transport_filter(&e, &l.travel, tc);
-        }
-        let c = effects.load_compliance();
-        let tau = effects.encoder_delay_s.unwrap_or(0.0);
-        let s = effects.encoder_scale_error.unwrap_or(0.0);
-        let mut contacts = ContactMemory::new(effects, l.th_in.first().copied().unwrap_or(0.0));
+        let pred = calibrated_prediction(drive, effects, l, [0.0; 3])?;
         let r: Vec<f64> = (0..l.t.len())
-            .map(|i| {
-                let (th_in, th_out, m) = (l.th_in[i], l.th_out[i], l.torque[i]);
-                let lag = contacts.as_mut().map_or(0.0, |k| k.commit(th_in, m));
-                let pred =
-                    e[i] + effects.kinematic_error_rad(th_in, th_out, l.t[i], ic) + c * m + lag
-                        - tau * l.vel_out[i]
-                        + s * th_out;
-                th_out - th_in / ic - pred
-            })
+            .map(|i| l.th_out[i] - l.th_in[i] / ic - pred[i])
             .collect();
         let used: Vec<f64> = r
             .iter()

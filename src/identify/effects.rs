@@ -85,6 +85,26 @@ impl EffectName {
         EffectName::DistributedFrictionMemory,
     ];
 
+    /// Whether a calibrated instrument's `[effects]` already carry this effect with a
+    /// nonzero size.
+    pub fn carried_by(self, fx: &crate::physics::EffectsParams) -> bool {
+        let nz = |v: Option<f64>| v.is_some_and(|v| v != 0.0);
+        let any = |v: &Option<Vec<f64>>| v.as_ref().is_some_and(|v| v.iter().any(|x| *x != 0.0));
+        match self {
+            EffectName::InputPulleyRunout => nz(fx.input_pulley_runout),
+            EffectName::OutputDrumRunout => nz(fx.output_drum_runout),
+            EffectName::EncoderDelay => nz(fx.encoder_delay_s),
+            EffectName::EncoderScaleError => nz(fx.encoder_scale_error),
+            EffectName::PreloadRelaxation => nz(fx.preload_relaxation_per_s),
+            EffectName::BearingFriction => nz(fx.bearing_friction_nm),
+            EffectName::CableTransport => nz(fx.cable_transport_rad),
+            EffectName::ThermalDrift => nz(fx.thermal_drift_rad_per_s),
+            EffectName::AngleDependentRatio => any(&fx.angle_dependent_ratio_coefs),
+            EffectName::LoadCompliance => nz(fx.load_compliance_rad_per_nm),
+            EffectName::DistributedFrictionMemory => fx.has_friction_memory(),
+        }
+    }
+
     /// Name as used in files and on the command line.
     pub fn as_str(self) -> &'static str {
         match self {

@@ -207,6 +207,7 @@ fn spec(drive: &DriveParams, ident: &IdentifyParams, effects: &[EffectName]) -> 
         fit_ratio: ident.is_unknown("ratio"),
         effects: effects.to_vec(),
         ident: ident.clone(),
+        calibrated: None,
     }
 }
 

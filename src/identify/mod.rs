@@ -173,6 +173,7 @@ fn spec_for(
     ident: &IdentifyParams,
     effects: &[EffectName],
     nonlinear_base: bool,
+    calibrated: Option<&EffectsParams>,
 ) -> Spec {
     Spec {
         drive: drive.clone(),
@@ -182,6 +183,7 @@ fn spec_for(
         fit_ratio: ident.is_unknown("ratio"),
         effects: effects.to_vec(),
         ident: ident.clone(),
+        calibrated: calibrated.cloned(),
     }
 }
 
@@ -243,7 +245,8 @@ fn failed_score(name: String, round: usize, err: &IdentifyError) -> CandidateSco
 }
 
 /// Cross-validated held-out residuals of a model with `effects` on top of per-fold base
-/// drives; returns (held-out RMSE, held-out count, fit on the final mask).
+/// drives (and of a calibrated instrument's effects, when given); returns (held-out RMSE,
+/// held-out count, fit on the final mask).
 #[allow(clippy::too_many_arguments)]
 fn cross_validate(
     logs: &[Prepared],
@@ -254,12 +257,16 @@ fn cross_validate(
     full_mask: &[bool],
     keep: &[bool],
     effects: &[EffectName],
+    calibrated: Option<&EffectsParams>,
 ) -> CvResult {
-    let mut ev = Evaluator::new(spec_for(full_drive, ident, effects, false), logs);
+    let mut ev = Evaluator::new(
+        spec_for(full_drive, ident, effects, false, calibrated),
+        logs,
+    );
     let full = ev.fit(full_mask, None, 25)?;
     let mut held = Vec::new();
     for ((train, test), drive) in folds.iter().zip(fold_drives) {
-        let mut evf = Evaluator::new(spec_for(drive, ident, effects, false), logs);
+        let mut evf = Evaluator::new(spec_for(drive, ident, effects, false, calibrated), logs);
         let f = evf.fit(train, Some(&full.x), 10)?;
         let (mut r, _) = evf.residual(&f, train)?;
         recenter_unfitted(logs, &mut r, train, keep);
@@ -346,7 +353,7 @@ pub fn diagnose_with_progress(
     let drive0 = scenario.drive.clone();
 
     // Base model: full calibration, then per fold from there.
-    let base_spec = spec_for(&drive0, &ident, &[], true);
+    let base_spec = spec_for(&drive0, &ident, &[], true, None);
     let mut ev = Evaluator::new(base_spec.clone(), &prepared);
     let base_fit = ev.fit(&split.full, None, 40)?;
     let nl = ev.nonlinear();
@@ -367,6 +374,41 @@ pub fn diagnose_with_progress(
     let ic_fit = fitted_ratio(&drive0, &base_fit);
     let floor = noise_floor(&prepared, &base_resid, &keep, ic_fit).max(1e-12);
 
+    // On a calibrated instrument (a scenario's `[effects]`) the search asks what is still
+    // missing on top of it: its drive and effects held as calibrated, only each log's zero
+    // and the candidates fitted. The capstan calibration above stays the base the result
+    // is compared with.
+    let calibrated_fx: Option<EffectsParams> = scenario
+        .effects
+        .filter(|fx| **fx != EffectsParams::default())
+        .cloned();
+    let top = calibrated_fx.as_ref();
+    let search_ident = if top.is_some() {
+        IdentifyParams {
+            unknown: Vec::new(),
+            ..ident.clone()
+        }
+    } else {
+        ident.clone()
+    };
+    let mut current = rmse_base;
+    if top.is_some() {
+        full_drive = drive0.clone();
+        fold_drives = vec![drive0.clone(); split.folds.len()];
+        current = cross_validate(
+            &prepared,
+            &search_ident,
+            &drive0,
+            &fold_drives,
+            &split.folds,
+            &split.full,
+            &keep,
+            &[],
+            top,
+        )?
+        .0;
+    }
+
     // Candidates.
     let ratio_free = ident.is_unknown("ratio");
     let mut pool: Vec<EffectName> = options
@@ -382,6 +424,8 @@ pub fn diagnose_with_progress(
         .into_iter()
         // A free ratio and an output scale error are the same column.
         .filter(|e| !(ratio_free && *e == EffectName::EncoderScaleError))
+        // What the calibrated instrument already carries is not searched again.
+        .filter(|e| top.is_none_or(|fx| !e.carried_by(fx)))
         .collect();
     // Each round judges every candidate left and takes one out of the pool (two, when
     // only a pair passes the gate).
@@ -389,7 +433,6 @@ pub fn diagnose_with_progress(
     let most_judged: usize = (0..rounds).map(|r| pool.len() - r).sum();
     let judged = crate::progress::Counter::new(most_judged, progress);
     let mut chosen: Vec<EffectName> = Vec::new();
-    let mut current = rmse_base;
     let mut scores: Vec<CandidateScore> = Vec::new();
     let mut chosen_fit: Option<Fitted> = None;
     for round in 1..=ident.max_effects {
@@ -401,13 +444,14 @@ pub fn diagnose_with_progress(
         let score_with = |effs: &[EffectName]| {
             cross_validate(
                 &prepared,
-                &ident,
+                &search_ident,
                 &full_drive,
                 &fold_drives,
                 &split.folds,
                 &split.full,
                 &keep,
                 effs,
+                top,
             )
         };
         let results: Vec<(EffectName, CvResult)> = pool
@@ -551,9 +595,10 @@ pub fn diagnose_with_progress(
         }
         // The base calibration absorbed part of the accepted effect; free it again with
         // the effect in place so the next round does not pick up the leftover bias.
-        if nl
-            .iter()
-            .any(|n| matches!(n.0, NlParam::Mu | NlParam::Preload))
+        if top.is_none()
+            && nl
+                .iter()
+                .any(|n| matches!(n.0, NlParam::Mu | NlParam::Preload))
         {
             if let Some(fit) = &chosen_fit {
                 if let Ok(r) = recalibrate(
@@ -581,7 +626,7 @@ pub fn diagnose_with_progress(
     }
 
     // Final extended model: base parameters free again together with the effects.
-    let ext_spec = spec_for(&drive0, &ident, &chosen, true);
+    let ext_spec = spec_for(&drive0, &search_ident, &chosen, true, top);
     let mut ev_ext = Evaluator::new(ext_spec, &prepared);
     let nl_ext = ev_ext.nonlinear();
     let mut x0: Vec<f64> = Vec::new();
@@ -592,8 +637,10 @@ pub fn diagnose_with_progress(
             NlParam::Effect(_) | NlParam::Memory(_) => chosen_fit
                 .as_ref()
                 .and_then(|f| {
-                    let evc =
-                        Evaluator::new(spec_for(&full_drive, &ident, &chosen, false), &prepared);
+                    let evc = Evaluator::new(
+                        spec_for(&full_drive, &search_ident, &chosen, false, top),
+                        &prepared,
+                    );
                     evc.nonlinear()
                         .iter()
                         .position(|m| m.0 == n.0)
@@ -602,7 +649,7 @@ pub fn diagnose_with_progress(
                 .unwrap_or(n.3),
         });
     }
-    let joint = if chosen.is_empty() {
+    let joint = if chosen.is_empty() && top.is_none() {
         Ok(base_fit.clone())
     } else {
         ev_ext.fit(&split.full, Some(&x0), 30)
@@ -612,7 +659,10 @@ pub fn diagnose_with_progress(
     let (mut ev_final, ext_fit, drive_for) = match joint {
         Ok(f) => (ev_ext, f, drive0.clone()),
         Err(_) => {
-            let mut evc = Evaluator::new(spec_for(&full_drive, &ident, &chosen, false), &prepared);
+            let mut evc = Evaluator::new(
+                spec_for(&full_drive, &search_ident, &chosen, false, top),
+                &prepared,
+            );
             let xs = chosen_fit.as_ref().map(|f| f.x.clone());
             let f = evc.fit(&split.full, xs.as_deref(), 30)?;
             (evc, f, full_drive.clone())
@@ -655,6 +705,11 @@ pub fn diagnose_with_progress(
         &mut params,
         &mut effects_out,
     );
+    // The extended model on a calibrated instrument is the instrument with what was found
+    // on top: a saved model must carry both.
+    if let Some(fx) = top {
+        effects_out = overlay(fx, &effects_out);
+    }
     // A held-out log's encoder zero is fitted on that log only when it is scored.
     let params: Vec<ParamEstimate> = params
         .into_iter()
@@ -697,20 +752,22 @@ pub fn diagnose_with_progress(
                 &split.full,
                 &keep,
                 &[],
+                None,
             )?;
             let drives = std::slice::from_ref(&full_drive);
-            let e = if chosen.is_empty() {
+            let e = if chosen.is_empty() && top.is_none() {
                 b.0
             } else {
                 cross_validate(
                     &prepared,
-                    &ident,
+                    &search_ident,
                     &full_drive,
                     drives,
                     folds,
                     &split.full,
                     &keep,
                     &chosen,
+                    top,
                 )?
                 .0
             };
@@ -719,9 +776,12 @@ pub fn diagnose_with_progress(
     };
     let structure_ratio = rmse_ext / floor;
     let unexplained_structure = structure_ratio > ident.none_within_floor;
+    // Without an effect found, what is left decides: the base model's error, or the
+    // calibrated instrument's when the search ran on top of it.
+    let left = if top.is_some() { rmse_ext } else { rmse_base };
     let mut cause = if let Some(c) = chosen.first() {
         c.to_string()
-    } else if rmse_base / floor > ident.none_within_floor {
+    } else if left / floor > ident.none_within_floor {
         "unexplained".to_string()
     } else {
         "none".to_string()
@@ -801,8 +861,8 @@ pub fn diagnose_with_progress(
 
     let residual_signatures = loo::residual_signatures(&prepared, &ext_resid, &keep, floor);
     // The instrument as calibrated, judged on these logs before anything is refitted.
-    let calibrated_model = match scenario.effects {
-        Some(fx) if *fx != EffectsParams::default() => {
+    let calibrated_model = match top {
+        Some(fx) => {
             let c = baseline::score(&drive0, fx, &prepared, &keep)?;
             Some(CalibratedModelScore {
                 rmse_mrad: c.rmse_mrad,
@@ -859,6 +919,22 @@ pub fn diagnose_with_progress(
     })
 }
 
+/// `base` with every key that `top` sets taken from `top` (the effects found on top of a
+/// calibrated instrument added to its own).
+fn overlay(base: &EffectsParams, top: &EffectsParams) -> EffectsParams {
+    let (Ok(serde_json::Value::Object(mut b)), Ok(serde_json::Value::Object(t))) =
+        (serde_json::to_value(base), serde_json::to_value(top))
+    else {
+        return base.clone();
+    };
+    for (k, v) in t {
+        if !v.is_null() {
+            b.insert(k, v);
+        }
+    }
+    serde_json::from_value(serde_json::Value::Object(b)).unwrap_or_else(|_| base.clone())
+}
+
 /// The parameter-table names of the fitted coefficients that are reported as they are
 /// (not derived from several), with their columns in the covariance: nonlinear first,
 /// then linear in the fit's order.
@@ -898,8 +974,8 @@ fn recalibrate(
     effects: &[EffectName],
     fixed_fit: &Fitted,
 ) -> Result<(DriveParams, Vec<DriveParams>, f64), IdentifyError> {
-    let fixed = Evaluator::new(spec_for(full_drive, ident, effects, false), logs).nonlinear();
-    let mut ev = Evaluator::new(spec_for(drive0, ident, effects, true), logs);
+    let fixed = Evaluator::new(spec_for(full_drive, ident, effects, false, None), logs).nonlinear();
+    let mut ev = Evaluator::new(spec_for(drive0, ident, effects, true, None), logs);
     let nl = ev.nonlinear();
     let x0: Vec<f64> = nl
         .iter()

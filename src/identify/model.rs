@@ -10,6 +10,7 @@ use super::effects::{EffectName, IdentifyParams};
 use super::lm::levenberg_marquardt;
 use super::IdentifyError;
 use crate::measurement::BenchLog;
+use crate::physics::effects::{ContactMemory, EffectsParams};
 use crate::physics::{CableDrive, DriveParams, HysteresisModel};
 
 /// A log made ready for fitting: decimated, with velocities and motion direction.
@@ -220,6 +221,48 @@ pub fn transport_filter(e: &[f64], travel: &[f64], theta_c: f64) -> Vec<f64> {
     out
 }
 
+/// A calibrated instrument's prediction of the transmission error along log `l` (rad, at
+/// `drive`'s ratio): the capstan replay with the effects' bearing friction, relaxation and
+/// transport, plus their kinematic error, compliance, contact memory and encoder terms.
+/// `bearing_nm`, `relaxation_per_s` and `transport_rad` add to the effects' own (the
+/// terms a fit on top may add). Fails where the drive cannot carry the log's load.
+pub fn calibrated_prediction(
+    drive: &DriveParams,
+    effects: &EffectsParams,
+    l: &Prepared,
+    extra: [f64; 3],
+) -> Result<Vec<f64>, IdentifyError> {
+    let [bearing_nm, relaxation_per_s, transport_rad] = extra;
+    let ic = drive.ratio();
+    let torque = with_bearing_friction(l, effects.bearing_friction() + bearing_nm);
+    let rel = effects.preload_relaxation_per_s.unwrap_or(0.0) + relaxation_per_s;
+    let mut e =
+        relaxing_replay(drive, &torque, &l.t, l.duration, rel).map_err(|(i, message)| {
+            IdentifyError::Replay {
+                log: l.source.clone(),
+                t_s: l.t.get(i).copied().unwrap_or(0.0),
+                message,
+            }
+        })?;
+    let tc = effects.cable_transport_rad.unwrap_or(0.0) + transport_rad;
+    if tc > 0.0 {
+        e = transport_filter(&e, &l.travel, tc);
+    }
+    let c = effects.load_compliance();
+    let tau = effects.encoder_delay_s.unwrap_or(0.0);
+    let s = effects.encoder_scale_error.unwrap_or(0.0);
+    let mut contacts = ContactMemory::new(effects, l.th_in.first().copied().unwrap_or(0.0));
+    Ok((0..l.t.len())
+        .map(|i| {
+            let (th_in, th_out, m) = (l.th_in[i], l.th_out[i], l.torque[i]);
+            let lag = contacts.as_mut().map_or(0.0, |k| k.commit(th_in, m));
+            e[i] + effects.kinematic_error_rad(th_in, th_out, l.t[i], ic) + c * m + lag
+                - tau * l.vel_out[i]
+                + s * th_out
+        })
+        .collect())
+}
+
 /// A nonlinear parameter of a model.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum NlParam {
@@ -347,6 +390,10 @@ pub struct Spec {
     pub effects: Vec<EffectName>,
     /// Bounds and settings.
     pub ident: IdentifyParams,
+    /// A calibrated instrument's effects (a scenario's `[effects]`), held at their values
+    /// in every prediction: the effects above are then fitted on top of the calibrated
+    /// model (`None`: the capstan model alone).
+    pub calibrated: Option<EffectsParams>,
 }
 
 /// Parameters of a fitted model.
@@ -369,7 +416,7 @@ pub struct Fitted {
     pub converged: bool,
 }
 
-type ReplayKey = [u64; 4];
+type ReplayKey = [u64; 5];
 
 /// Evaluates a model on a set of logs, caching base replays.
 pub struct Evaluator<'a> {
@@ -545,7 +592,28 @@ impl<'a> Evaluator<'a> {
             drive.preload_n.to_bits(),
             mb.to_bits(),
             rel.to_bits(),
+            // The transport filter's constant: applied after the cache on the capstan
+            // replay alone, before the effects' terms on a calibrated one.
+            0,
         ];
+        if let Some(fx) = &self.spec.calibrated {
+            let tc = self
+                .value(x, NlParam::Effect(EffectName::CableTransport))
+                .unwrap_or(0.0);
+            let key = [key[0], key[1], key[2], key[3], tc.to_bits()];
+            if !self.cache.contains_key(&key) {
+                let all = self
+                    .logs
+                    .iter()
+                    .map(|l| calibrated_prediction(&drive, fx, l, [mb, rel, tc]))
+                    .collect::<Result<Vec<_>, _>>()?;
+                if self.cache.len() > 64 {
+                    self.cache.clear();
+                }
+                self.cache.insert(key, all);
+            }
+            return Ok(self.cache[&key].clone());
+        }
         if !self.cache.contains_key(&key) {
             let mut all = Vec::with_capacity(self.logs.len());
             for l in self.logs {
@@ -714,8 +782,9 @@ impl<'a> Evaluator<'a> {
             // A contact's weight at most 10 rad/rad; a load-scaled one at the logs' largest
             // torque.
             LinParam::Effect(EffectName::DistributedFrictionMemory, j)
-                if j >= super::extra_effects::MEMORY_THRESHOLDS
-                    && j < 2 * super::extra_effects::MEMORY_THRESHOLDS =>
+                if (super::extra_effects::MEMORY_THRESHOLDS
+                    ..2 * super::extra_effects::MEMORY_THRESHOLDS)
+                    .contains(&j) =>
             {
                 Some((0.0, 10.0 / d.max_load_factor.max(1e-12)))
             }

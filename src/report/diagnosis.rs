@@ -62,6 +62,24 @@ pub fn summary_text(d: &Diagnosis) -> String {
             })
             .unwrap_or_default();
         let _ = writeln!(s, "{verdict}{follows}.");
+        let searched: Vec<&str> = d
+            .candidates
+            .iter()
+            .filter(|c| c.round == 1 && !c.name.contains(" + "))
+            .map(|c| c.name.as_str())
+            .collect();
+        let _ = if searched.is_empty() {
+            writeln!(
+                s,
+                "Nothing was searched on top of it: it already carries every candidate effect ([identify] candidates)."
+            )
+        } else {
+            writeln!(
+                s,
+                "What is still missing was searched on top of it ({}): its drive and effects held as calibrated, only each log's zero and the candidates fitted.",
+                searched.join(", ")
+            )
+        };
     }
     for (log, columns) in &d.ignored_columns {
         let _ = writeln!(
@@ -125,9 +143,14 @@ pub fn summary_text(d: &Diagnosis) -> String {
             d.causes.join(", ")
         );
     }
+    let extended = if d.calibrated_model.is_some() {
+        "extended (the calibrated model and what was found on top)"
+    } else {
+        "extended"
+    };
     let _ = writeln!(
         s,
-        "\nHeld-out RMS transmission error: base {:.4} mrad -> extended {:.4} mrad ({:+.1} %), noise floor {:.4} mrad",
+        "\nHeld-out RMS transmission error: base {:.4} mrad -> {extended} {:.4} mrad ({:+.1} %), noise floor {:.4} mrad",
         d.rmse_base_mrad, d.rmse_extended_mrad, -d.gain_percent, d.noise_floor_mrad
     );
     if let Some(p) = &d.play_operator {
