@@ -1,5 +1,6 @@
 //! Stretches of a log that are not the drive: an input jerk the output follows, a reading
-//! stuck while the other channel moves, an input that leaves its motion. Clean logs
+//! stuck while the other channel moves, an input that leaves its motion, an output reading
+//! that jumps away from the input it follows and back. Clean logs
 //! (sensor noise, quantisation, outliers, hidden effects) flag nothing; each fault injected
 //! mid-log is flagged on its channel at its times; excluded, it no longer corrupts the
 //! diagnosis.
@@ -32,13 +33,17 @@ enum Fault {
     /// The input reading leaves its sine by 0.05 to 0.2 rad over 0.5 to 1.5 s (the output
     /// does not follow).
     Departure,
+    /// The output reading jumps by 0.02 to 0.1 rad for 0.1 to 0.5 s and back (a glitch of
+    /// its encoder), the input not moving with it.
+    OutputJump,
 }
 
-const FAULTS: [Fault; 4] = [
+const FAULTS: [Fault; 5] = [
     Fault::Jerk,
     Fault::OutputStuck,
     Fault::InputStuck,
     Fault::Departure,
+    Fault::OutputJump,
 ];
 
 fn quant(v: f64, q: f64) -> f64 {
@@ -114,6 +119,15 @@ fn inject(
             }
             (Channel::Input, t0, t0 + width)
         }
+        Fault::OutputJump => {
+            let dur = rng.gen_range(0.1..0.5);
+            let wrong = rng.gen_range(0.02..0.1) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+            let b = a + (dur / dt).round() as usize;
+            for v in &mut log.theta_out_rad[a..b] {
+                *v = quant(*v + wrong, Q_OUT);
+            }
+            (Channel::Output, t0, log.t_s[b - 1])
+        }
     }
 }
 
@@ -173,7 +187,7 @@ fn each_fault_is_flagged_on_its_channel_at_its_times() {
             // Between its first and last stretch only the fault.
             assert!(s.len() <= 2, "pieces: {what}");
             let word = match fault {
-                Fault::Jerk => "jerk",
+                Fault::Jerk | Fault::OutputJump => "jerk",
                 Fault::OutputStuck | Fault::InputStuck => "stuck",
                 Fault::Departure => "departs",
             };

@@ -37,6 +37,10 @@ pub const STUCK_FACTOR: f64 = 4.0;
 /// a jerk (a held reading, which lags the motion, never reaches 1).
 pub const JERK_SPEED: f64 = 1.5;
 
+/// How long after a flagged input stretch the output may still be catching up with it, s:
+/// output stretches within this (and the padding) of one are not judged.
+pub const FOLLOW_S: f64 = 0.1;
+
 /// Shortest run of flagged samples that counts, s (an isolated outlier sample does not).
 pub const MIN_RUN_S: f64 = 0.01;
 
@@ -76,7 +80,10 @@ impl Reason {
     pub fn words(self, channel: Channel) -> String {
         match (self, channel) {
             (Reason::Jerk, c) => format!("{c} jerk or jump (faster than its motion ever moves)"),
-            (Reason::Departure, c) => format!("{c} departs from its motion"),
+            (Reason::Departure, Channel::Input) => "input departs from its motion".into(),
+            (Reason::Departure, Channel::Output) => {
+                "output departs from the input it follows".into()
+            }
             (Reason::Stuck, Channel::Input) => "input stuck while output moves".into(),
             (Reason::Stuck, Channel::Output) => "output stuck while input moves".into(),
         }
@@ -181,6 +188,13 @@ impl Motion {
             Shape::Sine => self.c[1].hypot(self.c[2]),
             Shape::Triangle => self.c[1].abs(),
         }
+    }
+
+    /// Largest speed of the motion between consecutive instants of `t`, rad/s.
+    fn peak_speed(&self, t: &[f64]) -> f64 {
+        t.windows(2)
+            .map(|w| ((self.at(w[1]) - self.at(w[0])) / (w[1] - w[0]).max(1e-300)).abs())
+            .fold(0.0f64, f64::max)
     }
 
     /// Phase of the motion's extremes (where the input reverses) after time `t`, s.
@@ -480,9 +494,7 @@ fn input_departures(t: &[f64], x: &[f64], q_in: f64, dt: f64) -> (Vec<Raw>, Opti
     let flag: Vec<bool> = (0..n)
         .map(|i| (r[i] - mr).abs() > tr || (v[i] - mv).abs() > tv)
         .collect();
-    let peak_speed = (1..n)
-        .map(|i| ((m.at(t[i]) - m.at(t[i - 1])) / (t[i] - t[i - 1]).max(1e-300)).abs())
-        .fold(0.0f64, f64::max);
+    let peak_speed = m.peak_speed(t);
     let found = runs(&flag, min_len)
         .into_iter()
         .map(|(a, b)| {
@@ -496,6 +508,51 @@ fn input_departures(t: &[f64], x: &[f64], q_in: f64, dt: f64) -> (Vec<Raw>, Opti
         })
         .collect();
     (found, Some(m))
+}
+
+/// Output stretches that are not the drive's response to its input: the output off the
+/// straight line through output against input (`gain`, rad per rad) by far more than the
+/// log's own transmission error spreads (a departure), or moving faster than [`JERK_SPEED`]
+/// times what the input's travel, or its motion's peak speed, can drive (a jerk or jump).
+/// An input jerk the output follows is the drive and is not flagged here.
+fn output_departures(
+    t: &[f64],
+    xi: &[f64],
+    xo: &[f64],
+    gain: f64,
+    q_out: f64,
+    dt: f64,
+    peak_in_speed: f64,
+) -> Vec<Raw> {
+    let n = t.len();
+    let h = ((0.01 / dt).round() as usize).max(1);
+    let min_len = ((MIN_RUN_S / dt).round() as usize).max(3);
+    let e: Vec<f64> = (0..n).map(|i| xo[i] - gain * xi[i]).collect();
+    let (se, me) = robust(&e);
+    let te = (ROBUST_K * se).max(10.0 * q_out).max(1e-12);
+    let speed = |x: &[f64], i: usize| {
+        let (a, b) = (i.saturating_sub(h), (i + h).min(n - 1));
+        (x[b] - x[a]) / (t[b] - t[a]).max(1e-300)
+    };
+    let floor = 10.0 * q_out / (2.0 * h as f64 * dt);
+    let fast: Vec<bool> = (0..n)
+        .map(|i| {
+            let driven = gain * peak_in_speed.max(speed(xi, i).abs());
+            speed(xo, i).abs() > JERK_SPEED * driven + floor
+        })
+        .collect();
+    let flag: Vec<bool> = (0..n).map(|i| (e[i] - me).abs() > te || fast[i]).collect();
+    runs(&flag, min_len)
+        .into_iter()
+        .map(|(a, b)| {
+            let reason = if fast[a..b].iter().any(|f| *f) {
+                Reason::Jerk
+            } else {
+                Reason::Departure
+            };
+            (Channel::Output, reason, a, b)
+        })
+        .collect()
 }
 
 /// Runs of exactly constant `x` at least [`STUCK_MIN_S`] long during which `other` moves
@@ -590,6 +647,23 @@ pub fn detect(log: &BenchLog, action: &str) -> Vec<Segment> {
         let g_in = (sxy / syy).abs();
         raw.extend(stuck(xo, xi, g_out, q_out, dt, reversals, Channel::Output));
         raw.extend(stuck(xi, xo, g_in, q_in, dt, reversals, Channel::Input));
+        if let Some(m) = motion {
+            // The output is judged against the input: where the input is flagged (a jerk the
+            // output follows through whatever lags between them, a wrong input reading)
+            // that says nothing of the output, so only output stretches clear of the
+            // input's count.
+            let follow = ((PAD_S + FOLLOW_S) / dt).round() as usize;
+            let jerks: Vec<(usize, usize)> = raw
+                .iter()
+                .filter(|r| r.0 == Channel::Input)
+                .map(|r| (r.2.saturating_sub(follow), r.3 + follow))
+                .collect();
+            raw.extend(
+                output_departures(t, xi, xo, sxy / sxx, q_out, dt, m.peak_speed(t))
+                    .into_iter()
+                    .filter(|o| !jerks.iter().any(|j| o.2 < j.1 && j.0 < o.3)),
+            );
+        }
     }
     // Pad, then merge overlapping stretches of one channel.
     let mut spans: Vec<(Channel, f64, f64, Vec<Reason>)> = raw
