@@ -129,6 +129,64 @@ fn one_log_is_not_enough() {
     assert!(e.contains("at least two"), "{e}");
 }
 
+/// The friction memory's lag growth with load: three logs of one instrument at three brake
+/// torques, a contact whose lag grows as `|M|^p`; the joint calibration recovers `p`
+/// within 10 % for a steep growth (3) and a proportional one (1): 2.85 and 0.94. Beside
+/// the weights the contacts' thresholds may grow with the load too, and the truth's contact
+/// sits between two thresholds of the identification grid, so a small threshold growth
+/// (0.09 per N m) moves it between them and trades with `p` (within 1 % with the weights
+/// alone).
+#[test]
+fn memory_load_exponent_is_recovered_across_loads() {
+    for (p_true, lag) in [(3.0, 1.5e-4), (1.0, 3e-4)] {
+        let logs: Vec<BenchLog> = [0.3, 0.7, 1.2]
+            .iter()
+            .enumerate()
+            .map(|(i, brake)| {
+                let sc = gimbal(&[
+                    "quasi_static.duration_s=20",
+                    &format!("load.brake_nm={brake}"),
+                ]);
+                log(
+                    &sc,
+                    &[],
+                    20 + i as u64,
+                    TruthOptions {
+                        memory_load: Some(MemoryLoad {
+                            lag_rad_per_nm_p: lag,
+                            exponent: p_true,
+                        }),
+                        ..TruthOptions::default()
+                    },
+                )
+            })
+            .collect();
+        let sc = gimbal(&["quasi_static.duration_s=20"]);
+        let ident = sc.identify.clone().unwrap_or_default();
+        let t = leave_one_out(
+            &sc.drive,
+            &ident,
+            &logs,
+            &[EffectName::DistributedFrictionMemory],
+            StartMode::Detect,
+        )
+        .expect("leave-one-out");
+        let text = loo_text(&t);
+        let p = t
+            .shared
+            .iter()
+            .find(|e| e.name == "friction_memory_load_exponent")
+            .unwrap_or_else(|| panic!("no exponent reported: {text}"));
+        println!("p = {} +- {} (hidden {p_true})", p.value, p.std);
+        assert!(
+            (p.value / p_true - 1.0).abs() < 0.10,
+            "exponent {} for a hidden {p_true}: {text}",
+            p.value
+        );
+        assert_eq!(t.wins_over_base, 3, "{text}");
+    }
+}
+
 /// One log that disagrees with the rest (its contacts lag four times as much, as if taken
 /// on another day or another instrument) is named as pulling the shared model; the logs
 /// that agree are not, and without the odd one nothing is named.
