@@ -107,13 +107,25 @@ pub fn summary_text(d: &Diagnosis) -> String {
         .play_operator
         .as_ref()
         .filter(|_| d.beats_play_operator == Some(false) && !d.causes.is_empty());
+    let against_base = if d.rmse_extended_mrad < d.rmse_base_mrad {
+        "improves on the base model".to_string()
+    } else {
+        format!(
+            "does not improve on the base model recalibrated on the log(s) ({:.2} mrad)",
+            d.rmse_base_mrad
+        )
+    };
     let verdict = match (d.cause.as_str(), lost_to_play) {
         ("unexplained", Some(p)) => format!(
-            "not established: the extended model with {} improves on the base model but loses to a play operator (deadband) fitted to the same log(s), held out ({:.2} against {:.2} mrad); the drive does something the library does not hold",
+            "not established: the extended model with {} {against_base} and loses to a play operator (deadband) fitted to the same log(s), held out ({:.2} against {:.2} mrad); the drive does something the library does not hold",
             d.causes.join(" and "),
             d.rmse_extended_mrad,
             p.rmse_heldout_mrad
         ),
+        ("none", _) if d.calibrated_model.is_some() => {
+            "nothing beyond sensor noise: the scenario's calibrated model explains the data"
+                .to_string()
+        }
         ("none", _) => "nothing beyond sensor noise: the calibrated base model explains the data".to_string(),
         ("unexplained", None) => "structure remains that no effect in the library explains (look at the residual plots: resonance, sensor fault, load not logged?)".to_string(),
         (c, _) => {
