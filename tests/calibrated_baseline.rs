@@ -7,37 +7,12 @@
 //! operator there. A replay that dropped or mis-signed an effect, or read a key wrong,
 //! lands far above those figures.
 
-use std::path::Path;
-
 use cable_servo::identify::{baseline, model, startup};
 use cable_servo::io::benchlog::read_bench_log;
-use cable_servo::scenario::Scenario;
 
-fn repo() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// The guide's leave-one-out rows: (log, base, extended, play operator), mrad.
-fn guide_rows() -> Vec<(String, f64, f64, f64)> {
-    let text = std::fs::read_to_string(repo().join("docs/diagnose.md")).expect("docs/diagnose.md");
-    let number = |cell: &str| -> f64 {
-        let digits: String = cell
-            .chars()
-            .filter(|c| c.is_ascii_digit() || *c == '.')
-            .collect();
-        digits.parse().expect("a number")
-    };
-    text.lines()
-        .skip_while(|l| !l.starts_with("| log left out | base capstan model |"))
-        .skip(2)
-        .take_while(|l| l.starts_with("| tool4_"))
-        .map(|l| {
-            let c: Vec<&str> = l.split('|').map(str::trim).collect();
-            let log = c[1].split_whitespace().next().unwrap_or("").to_string();
-            (log, number(c[2]), number(c[3]), number(c[4]))
-        })
-        .collect()
-}
+#[path = "support/davinci.rs"]
+mod davinci;
+use davinci::{guide_rows, repo, shipped_scenario};
 
 #[test]
 fn the_calibrated_scenario_replays_within_its_held_out_errors() {
@@ -46,19 +21,13 @@ fn the_calibrated_scenario_replays_within_its_held_out_errors() {
         eprintln!("skipped: {} is not beside the repository", dir.display());
         return;
     }
-    let sc = Scenario::load(
-        repo()
-            .join("scenarios/davinci_tool4.toml")
-            .to_str()
-            .unwrap_or(""),
-        &[],
-    )
-    .expect("scenario");
+    let sc = shipped_scenario();
     let ident = sc.identify.clone().unwrap_or_default();
     let fx = sc.effects.clone().expect("calibrated effects");
     let rows = guide_rows();
     assert_eq!(rows.len(), 11, "docs/diagnose.md rows: {rows:?}");
-    for (log, base, held_out, play) in rows {
+    for row in rows {
+        let (log, base, held_out, play) = (row.log, row.base, row.extended, row.play);
         let raw = read_bench_log(&dir.join(format!("{log}.csv"))).expect("log");
         let (cut, _) = startup::cut_start(&raw, startup::StartMode::Detect);
         let p = model::prepare(&cut, ident.max_rate_hz).expect("prepared");

@@ -378,11 +378,9 @@ pub fn diagnose_with_progress(
     // missing on top of it: its drive and effects held as calibrated, only each log's zero
     // and the candidates fitted. The capstan calibration above stays the base the result
     // is compared with.
-    let calibrated_fx: Option<EffectsParams> = scenario
+    let top = scenario
         .effects
-        .filter(|fx| **fx != EffectsParams::default())
-        .cloned();
-    let top = calibrated_fx.as_ref();
+        .filter(|fx| **fx != EffectsParams::default());
     let search_ident = if top.is_some() {
         IdentifyParams {
             unknown: Vec::new(),
@@ -464,7 +462,8 @@ pub fn diagnose_with_progress(
                 (*e, r)
             })
             .collect();
-        let judge = |rmse: f64, fit: &Fitted| -> (bool, &'static str, f64, f64, f64) {
+        // Whether a candidate qualifies, and its row in the candidate table.
+        let judge = |name: String, rmse: f64, fit: &Fitted| -> (bool, CandidateScore) {
             let gain = 100.0 * (1.0 - rmse / current);
             let excess = (current * current - floor * floor).max(1e-30);
             let explained = (current * current - rmse * rmse) / excess;
@@ -483,7 +482,17 @@ pub fn diagnose_with_progress(
             } else {
                 "qualifies"
             };
-            (verdict == "qualifies", verdict, gain, explained, score)
+            let row = CandidateScore {
+                name,
+                rmse_heldout_mrad: rmse * 1e3,
+                gain_percent: gain,
+                explained_fraction: explained,
+                score,
+                accepted: false,
+                round,
+                verdict: verdict.to_string(),
+            };
+            (verdict == "qualifies", row)
         };
         let mut best: Option<(usize, f64)> = None;
         // Candidates that improve on the current model, for the joint search of pairs.
@@ -496,20 +505,11 @@ pub fn diagnose_with_progress(
                     continue;
                 }
             };
-            let (ok, verdict, gain, explained, score) = judge(rmse, &fit);
+            let (ok, row) = judge(e.to_string(), rmse, &fit);
             if rmse < current && plausible(&fit, drive0.ratio()) {
                 helpful.push((e, rmse));
             }
-            scores.push(CandidateScore {
-                name: e.to_string(),
-                rmse_heldout_mrad: rmse * 1e3,
-                gain_percent: gain,
-                explained_fraction: explained,
-                score,
-                accepted: false,
-                round,
-                verdict: verdict.to_string(),
-            });
+            scores.push(row);
             let idx = scores.len() - 1;
             if ok && best.is_none_or(|(_, b)| rmse < b) {
                 best = Some((idx, rmse));
@@ -556,17 +556,8 @@ pub fn diagnose_with_progress(
                         continue;
                     }
                 };
-                let (ok, verdict, gain, explained, score) = judge(rmse, &fit);
-                scores.push(CandidateScore {
-                    name,
-                    rmse_heldout_mrad: rmse * 1e3,
-                    gain_percent: gain,
-                    explained_fraction: explained,
-                    score,
-                    accepted: false,
-                    round,
-                    verdict: verdict.to_string(),
-                });
+                let (ok, row) = judge(name, rmse, &fit);
+                scores.push(row);
                 if ok && best_pair.as_ref().is_none_or(|p| rmse < p.1) {
                     best_pair = Some((scores.len() - 1, rmse, (a, b), fit));
                 }

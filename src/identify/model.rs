@@ -221,6 +221,25 @@ pub fn transport_filter(e: &[f64], travel: &[f64], theta_c: f64) -> Vec<f64> {
     out
 }
 
+/// The capstan replay along log `l` with bearing friction `bearing_nm` (N m, against the
+/// motion) and preload relaxation `relaxation_per_s` (1/s), rad; a failure names the log
+/// and the time.
+fn log_replay(
+    drive: &DriveParams,
+    l: &Prepared,
+    bearing_nm: f64,
+    relaxation_per_s: f64,
+) -> Result<Vec<f64>, IdentifyError> {
+    let torque = with_bearing_friction(l, bearing_nm);
+    relaxing_replay(drive, &torque, &l.t, l.duration, relaxation_per_s).map_err(|(i, message)| {
+        IdentifyError::Replay {
+            log: l.source.clone(),
+            t_s: l.t.get(i).copied().unwrap_or(0.0),
+            message,
+        }
+    })
+}
+
 /// A calibrated instrument's prediction of the transmission error along log `l` (rad, at
 /// `drive`'s ratio): the capstan replay with the effects' bearing friction, relaxation and
 /// transport, plus their kinematic error, compliance, contact memory and encoder terms.
@@ -234,16 +253,12 @@ pub fn calibrated_prediction(
 ) -> Result<Vec<f64>, IdentifyError> {
     let [bearing_nm, relaxation_per_s, transport_rad] = extra;
     let ic = drive.ratio();
-    let torque = with_bearing_friction(l, effects.bearing_friction() + bearing_nm);
-    let rel = effects.preload_relaxation_per_s.unwrap_or(0.0) + relaxation_per_s;
-    let mut e =
-        relaxing_replay(drive, &torque, &l.t, l.duration, rel).map_err(|(i, message)| {
-            IdentifyError::Replay {
-                log: l.source.clone(),
-                t_s: l.t.get(i).copied().unwrap_or(0.0),
-                message,
-            }
-        })?;
+    let mut e = log_replay(
+        drive,
+        l,
+        effects.bearing_friction() + bearing_nm,
+        effects.preload_relaxation_per_s.unwrap_or(0.0) + relaxation_per_s,
+    )?;
     let tc = effects.cable_transport_rad.unwrap_or(0.0) + transport_rad;
     if tc > 0.0 {
         e = transport_filter(&e, &l.travel, tc);
@@ -587,52 +602,33 @@ impl<'a> Evaluator<'a> {
         let rel = self
             .value(x, NlParam::Effect(EffectName::PreloadRelaxation))
             .unwrap_or(0.0);
+        let tc = self.value(x, NlParam::Effect(EffectName::CableTransport));
+        let calibrated = self.spec.calibrated.as_ref();
         let key = [
             drive.friction_coefficient.to_bits(),
             drive.preload_n.to_bits(),
             mb.to_bits(),
             rel.to_bits(),
-            // The transport filter's constant: applied after the cache on the capstan
-            // replay alone, before the effects' terms on a calibrated one.
-            0,
+            // The transport filter comes before a calibrated instrument's effects, so its
+            // prediction is cached per constant; the capstan replay is filtered after.
+            calibrated.map_or(0, |_| tc.unwrap_or(0.0).to_bits()),
         ];
-        if let Some(fx) = &self.spec.calibrated {
-            let tc = self
-                .value(x, NlParam::Effect(EffectName::CableTransport))
-                .unwrap_or(0.0);
-            let key = [key[0], key[1], key[2], key[3], tc.to_bits()];
-            if !self.cache.contains_key(&key) {
-                let all = self
-                    .logs
-                    .iter()
-                    .map(|l| calibrated_prediction(&drive, fx, l, [mb, rel, tc]))
-                    .collect::<Result<Vec<_>, _>>()?;
-                if self.cache.len() > 64 {
-                    self.cache.clear();
-                }
-                self.cache.insert(key, all);
-            }
-            return Ok(self.cache[&key].clone());
-        }
         if !self.cache.contains_key(&key) {
-            let mut all = Vec::with_capacity(self.logs.len());
-            for l in self.logs {
-                let torque = with_bearing_friction(l, mb);
-                let fail = |(i, msg): (usize, String)| IdentifyError::Replay {
-                    log: l.source.clone(),
-                    t_s: l.t.get(i).copied().unwrap_or(0.0),
-                    message: msg,
-                };
-                let e = relaxing_replay(&drive, &torque, &l.t, l.duration, rel).map_err(fail)?;
-                all.push(e);
-            }
+            let all = self
+                .logs
+                .iter()
+                .map(|l| match calibrated {
+                    Some(fx) => calibrated_prediction(&drive, fx, l, [mb, rel, tc.unwrap_or(0.0)]),
+                    None => log_replay(&drive, l, mb, rel),
+                })
+                .collect::<Result<Vec<_>, _>>()?;
             if self.cache.len() > 64 {
                 self.cache.clear();
             }
             self.cache.insert(key, all);
         }
         let mut out = self.cache[&key].clone();
-        if let Some(tc) = self.value(x, NlParam::Effect(EffectName::CableTransport)) {
+        if let (Some(tc), None) = (tc, calibrated) {
             for (e, l) in out.iter_mut().zip(self.logs) {
                 *e = transport_filter(e, &l.travel, tc);
             }
