@@ -32,7 +32,8 @@ fn the_calibrated_scenario_replays_within_its_held_out_errors() {
         let (cut, _) = startup::cut_start(&raw, startup::StartMode::Detect);
         let p = model::prepare(&cut, ident.max_rate_hz).expect("prepared");
         let keep = vec![true; p.t.len()];
-        let s = baseline::score(&sc.drive, &fx, std::slice::from_ref(&p), &keep).expect("replay");
+        let s =
+            baseline::score(&sc.drive, &fx, std::slice::from_ref(&p), &keep, &[]).expect("replay");
         eprintln!("{log}: replay {:.3} mrad, held out {held_out}", s.rmse_mrad);
         assert!(
             s.rmse_mrad <= held_out + 0.006 && s.rmse_mrad < play && s.rmse_mrad < base,

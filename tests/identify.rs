@@ -532,3 +532,72 @@ fn what_is_missing_is_found_on_top_of_a_calibrated_instrument() {
     let d = diagnose(&calibrated, &[log(&[compliance], 3)], &opts_every()).unwrap();
     assert_eq!(d.cause, "none", "{:?}", d.candidates);
 }
+
+/// A term the scenario marks as belonging to each log (`identify.per_log`) is refitted on
+/// a new log before the log is judged, and not searched on top: a jaw gripped harder on
+/// the new log is the instrument as calibrated, not a new effect. Unmarked, the same log
+/// leaves the calibrated model a larger error.
+#[test]
+fn a_term_marked_per_log_is_refitted_on_each_log() {
+    let sc = scenario(false);
+    let o = TruthOptions {
+        instrument_seed: Some(77),
+        ..TruthOptions::default()
+    };
+    let log = |c: f64, seed: u64| {
+        truth_log(&sc, &[(EffectName::LoadCompliance, c)], seed, &o)
+            .unwrap_or_else(|e| panic!("truth: {e}"))
+            .log
+    };
+    let d = diagnose(&sc, &[log(-5e-4, 1)], &opts_every()).expect("calibration");
+    assert_eq!(d.cause, "load_compliance", "{:?}", d.candidates);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("calibrated.toml");
+    cable_servo::report::diagnosis::save_model(&path, &sc, &d).unwrap();
+    let path = path.to_str().unwrap();
+    let c0 = Scenario::load(path, &[])
+        .unwrap()
+        .effects
+        .and_then(|fx| fx.load_compliance_rad_per_nm)
+        .expect("the calibrated compliance");
+
+    let truth = -9e-4;
+    let new_log = log(truth, 2);
+    let plain = diagnose(
+        &Scenario::load(path, &[]).unwrap(),
+        std::slice::from_ref(&new_log),
+        &opts_every(),
+    )
+    .unwrap();
+    let marked_scenario = Scenario::load(
+        path,
+        &["identify.per_log=[\"load_compliance\"]".to_string()],
+    )
+    .unwrap();
+    let d = diagnose(&marked_scenario, &[new_log], &opts_every()).unwrap();
+    let c = d
+        .calibrated_model
+        .as_ref()
+        .expect("judged against the instrument");
+    let unmarked = plain.calibrated_model.as_ref().expect("judged");
+    assert_eq!(d.cause, "none", "{:?}", d.candidates);
+    assert!(
+        d.candidates.iter().all(|s| s.name != "load_compliance"),
+        "{:?}",
+        d.candidates
+    );
+    assert_eq!(c.refitted_per_log, ["encoder zero", "load_compliance"]);
+    let added = c.per_log_terms[0].values[0].value;
+    assert!(
+        ((c0 + added) - truth).abs() <= 0.1 * truth.abs(),
+        "calibrated {c0:e} + this log's {added:e} against {truth:e}"
+    );
+    assert!(
+        c.rmse_mrad < 0.5 * unmarked.rmse_mrad,
+        "refitted {} mrad against {} mrad as calibrated",
+        c.rmse_mrad,
+        unmarked.rmse_mrad
+    );
+    assert!(cable_servo::report::diagnosis::summary_text(&d)
+        .contains("encoder zero and its own load_compliance fitted"));
+}

@@ -288,7 +288,27 @@ pub struct IdentifyParams {
     /// Allowed: at least 10.
     #[serde(default = "default_rate")]
     pub max_rate_hz: f64,
+    /// Terms of a calibrated instrument (a scenario with `[effects]`) that belong to one log
+    /// rather than to the instrument, refitted on each log beside its encoder zero before
+    /// the log is judged: a jaw gripped differently from one session to the next
+    /// (`load_compliance`), an encoder re-mounted (`encoder_scale_error`), a different
+    /// acquisition chain (`encoder_delay`), a bench warming up (`thermal_drift`). Each
+    /// log's value adds to the calibrated one, and these are not searched as shared
+    /// effects on top. Empty (typical): only the encoder zeros are per log.
+    /// Allowed: any of `"load_compliance"`, `"encoder_scale_error"`, `"encoder_delay"`,
+    /// `"thermal_drift"`.
+    #[serde(default)]
+    pub per_log: Vec<EffectName>,
 }
+
+/// Effects whose size a scenario may mark as refitted on each log ([`IdentifyParams::per_log`]):
+/// one column, linear in the measured signals.
+pub const PER_LOG_EFFECTS: [EffectName; 4] = [
+    EffectName::LoadCompliance,
+    EffectName::EncoderScaleError,
+    EffectName::EncoderDelay,
+    EffectName::ThermalDrift,
+];
 
 fn default_unknown() -> Vec<String> {
     vec![
@@ -341,6 +361,7 @@ impl Default for IdentifyParams {
             candidates: Vec::new(),
             max_effects: default_max_effects(),
             max_rate_hz: default_rate(),
+            per_log: Vec::new(),
         }
     }
 }
@@ -416,6 +437,19 @@ impl IdentifyParams {
         }
         if !(self.max_rate_hz.is_finite() && self.max_rate_hz >= 10.0) {
             return Err(("max_rate_hz".into(), "must be >= 10 Hz".into()));
+        }
+        if let Some(e) = self.per_log.iter().find(|e| !PER_LOG_EFFECTS.contains(e)) {
+            return Err((
+                "per_log".into(),
+                format!(
+                    "`{e}` cannot be refitted per log; use any of {}",
+                    PER_LOG_EFFECTS
+                        .iter()
+                        .map(|e| e.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
         }
         Ok(())
     }

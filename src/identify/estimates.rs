@@ -156,14 +156,18 @@ pub(crate) fn parameters(
         }
     }
     for (k, p) in fit.lin.iter().enumerate() {
-        if let LinParam::Offset(l) = p {
-            out.push(ParamEstimate {
-                name: format!("encoder_zero[{l}]"),
-                value: fit.coef[k],
-                std: std_of(cov, &[(nn + k, 1.0)]),
-                unit: "rad".into(),
-            });
-        }
+        let (name, unit) = match p {
+            LinParam::Offset(l) => (format!("encoder_zero[{l}]"), "rad"),
+            // A log's own part of a term the calibrated instrument carries, added to it.
+            LinParam::PerLog(e, l) => (format!("{e}_per_log[{l}]"), e.unit()),
+            _ => continue,
+        };
+        out.push(ParamEstimate {
+            name,
+            value: fit.coef[k],
+            std: std_of(cov, &[(nn + k, 1.0)]),
+            unit: unit.into(),
+        });
     }
     (out, drive, eff)
 }

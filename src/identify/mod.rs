@@ -422,8 +422,9 @@ pub fn diagnose_with_progress(
         .into_iter()
         // A free ratio and an output scale error are the same column.
         .filter(|e| !(ratio_free && *e == EffectName::EncoderScaleError))
-        // What the calibrated instrument already carries is not searched again.
-        .filter(|e| top.is_none_or(|fx| !e.carried_by(fx)))
+        // What the calibrated instrument already carries is not searched again, nor what
+        // it refits on each log.
+        .filter(|e| top.is_none_or(|fx| !e.carried_by(fx) && !ident.per_log.contains(e)))
         .collect();
     // Each round judges every candidate left and takes one out of the pool (two, when
     // only a pair passes the gate).
@@ -854,10 +855,14 @@ pub fn diagnose_with_progress(
     // The instrument as calibrated, judged on these logs before anything is refitted.
     let calibrated_model = match top {
         Some(fx) => {
-            let c = baseline::score(&drive0, fx, &prepared, &keep)?;
+            let c = baseline::score(&drive0, fx, &prepared, &keep, &ident.per_log)?;
             Some(CalibratedModelScore {
                 rmse_mrad: c.rmse_mrad,
                 per_log_mrad: c.per_log_mrad,
+                refitted_per_log: std::iter::once("encoder zero".to_string())
+                    .chain(ident.per_log.iter().map(|e| e.to_string()))
+                    .collect(),
+                per_log_terms: c.per_log_terms,
                 residual_signatures: loo::residual_signatures(&prepared, &c.residual, &keep, floor),
             })
         }
@@ -947,6 +952,7 @@ fn raw_columns(nl: &[(NlParam, f64, f64, f64)], lin: &[LinParam]) -> Vec<(String
                 | EffectName::LoadCompliance),
                 0,
             ) => e.to_string(),
+            LinParam::PerLog(e, k) => format!("{e}_per_log[{k}]"),
             LinParam::Effect(..) => continue,
         };
         out.push((name, nl.len() + i));

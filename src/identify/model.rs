@@ -343,6 +343,21 @@ pub enum LinParam {
     InverseRatio,
     /// Coefficient `k` of an effect's column.
     Effect(EffectName, usize),
+    /// Log `k`'s own value of an effect a calibrated scenario marks as per log
+    /// (`identify.per_log`), added to the calibrated one.
+    PerLog(EffectName, usize),
+}
+
+/// The one column of an effect whose size multiplies a measured signal, at row `i` of log
+/// `l` (rad per unit of the effect's size); 0 for any other effect.
+pub fn single_column(e: EffectName, l: &Prepared, i: usize) -> f64 {
+    match e {
+        EffectName::EncoderDelay => -l.vel_out[i],
+        EffectName::EncoderScaleError => l.th_out[i],
+        EffectName::ThermalDrift => l.t[i],
+        EffectName::LoadCompliance => l.torque[i],
+        _ => 0.0,
+    }
 }
 
 /// Effects whose signature is linear in their size given the measured signals.
@@ -666,6 +681,11 @@ impl<'a> Evaluator<'a> {
                 names.push(LinParam::Effect(*e, j));
             }
         }
+        if self.spec.calibrated.is_some() {
+            for e in &self.spec.ident.per_log {
+                names.extend((0..nlogs).map(|k| LinParam::PerLog(*e, k)));
+            }
+        }
         let mut cols = vec![Vec::with_capacity(n); names.len()];
         let mut fixed = Vec::with_capacity(n);
         let mut target = Vec::with_capacity(n);
@@ -722,15 +742,25 @@ impl<'a> Evaluator<'a> {
                         }
                         LinParam::ModulusScale => b,
                         LinParam::InverseRatio => l.th_in[i],
+                        LinParam::PerLog(e, k) => {
+                            if *k == li {
+                                single_column(*e, l, i)
+                            } else {
+                                0.0
+                            }
+                        }
                         LinParam::Effect(e, j) => match (e, j) {
                             (EffectName::InputPulleyRunout, 0) => l.th_in[i].sin(),
                             (EffectName::InputPulleyRunout, _) => l.th_in[i].cos(),
                             (EffectName::OutputDrumRunout, 0) => l.th_out[i].sin(),
                             (EffectName::OutputDrumRunout, _) => l.th_out[i].cos(),
-                            (EffectName::EncoderDelay, _) => -l.vel_out[i],
-                            (EffectName::EncoderScaleError, _) => l.th_out[i],
-                            (EffectName::ThermalDrift, _) => l.t[i],
-                            (EffectName::LoadCompliance, _) => l.torque[i],
+                            (
+                                EffectName::EncoderDelay
+                                | EffectName::EncoderScaleError
+                                | EffectName::ThermalDrift
+                                | EffectName::LoadCompliance,
+                                _,
+                            ) => single_column(*e, l, i),
                             (EffectName::AngleDependentRatio, j) => {
                                 shape.as_ref().map_or(0.0, |c| c[*j][i])
                             }

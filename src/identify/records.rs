@@ -93,8 +93,36 @@ pub struct CalibratedModelScore {
     pub rmse_mrad: f64,
     /// The same per log, in `logs` order, mrad.
     pub per_log_mrad: Vec<f64>,
+    /// What was fitted on each log before it was judged: its encoder zero and the terms the
+    /// scenario marks as per log (`identify.per_log`).
+    pub refitted_per_log: Vec<String>,
+    /// Each log's own value of every term marked per log, added to the calibrated one, in
+    /// `logs` order (empty when none is marked).
+    pub per_log_terms: Vec<PerLogTerms>,
     /// What its residual still follows, strongest first.
     pub residual_signatures: Vec<ResidualSignature>,
+}
+
+/// One log's own values of the terms a calibrated scenario refits per log.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct PerLogTerms {
+    /// The log, as named in `logs`.
+    pub log: String,
+    /// The log's part of each term, added to the calibrated value.
+    pub values: Vec<PerLogValue>,
+}
+
+/// A log's own part of one term refitted per log.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct PerLogValue {
+    /// Effect name, e.g. `load_compliance`.
+    pub effect: String,
+    /// The log's part, added to the calibrated value, in `unit` (a compliance of typically
+    /// 1e-4 to 1e-2 rad/(N m)).
+    pub value: f64,
+    /// Unit: `rad/(N m)` for `load_compliance`, `s` for `encoder_delay`, `1` for
+    /// `encoder_scale_error`, `rad/s` for `thermal_drift`.
+    pub unit: String,
 }
 
 /// The sign of an effect found, with what it means.

@@ -35,11 +35,31 @@ pub fn summary_text(d: &Diagnosis) -> String {
                 )
             })
             .unwrap_or_default();
+        let refitted = match c.refitted_per_log.as_slice() {
+            [] | [_] => "only each log's encoder zero fitted".to_string(),
+            [zero, terms @ ..] => format!(
+                "only each log's {zero} and its own {} fitted",
+                terms.join(", ")
+            ),
+        };
         let _ = writeln!(
             s,
-            "Calibrated model of the scenario, as given (only each log's encoder zero fitted): {:.2} mrad RMS; the base capstan model recalibrated here: {:.2} mrad held out{play}.",
+            "Calibrated model of the scenario, as given ({refitted}): {:.2} mrad RMS; the base capstan model recalibrated here: {:.2} mrad held out{play}.",
             c.rmse_mrad, d.rmse_base_mrad
         );
+        for t in &c.per_log_terms {
+            let values: Vec<String> = t
+                .values
+                .iter()
+                .map(|v| {
+                    format!(
+                        "{} {:+.3e} {} added to the calibrated value",
+                        v.effect, v.value, v.unit
+                    )
+                })
+                .collect();
+            let _ = writeln!(s, "  {}: {}", t.log, values.join(", "));
+        }
         let beats_play = d
             .play_operator
             .as_ref()
@@ -71,7 +91,12 @@ pub fn summary_text(d: &Diagnosis) -> String {
         let _ = if searched.is_empty() {
             writeln!(
                 s,
-                "Nothing was searched on top of it: it already carries every candidate effect ([identify] candidates)."
+                "Nothing was searched on top of it: it already carries every candidate effect ([identify] candidates){}.",
+                if c.refitted_per_log.len() > 1 {
+                    " or refits it per log"
+                } else {
+                    ""
+                }
             )
         } else {
             writeln!(
