@@ -68,5 +68,41 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+/// One control period of a long recorded run, the way a single-mode study runs it from the
+/// command line: 100 s at 20 kHz in memory mode, the time series kept at 10 Hz, the error's
+/// spectrum and line-of-sight metrics computed, for the memory and the linear cable.
+/// Prints ns per control period of one run before criterion times the whole run.
+fn period(c: &mut Criterion) {
+    let mut group = c.benchmark_group("eots_tracking_100s_recorded");
+    group.sample_size(10);
+    for (name, cable) in [
+        ("memory_cable", CableModel::Hysteretic),
+        ("linear_cable", CableModel::Linear),
+    ] {
+        let mut s = case(cable);
+        let mut decimation = 1;
+        if let Some(p) = s.closed_loop.as_mut() {
+            p.duration_s = 100.0;
+            decimation = (p.controller.sample_rate_hz / 10.0).round() as usize;
+        }
+        let opts = RunOptions {
+            modes: Some(vec![CompensationMode::Memory]),
+            decimation,
+            ..RunOptions::default()
+        };
+        let periods = s.closed_loop.as_ref().map_or(1, |p| p.periods()).max(1) as f64;
+        let t = Instant::now();
+        run_closed_loop(&s, &opts).expect("scenario runs");
+        eprintln!(
+            "{name}: {:.0} ns per control period over {periods} periods (one run)",
+            t.elapsed().as_secs_f64() / periods * 1e9
+        );
+        group.bench_function(name, |b| {
+            b.iter(|| run_closed_loop(&s, &opts).expect("scenario runs"))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench, period);
 criterion_main!(benches);
