@@ -1272,11 +1272,17 @@ fn run_mode(
     }
     stats.compensator_faults = comp.as_ref().map_or(0, Compensator::faults);
     let fs = p.controller.sample_rate_hz;
-    let los = (!los_errors.is_empty()).then(|| los_metrics(&los_errors, fs, &p.los));
-    let spectrum = options
-        .record
-        .then(|| error_spectrum(&los_errors, fs, p.los.psd_segment_s))
-        .flatten();
+    // Independent reads of the same errors: on two cores the jitter windows run beside
+    // the spectrum's transforms.
+    let (los, spectrum) = rayon::join(
+        || (!los_errors.is_empty()).then(|| los_metrics(&los_errors, fs, &p.los)),
+        || {
+            options
+                .record
+                .then(|| error_spectrum(&los_errors, fs, p.los.psd_segment_s))
+                .flatten()
+        },
+    );
     stats.wall_s = wall.elapsed().as_secs_f64();
     ModeResult {
         los,

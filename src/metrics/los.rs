@@ -228,6 +228,10 @@ fn fft(re: &mut [f64], im: &mut [f64], twiddle: &[(f64, f64)]) {
     }
 }
 
+/// Segment pairs transformed at once by [`error_spectrum`]: enough to keep two cores busy,
+/// few enough that their spectra stay small (32 pairs of 16384 bins: 4 MB).
+const SPECTRUM_BATCH_PAIRS: usize = 32;
+
 /// Welch estimate of the one-sided PSD of `e_mrad` (Hann window, 50 % overlap, segments
 /// of `segment_s` rounded down to a power of two samples, at most the record), scaled so
 /// that the PSD summed over its bins times the bin width is the record's mean square; the
@@ -252,7 +256,6 @@ pub fn error_spectrum(e_mrad: &[f64], fs_hz: f64, segment_s: f64) -> Option<Erro
     let bins = m / 2 + 1;
     let mut acc = vec![0.0; bins];
     let mut segments = 0usize;
-    let (mut re, mut im) = (vec![0.0; m], vec![0.0; m]);
     let twiddle: Vec<(f64, f64)> = (0..m / 2)
         .map(|k| {
             let (s, c) = (-std::f64::consts::TAU * k as f64 / m as f64).sin_cos();
@@ -266,17 +269,32 @@ pub fn error_spectrum(e_mrad: &[f64], fs_hz: f64, segment_s: f64) -> Option<Erro
         .map(|j| j * hop)
         .take_while(|s| s + m <= e.len())
         .collect();
-    for pair in starts.chunks(2) {
+    // The transforms run in parallel, a batch of pairs at a time (bounded memory); their
+    // power is added in segment order, so the sum is the same to the last bit on any
+    // number of threads.
+    let power = |pair: &[usize]| -> Vec<f64> {
+        let (mut re, mut im) = (vec![0.0; m], vec![0.0; m]);
         for i in 0..m {
             re[i] = e[pair[0] + i] * w[i];
             im[i] = pair.get(1).map_or(0.0, |&b| e[b + i] * w[i]);
         }
         fft(&mut re, &mut im, &twiddle);
-        for (k, a) in acc.iter_mut().enumerate() {
-            let j = (m - k) % m;
-            *a += 0.5 * (re[k] * re[k] + im[k] * im[k] + re[j] * re[j] + im[j] * im[j]);
+        (0..bins)
+            .map(|k| {
+                let j = (m - k) % m;
+                0.5 * (re[k] * re[k] + im[k] * im[k] + re[j] * re[j] + im[j] * im[j])
+            })
+            .collect()
+    };
+    for batch in starts.chunks(2 * SPECTRUM_BATCH_PAIRS) {
+        use rayon::prelude::*;
+        let powers: Vec<Vec<f64>> = batch.par_chunks(2).map(power).collect();
+        for p in &powers {
+            for (a, v) in acc.iter_mut().zip(p) {
+                *a += v;
+            }
         }
-        segments += pair.len();
+        segments += batch.len();
     }
     let df = fs_hz / m as f64;
     let scale = 1.0 / (fs_hz * w2 * segments as f64);
