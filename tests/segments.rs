@@ -373,3 +373,46 @@ fn each_fault_on_top_of_each_effect() {
     assert!(wrong.len() <= 1, "{wrong:?}");
     assert!(right >= total * 9 / 10, "named {right}/{total}");
 }
+
+/// A reading that holds still but keeps reading its noise (an analog chain after a stuck
+/// sensor): on logs whose output noise is several encoder steps, the output held at its
+/// value plus its own noise for 0.5 to 2 s is flagged as stuck on the output at its times,
+/// and the same logs without the fault flag nothing.
+#[test]
+fn a_stuck_reading_that_still_reads_noise_is_flagged() {
+    use support::truth::{truth_log, TruthOptions};
+    let o = TruthOptions {
+        angle_noise_rad: 5.0 * Q_OUT,
+        ..TruthOptions::default()
+    };
+    for seed in 0..6u64 {
+        let sc = scenario(seed % 2 == 1);
+        let clean = truth_log(&sc, &hidden(seed), 5000 + seed, &o)
+            .unwrap_or_else(|e| panic!("truth: {e}"))
+            .log;
+        let s = flagged(&clean);
+        assert!(s.is_empty(), "clean seed {seed}: {s:?}");
+
+        let mut log = clean;
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed + 77);
+        let t0 = rng.gen_range(8.0..20.0);
+        let dur = rng.gen_range(0.5..2.0);
+        let x = log.theta_out_rad.clone();
+        let a = log.t_s.iter().position(|t| *t >= t0).expect("inside");
+        let b = a + (dur / (log.t_s[1] - log.t_s[0])).round() as usize;
+        // The reading's own noise: what it has beyond its local mean.
+        let local = |i: usize| x[i - 5..=i + 5].iter().sum::<f64>() / 11.0;
+        for i in a..b {
+            log.theta_out_rad[i] = quant(x[a] + x[i] - local(i), Q_OUT);
+        }
+        let (ta, tb) = (log.t_s[a], log.t_s[b - 1]);
+        let s = flagged(&log);
+        let what = format!("seed {seed} at {ta:.2}-{tb:.2} s: {s:?}");
+        assert!(!s.is_empty(), "not flagged: {what}");
+        assert!(s.iter().all(|g| g.channel == Channel::Output), "{what}");
+        assert!(s.iter().any(|g| g.reason.contains("stuck")), "{what}");
+        let (start, end) = (s[0].start_s, s[s.len() - 1].end_s);
+        assert!(start <= ta && start >= ta - PAD_S - 0.15, "start: {what}");
+        assert!(end >= tb && end <= tb + PAD_S + 0.15, "end: {what}");
+    }
+}

@@ -33,6 +33,11 @@ pub const STUCK_MIN_S: f64 = 0.1;
 /// constant reading for the reading to count as stuck.
 pub const STUCK_FACTOR: f64 = 4.0;
 
+/// A held reading that still reads noise stays within this many of its noise's robust
+/// standard deviations of its first value (two noisy samples differ by 3.5 of their
+/// difference's deviations: one sample in about 2000 leaves the band).
+pub const STUCK_NOISE_BANDS: f64 = 5.0;
+
 /// An input stretch moving faster than this many times its motion's own peak speed is named
 /// a jerk (a held reading, which lags the motion, never reaches 1).
 pub const JERK_SPEED: f64 = 1.5;
@@ -555,15 +560,32 @@ fn output_departures(
         .collect()
 }
 
-/// Runs of exactly constant `x` at least [`STUCK_MIN_S`] long during which `other` moves
+/// Band (rad) within which a reading that holds still stays, from its own sample-to-sample
+/// noise: [`STUCK_NOISE_BANDS`] robust standard deviations of its white part (from second
+/// differences, which a smooth motion leaves near zero). 0 for a reading whose noise is
+/// below its encoder step (the common case): only an exactly repeated value is held.
+fn hold_band(x: &[f64]) -> f64 {
+    if x.len() < 3 {
+        return 0.0;
+    }
+    let d2: Vec<f64> = x.windows(3).map(|w| w[2] - 2.0 * w[1] + w[0]).collect();
+    // Second differences of white noise of deviation s have deviation s sqrt(6).
+    let (sigma, _) = robust(&d2);
+    STUCK_NOISE_BANDS * sigma / 6f64.sqrt()
+}
+
+/// Runs of `x` held within `band` of their first value (exactly constant for a quiet
+/// encoder) at least [`STUCK_MIN_S`] long during which `other` moves
 /// more than [`STUCK_FACTOR`] times the log's typical travel through play; `gain` converts
 /// the other channel's travel into this one's (rad per rad), `reversals` is about how many
 /// times the motion reverses in the log.
+#[allow(clippy::too_many_arguments)]
 fn stuck(
     x: &[f64],
     other: &[f64],
     gain: f64,
     q: f64,
+    band: f64,
     dt: f64,
     reversals: usize,
     channel: Channel,
@@ -574,7 +596,7 @@ fn stuck(
     let mut a = 0;
     while a < n {
         let mut b = a + 1;
-        let tol = 1e-12 * x[a].abs().max(1.0);
+        let tol = (1e-12 * x[a].abs().max(1.0)).max(band);
         while b < n && (x[b] - x[a]).abs() <= tol {
             b += 1;
         }
@@ -645,8 +667,26 @@ pub fn detect(log: &BenchLog, action: &str) -> Vec<Segment> {
     if sxx > 0.0 && syy > 0.0 {
         let g_out = (sxy / sxx).abs();
         let g_in = (sxy / syy).abs();
-        raw.extend(stuck(xo, xi, g_out, q_out, dt, reversals, Channel::Output));
-        raw.extend(stuck(xi, xo, g_in, q_in, dt, reversals, Channel::Input));
+        raw.extend(stuck(
+            xo,
+            xi,
+            g_out,
+            q_out,
+            hold_band(xo),
+            dt,
+            reversals,
+            Channel::Output,
+        ));
+        raw.extend(stuck(
+            xi,
+            xo,
+            g_in,
+            q_in,
+            hold_band(xi),
+            dt,
+            reversals,
+            Channel::Input,
+        ));
         if let Some(m) = motion {
             // The output is judged against the input: where the input is flagged (a jerk the
             // output follows through whatever lags between them, a wrong input reading)
