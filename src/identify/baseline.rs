@@ -1,7 +1,7 @@
 //! A calibrated scenario's whole model replayed on a log as given: the drive and every
 //! effect of `[effects]` at their calibrated values, with only what belongs to one log
-//! (its encoder zero, and the terms the scenario marks as per log) fitted on it. This is how a new log is judged against the instrument
-//! before anything is recalibrated on it.
+//! (its encoder zero, and the terms the scenario marks as per log) fitted on it. This is
+//! how a new log is judged against the instrument before anything is recalibrated on it.
 
 use serde::Serialize;
 
