@@ -416,3 +416,65 @@ fn a_stuck_reading_that_still_reads_noise_is_flagged() {
         assert!(end >= tb && end <= tb + PAD_S + 0.15, "end: {what}");
     }
 }
+
+/// `log` cut to the rows from `from_s` to `to_s` (times kept).
+fn slice(log: &BenchLog, from_s: f64, to_s: f64) -> BenchLog {
+    let rows: Vec<usize> = (0..log.t_s.len())
+        .filter(|i| log.t_s[*i] >= from_s && log.t_s[*i] <= to_s)
+        .collect();
+    let pick = |v: &[f64]| rows.iter().map(|i| v[*i]).collect::<Vec<f64>>();
+    BenchLog {
+        t_s: pick(&log.t_s),
+        theta_in_rad: pick(&log.theta_in_rad),
+        theta_out_rad: pick(&log.theta_out_rad),
+        load_nm: pick(&log.load_nm),
+        tension_upper_n: None,
+        tension_lower_n: None,
+        motor_current_a: None,
+        ..log.clone()
+    }
+}
+
+/// Records too short to reverse (a stretch of the scan between two turnarounds): the input
+/// is judged against its own smooth stroke. Clean, nothing is flagged; an input jerk and a
+/// stuck output are flagged on their channels. A record with one reversal is fitted with
+/// the periodic families as before; with a sine scan the same holds for it.
+#[test]
+fn records_without_a_reversal_are_judged_too() {
+    for seed in 0..4u64 {
+        let sc = scenario(seed % 2 == 1);
+        let full = truth(&sc, &[], 6000 + seed);
+        // The input's lowest point: a reversal; 0.5 s after it the input rises for a
+        // while, 2 s before it it falls into it.
+        let lowest = (0..full.t_s.len())
+            .skip(full.t_s.len() / 4)
+            .min_by(|a, b| full.theta_in_rad[*a].total_cmp(&full.theta_in_rad[*b]))
+            .map(|i| full.t_s[i])
+            .expect("rows");
+        let triangle = seed % 2 == 1;
+        let mut cases = vec![("no reversal", lowest + 0.5, lowest + 3.5)];
+        if !triangle {
+            cases.push(("one reversal", lowest - 2.0, lowest + 2.0));
+        }
+        for (what, from, to) in cases {
+            let clean = slice(&full, from, to);
+            let s = detect(&clean, "excluded");
+            assert!(s.is_empty(), "clean, {what}, seed {seed}: {s:?}");
+
+            let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+            for fault in [Fault::Jerk, Fault::OutputStuck] {
+                let mut log = clean.clone();
+                let t0 = from + 1.0 + rng.gen_range(0.0..0.5);
+                let (channel, a, b) = inject(&mut log, fault, t0, sc.drive.ratio(), &mut rng);
+                let s = detect(&log, "excluded");
+                let said = format!("{fault:?}, {what}, seed {seed} at {a:.2}-{b:.2} s: {s:?}");
+                assert!(!s.is_empty(), "not flagged: {said}");
+                assert!(s.iter().all(|g| g.channel == channel), "{said}");
+                assert!(
+                    s[0].start_s <= a + 0.05 && s[s.len() - 1].end_s >= b - 0.05,
+                    "{said}"
+                );
+            }
+        }
+    }
+}

@@ -139,6 +139,10 @@ fn robust(v: &[f64]) -> (f64, f64) {
 enum Shape {
     Sine,
     Triangle,
+    /// A log with fewer than two reversals: `c0 + c1 u + c2 u^2` in `u = (t - phase) w`
+    /// (the record's middle and inverse half length), the smooth stroke a stretch of any
+    /// motion family is over such a short record.
+    Stroke,
 }
 
 /// The input's own periodic motion: `offset + a sin(w t) + b cos(w t)` for a sine, or
@@ -184,6 +188,10 @@ impl Motion {
                 self.c[0] + self.c[1] * (self.w * t).sin() + self.c[2] * (self.w * t).cos()
             }
             Shape::Triangle => self.c[0] + self.c[1] * tri(self.w * t + self.phase, self.turn),
+            Shape::Stroke => {
+                let u = (t - self.phase) * self.w;
+                self.c[0] + u * (self.c[1] + u * self.c[2])
+            }
         }
     }
 
@@ -192,6 +200,8 @@ impl Motion {
         match self.shape {
             Shape::Sine => self.c[1].hypot(self.c[2]),
             Shape::Triangle => self.c[1].abs(),
+            // Half the travel over the record (u from -1 to 1).
+            Shape::Stroke => self.c[1].abs(),
         }
     }
 
@@ -208,6 +218,16 @@ impl Motion {
         let p = match self.shape {
             Shape::Sine => self.c[2].atan2(self.c[1]),
             Shape::Triangle => self.phase,
+            Shape::Stroke => {
+                // The parabola's vertex, when it lies ahead; else none in the record.
+                let u = -self.c[1] / (2.0 * self.c[2]);
+                let at = self.phase + u / self.w;
+                return if at.is_finite() && at > t {
+                    at
+                } else {
+                    f64::INFINITY
+                };
+            }
         };
         let half = std::f64::consts::PI;
         let k = ((self.w * t + p - std::f64::consts::FRAC_PI_2) / half).floor() + 1.0;
@@ -248,8 +268,34 @@ fn lsq<const N: usize>(
     sse.is_finite().then_some((out, sse))
 }
 
+/// The smooth stroke ([`Shape::Stroke`]) of the input on rows `rows`, for a record too
+/// short to show a periodic motion.
+fn fit_stroke(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
+    let (t0, t1) = (t[*rows.first()?], t[*rows.last()?]);
+    if t1 <= t0 {
+        return None;
+    }
+    let (phase, w) = (0.5 * (t0 + t1), 2.0 / (t1 - t0));
+    let (c, _) = lsq(
+        x,
+        |i| {
+            let u = (t[i] - phase) * w;
+            [1.0, u, u * u]
+        },
+        rows,
+    )?;
+    Some(Motion {
+        shape: Shape::Stroke,
+        w,
+        c,
+        phase,
+        turn: 0.0,
+    })
+}
+
 /// Fit the input's periodic motion (sine or triangle, whichever fits better) on rows
-/// `rows`; `None` when the input does not reverse at least twice.
+/// `rows`; a smooth stroke when the input reverses fewer than twice; `None` when it does
+/// not move.
 fn fit_motion(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
     if rows.len() < 20 {
         return None;
@@ -282,8 +328,11 @@ fn fit_motion(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
         }
     }
     let span = t[*rows.last()?] - t[rows[0]];
-    if crossings < 2 || span <= 0.0 {
+    if span <= 0.0 {
         return None;
+    }
+    if crossings < 2 {
+        return fit_stroke(t, x, rows);
     }
     let f0 = crossings as f64 / (2.0 * span);
     // The search runs on at most 1000 rows, the residual on all of them.
