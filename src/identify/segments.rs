@@ -628,19 +628,18 @@ fn hold_band(x: &[f64]) -> f64 {
 /// more than [`STUCK_FACTOR`] times the log's typical travel through play; `gain` converts
 /// the other channel's travel into this one's (rad per rad), `reversals` is about how many
 /// times the motion reverses in the log.
-#[allow(clippy::too_many_arguments)]
 fn stuck(
     x: &[f64],
     other: &[f64],
     gain: f64,
     q: f64,
-    band: f64,
     dt: f64,
     reversals: usize,
     channel: Channel,
 ) -> Vec<Raw> {
     let n = x.len();
     let min_len = ((STUCK_MIN_S / dt).round() as usize).max(3);
+    let band = hold_band(x);
     let mut all: Vec<(usize, usize, f64)> = Vec::new();
     let mut a = 0;
     while a < n {
@@ -716,26 +715,8 @@ pub fn detect(log: &BenchLog, action: &str) -> Vec<Segment> {
     if sxx > 0.0 && syy > 0.0 {
         let g_out = (sxy / sxx).abs();
         let g_in = (sxy / syy).abs();
-        raw.extend(stuck(
-            xo,
-            xi,
-            g_out,
-            q_out,
-            hold_band(xo),
-            dt,
-            reversals,
-            Channel::Output,
-        ));
-        raw.extend(stuck(
-            xi,
-            xo,
-            g_in,
-            q_in,
-            hold_band(xi),
-            dt,
-            reversals,
-            Channel::Input,
-        ));
+        raw.extend(stuck(xo, xi, g_out, q_out, dt, reversals, Channel::Output));
+        raw.extend(stuck(xi, xo, g_in, q_in, dt, reversals, Channel::Input));
         if let Some(m) = motion {
             // The output is judged against the input: where the input is flagged (a jerk the
             // output follows through whatever lags between them, a wrong input reading)
@@ -834,7 +815,7 @@ pub fn describe(s: &Segment) -> String {
         "kept (--keep-segments): fitted and scored".to_string()
     } else if s.excluded_to_s > s.end_s {
         format!(
-            "excluded from fitting and scoring, with the rows to the input's next reversal at {:.3} s (the model was fed an input reading the drive did not see)",
+            "excluded from fitting and scoring, with the rows up to {:.3} s, the input's next reversal or the log's end when none comes (the model was fed an input reading the drive did not see)",
             s.excluded_to_s
         )
     } else {

@@ -272,13 +272,13 @@ pub fn error_spectrum(e_mrad: &[f64], fs_hz: f64, segment_s: f64) -> Option<Erro
     // The transforms run in parallel, a batch of pairs at a time (bounded memory); their
     // power is added in segment order, so the sum is the same to the last bit on any
     // number of threads.
-    let power = |pair: &[usize]| -> Vec<f64> {
-        let (mut re, mut im) = (vec![0.0; m], vec![0.0; m]);
+    let buffers = || (vec![0.0; m], vec![0.0; m]);
+    let power = |(re, im): &mut (Vec<f64>, Vec<f64>), pair: &[usize]| -> Vec<f64> {
         for i in 0..m {
             re[i] = e[pair[0] + i] * w[i];
             im[i] = pair.get(1).map_or(0.0, |&b| e[b + i] * w[i]);
         }
-        fft(&mut re, &mut im, &twiddle);
+        fft(re, im, &twiddle);
         (0..bins)
             .map(|k| {
                 let j = (m - k) % m;
@@ -288,7 +288,8 @@ pub fn error_spectrum(e_mrad: &[f64], fs_hz: f64, segment_s: f64) -> Option<Erro
     };
     for batch in starts.chunks(2 * SPECTRUM_BATCH_PAIRS) {
         use rayon::prelude::*;
-        let powers: Vec<Vec<f64>> = batch.par_chunks(2).map(power).collect();
+        // One pair of transform buffers per worker, reused across its pairs.
+        let powers: Vec<Vec<f64>> = batch.par_chunks(2).map_init(buffers, power).collect();
         for p in &powers {
             for (a, v) in acc.iter_mut().zip(p) {
                 *a += v;
