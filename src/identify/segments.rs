@@ -331,10 +331,39 @@ fn fit_motion(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
     if span <= 0.0 {
         return None;
     }
-    if crossings < 2 {
-        return fit_stroke(t, x, rows);
-    }
-    let f0 = crossings as f64 / (2.0 * span);
+    // A record with fewer than two crossings may still hold a reversal (one end near the
+    // midline): both its smooth stroke and the periodic families are fitted, and the
+    // closer one is kept.
+    let stroke = if crossings < 2 {
+        Some(fit_stroke(t, x, rows)?)
+    } else {
+        None
+    };
+    let f0 = crossings.max(1) as f64 / (2.0 * span);
+    // A few crossings pin the frequency only loosely: a record of one reversal between
+    // two ends at the same height counts two crossings over what may be a fifth of a
+    // period. The grid then spans a factor 8 geometrically; with many crossings +-20 %.
+    let few = crossings < 6;
+    let (grid_lo, grid_ratio, grid_n) = if few {
+        (0.25 * f0, 8f64.powf(1.0 / 120.0), 120)
+    } else {
+        (0.8 * f0, 1.0, 40)
+    };
+    let grid_f = |g: usize| {
+        if few {
+            grid_lo * grid_ratio.powi(g as i32)
+        } else {
+            f0 * (0.8 + 0.4 * g as f64 / 40.0)
+        }
+    };
+    // Half the spacing of the grid around a frequency `f`, Hz.
+    let grid_step = |f: f64| {
+        if few {
+            f * (grid_ratio - 1.0)
+        } else {
+            0.01 * f0
+        }
+    };
     // The search runs on at most 1000 rows, the residual on all of them.
     let stride = (rows.len() / 1000).max(1);
     let sub: Vec<usize> = rows.iter().step_by(stride).copied().collect();
@@ -352,18 +381,19 @@ fn fit_motion(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
             )
         })
     };
-    // Sine: a grid over +-20 % of the crossing estimate, then golden-section refinement.
+    // Sine: a grid around the crossing estimate, then golden-section refinement.
     let tau = std::f64::consts::TAU;
     let mut grid_best = (f64::INFINITY, f0);
-    for g in 0..=40 {
-        let f = f0 * (0.8 + 0.4 * g as f64 / 40.0);
+    for g in 0..=grid_n {
+        let f = grid_f(g);
         if let Some((_, sse)) = sine(tau * f) {
             if sse < grid_best.0 {
                 grid_best = (sse, f);
             }
         }
     }
-    let (mut lo, mut hi) = (grid_best.1 - 0.01 * f0, grid_best.1 + 0.01 * f0);
+    let step = grid_step(grid_best.1);
+    let (mut lo, mut hi) = (grid_best.1 - step, grid_best.1 + step);
     for _ in 0..25 {
         let a = lo + (hi - lo) / 3.0;
         let b = hi - (hi - lo) / 3.0;
@@ -394,15 +424,53 @@ fn fit_motion(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
     };
     let cost =
         |w: f64, phase: f64, turn: f64| triangle(w, phase, turn).map_or(f64::INFINITY, |r| r.1);
-    let (mut w, mut phase): (f64, f64) = (s.w, s.c[2].atan2(s.c[1]));
+    let sine_phase = |m: &Motion| m.c[2].atan2(m.c[1]);
+    let (mut w, mut phase): (f64, f64) = (s.w, sine_phase(&s));
+    if few {
+        // Over a fraction of a period the sine's frequency is not the triangle's (the
+        // sine bends where the triangle runs straight), and a higher frequency with
+        // rounder turnarounds can place the next turnaround at the record's ends: the
+        // triangle takes its own frequency and turnaround fraction from a grid of both,
+        // with the phase of the sine at each frequency.
+        // A reversal inside the record pins the phase at each frequency better than the
+        // sine does over part of a period: the triangle's extreme sits at it.
+        let apex = interior_extreme(t, x, &sub);
+        let mut best = (f64::INFINITY, w, phase);
+        for g in 0..=grid_n {
+            let wg = tau * grid_f(g);
+            let from_sine = sine(wg).map(|(m, _)| sine_phase(&m));
+            let from_apex = apex.map(|(ta, top)| {
+                let quarter = std::f64::consts::FRAC_PI_2;
+                (if top { quarter } else { -quarter }) - wg * ta
+            });
+            for pg in [from_sine, from_apex].into_iter().flatten() {
+                for k in 0..10 {
+                    let c = cost(wg, pg, 0.05 + 0.1 * k as f64);
+                    if c < best.0 {
+                        best = (c, wg, pg);
+                    }
+                }
+            }
+        }
+        (w, phase) = (best.1, best.2);
+    }
     // The turnaround fraction from a coarse grid first: the cost has side minima in it.
     let mut turn = (1..20)
         .map(|k| k as f64 * 0.05)
         .map(|v| (cost(w, phase, v), v))
         .fold((f64::INFINITY, 0.5), |a, b| if b.0 < a.0 { b } else { a })
         .1;
-    let (mut dw, mut dp, mut dturn): (f64, f64, f64) = (0.01 * s.w, 0.1, 0.05);
-    for _ in 0..4 {
+    let mut dw = if few {
+        tau * grid_step(w / tau)
+    } else {
+        0.01 * s.w
+    };
+    let (mut dp, mut dturn): (f64, f64) = (0.1, 0.05);
+    // Over part of a period the frequency trades against the amplitude and turnaround
+    // fraction, a valley the turns of this descent cross slowly: more turns, shrinking
+    // less.
+    let (turns, shrink) = if few { (16, 0.6) } else { (4, 0.3) };
+    for _ in 0..turns {
         turn = golden(
             |v| cost(w, phase, v),
             (turn - dturn).max(0.001),
@@ -415,13 +483,40 @@ fn fit_motion(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
         let (w0, p0) = (w, phase);
         w = golden(|v| cost(v, p0 - (v - w0) * tm, turn), w - dw, w + dw);
         phase = p0 - (w - w0) * tm;
-        dw *= 0.3;
-        dp *= 0.3;
-        dturn *= 0.3;
+        dw *= shrink;
+        dp *= shrink;
+        dturn *= shrink;
     }
-    match triangle(w, phase, turn) {
-        Some((m, sse)) if sse < s_sse => Some(m),
-        _ => Some(s),
+    let periodic = match triangle(w, phase, turn) {
+        Some((m, sse)) if sse < s_sse => m,
+        _ => s,
+    };
+    let sse_on = |m: &Motion| {
+        sub.iter()
+            .map(|&i| (x[i] - m.at(t[i])).powi(2))
+            .sum::<f64>()
+    };
+    match stroke {
+        Some(st) if sse_on(&st) <= sse_on(&periodic) => Some(st),
+        _ => Some(periodic),
+    }
+}
+
+/// Time (s) of the input's extreme over rows `rows` when it lies inside the record (at
+/// least a tenth of its span from either end), and whether it is the top: where a record
+/// of one reversal turns.
+fn interior_extreme(t: &[f64], x: &[f64], rows: &[usize]) -> Option<(f64, bool)> {
+    let (first, last) = (*rows.first()?, *rows.last()?);
+    let margin = 0.1 * (t[last] - t[first]);
+    let inside = |i: usize| t[i] - t[first] > margin && t[last] - t[i] > margin;
+    let by = |a: &&usize, b: &&usize| x[**a].total_cmp(&x[**b]);
+    let top = rows.iter().max_by(by).copied().filter(|i| inside(*i));
+    let bottom = rows.iter().min_by(by).copied().filter(|i| inside(*i));
+    match (top, bottom) {
+        (Some(i), None) => Some((t[i], true)),
+        (None, Some(i)) => Some((t[i], false)),
+        // Both inside: more than one reversal; the sine's phase serves.
+        _ => None,
     }
 }
 
@@ -537,10 +632,14 @@ fn input_departures(t: &[f64], x: &[f64], q_in: f64, dt: f64) -> (Vec<Raw>, Opti
     let (sr, mr) = robust(&kept(&r));
     let (sv, mv) = robust(&kept(&v));
     // Floors: ten encoder steps, and the speed one step over the difference window reads,
-    // ten times; both far above what quantisation alone can produce.
+    // ten times; both far above what quantisation alone can produce. The speed also never
+    // judges finer than the position's own scatter read over the window: on a short
+    // record whose encoder step cannot be read off its levels, with the motion fitted
+    // closely, the speeds' spread reads a smooth fitting error, not the sensor.
     let tr = (ROBUST_K * sr).max(10.0 * q_in).max(1e-12);
     let tv = (ROBUST_K * sv)
         .max(10.0 * q_in / (2.0 * h as f64 * dt))
+        .max(ROBUST_K * std::f64::consts::SQRT_2 * sr / (2.0 * h as f64 * dt))
         .max(1e-12);
     // Flagged where the input is far off its motion or far faster than it; named a jerk
     // when it moves faster than the motion itself ever does ([`JERK_SPEED`] times its
