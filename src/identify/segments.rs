@@ -139,7 +139,7 @@ fn robust(v: &[f64]) -> (f64, f64) {
 enum Shape {
     Sine,
     Triangle,
-    /// A log with fewer than two reversals: `c0 + c1 u + c2 u^2` in `u = (t - phase) w`
+    /// A log with under two midline crossings: `c0 + c1 u + c2 u^2` in `u = (t - phase) w`
     /// (the record's middle and inverse half length), the smooth stroke a stretch of any
     /// motion family is over such a short record.
     Stroke,
@@ -294,8 +294,8 @@ fn fit_stroke(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
 }
 
 /// Fit the input's periodic motion (sine or triangle, whichever fits better) on rows
-/// `rows`; a smooth stroke when the input reverses fewer than twice; `None` when it does
-/// not move.
+/// `rows`; for a record with under two midline crossings its smooth stroke instead when
+/// that fits closer; `None` when it does not move.
 fn fit_motion(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
     if rows.len() < 20 {
         return None;
@@ -430,10 +430,9 @@ fn fit_motion(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
         // Over a fraction of a period the sine's frequency is not the triangle's (the
         // sine bends where the triangle runs straight), and a higher frequency with
         // rounder turnarounds can place the next turnaround at the record's ends: the
-        // triangle takes its own frequency and turnaround fraction from a grid of both,
-        // with the phase of the sine at each frequency.
-        // A reversal inside the record pins the phase at each frequency better than the
-        // sine does over part of a period: the triangle's extreme sits at it.
+        // triangle takes its own frequency and turnaround fraction from a grid of both.
+        // Its phase at each frequency is the sine's there or, better pinned, the one that
+        // puts its extreme at the record's own turning point.
         let apex = interior_extreme(t, x, &sub);
         let mut best = (f64::INFINITY, w, phase);
         for g in 0..=grid_n {
