@@ -478,3 +478,27 @@ fn records_without_a_reversal_are_judged_too() {
         }
     }
 }
+
+/// A clean 4 s log of one reversal of a triangle scan (the scan's start, its top at 2.5
+/// s) with a hidden input pulley runout: nothing is excluded and the runout is named. With
+/// the period read off two crossings the whole log was once flagged as departing from its
+/// motion and the answer was "nothing beyond sensor noise".
+#[test]
+fn a_short_log_of_one_reversal_is_diagnosed_whole() {
+    let text = include_str!("../scenarios/gimbal_ident.toml")
+        .replace("kind = \"sine\"", "kind = \"triangle\"")
+        .replace("duration_s = 30.0", "duration_s = 4.0");
+    let sc = Scenario::from_toml(&text, "gimbal", "gimbal", &[]).expect("test scenario");
+    let e = EffectName::InputPulleyRunout;
+    for seed in 0..3u64 {
+        let log = truth(&sc, &[(e, size_of(e, seed))], 6100 + seed);
+        assert!(log.t_s[log.t_s.len() - 1] < 4.5, "a short log");
+        let d = diagnose(&sc, std::slice::from_ref(&log), &opts()).expect("diagnosis");
+        assert!(
+            d.excluded_segments.is_empty(),
+            "seed {seed}: {:?}",
+            d.excluded_segments
+        );
+        assert_eq!(d.cause, e.as_str(), "seed {seed}");
+    }
+}
