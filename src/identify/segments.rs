@@ -344,26 +344,16 @@ fn fit_motion(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
     // two ends at the same height counts two crossings over what may be a fifth of a
     // period. The grid then spans a factor 8 geometrically; with many crossings +-20 %.
     let few = crossings < 6;
-    let (grid_lo, grid_ratio, grid_n) = if few {
-        (0.25 * f0, 8f64.powf(1.0 / 120.0), 120)
+    let ratio = 8f64.powf(1.0 / 120.0);
+    let grid: Vec<f64> = if few {
+        (0..=120).map(|g| 0.25 * f0 * ratio.powi(g)).collect()
     } else {
-        (0.8 * f0, 1.0, 40)
-    };
-    let grid_f = |g: usize| {
-        if few {
-            grid_lo * grid_ratio.powi(g as i32)
-        } else {
-            f0 * (0.8 + 0.4 * g as f64 / 40.0)
-        }
+        (0..=40)
+            .map(|g| f0 * (0.8 + 0.4 * f64::from(g) / 40.0))
+            .collect()
     };
     // Half the spacing of the grid around a frequency `f`, Hz.
-    let grid_step = |f: f64| {
-        if few {
-            f * (grid_ratio - 1.0)
-        } else {
-            0.01 * f0
-        }
-    };
+    let grid_step = |f: f64| if few { f * (ratio - 1.0) } else { 0.01 * f0 };
     // The search runs on at most 1000 rows, the residual on all of them.
     let stride = (rows.len() / 1000).max(1);
     let sub: Vec<usize> = rows.iter().step_by(stride).copied().collect();
@@ -384,8 +374,7 @@ fn fit_motion(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
     // Sine: a grid around the crossing estimate, then golden-section refinement.
     let tau = std::f64::consts::TAU;
     let mut grid_best = (f64::INFINITY, f0);
-    for g in 0..=grid_n {
-        let f = grid_f(g);
+    for &f in &grid {
         if let Some((_, sse)) = sine(tau * f) {
             if sse < grid_best.0 {
                 grid_best = (sse, f);
@@ -435,8 +424,8 @@ fn fit_motion(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
         // puts its extreme at the record's own turning point.
         let apex = interior_extreme(t, x, &sub);
         let mut best = (f64::INFINITY, w, phase);
-        for g in 0..=grid_n {
-            let wg = tau * grid_f(g);
+        for &f in &grid {
+            let wg = tau * f;
             let from_sine = sine(wg).map(|(m, _)| sine_phase(&m));
             let from_apex = apex.map(|(ta, top)| {
                 let quarter = std::f64::consts::FRAC_PI_2;
@@ -486,17 +475,18 @@ fn fit_motion(t: &[f64], x: &[f64], rows: &[usize]) -> Option<Motion> {
         dp *= shrink;
         dturn *= shrink;
     }
-    let periodic = match triangle(w, phase, turn) {
-        Some((m, sse)) if sse < s_sse => m,
-        _ => s,
+    let (periodic, periodic_sse) = match triangle(w, phase, turn) {
+        Some((m, sse)) if sse < s_sse => (m, sse),
+        _ => (s, s_sse),
     };
-    let sse_on = |m: &Motion| {
+    // Compared on the search's rows, where the periodic fit's error was summed.
+    let stroke_sse = |m: &Motion| {
         sub.iter()
             .map(|&i| (x[i] - m.at(t[i])).powi(2))
             .sum::<f64>()
     };
     match stroke {
-        Some(st) if sse_on(&st) <= sse_on(&periodic) => Some(st),
+        Some(st) if stroke_sse(&st) <= periodic_sse => Some(st),
         _ => Some(periodic),
     }
 }
@@ -514,7 +504,8 @@ fn interior_extreme(t: &[f64], x: &[f64], rows: &[usize]) -> Option<(f64, bool)>
     match (top, bottom) {
         (Some(i), None) => Some((t[i], true)),
         (None, Some(i)) => Some((t[i], false)),
-        // Both inside: more than one reversal; the sine's phase serves.
+        // Both inside (more than one reversal) or neither (none inside): no single
+        // turning point to pin the phase.
         _ => None,
     }
 }

@@ -7,6 +7,7 @@
 //! at a time): the part of the error that blurs one image, while the window mean moves
 //! the whole image. Non-finite samples are dropped first, so no figure is ever NaN.
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// Line-of-sight statistics (`[closed_loop.los]`): the exposure that jitter is judged over
@@ -287,7 +288,6 @@ pub fn error_spectrum(e_mrad: &[f64], fs_hz: f64, segment_s: f64) -> Option<Erro
             .collect()
     };
     for batch in starts.chunks(2 * SPECTRUM_BATCH_PAIRS) {
-        use rayon::prelude::*;
         // One pair of transform buffers per worker, reused across its pairs.
         let powers: Vec<Vec<f64>> = batch.par_chunks(2).map_init(buffers, power).collect();
         for p in &powers {
