@@ -230,6 +230,53 @@ type CvResult = Result<(f64, usize, Fitted), IdentifyError>;
 /// when none passes the gate alone (up to fifteen pairs).
 const PAIR_POOL: usize = 6;
 
+/// How much more of the structure above the noise floor another candidate that passes the
+/// gate may leave unexplained, held out, than the accepted one, for the logs to be said
+/// not to tell them apart: `rmse_alt^2 - floor^2 <= (1 + TIE_FRACTION) (rmse^2 - floor^2)`
+/// (0.1). Judged on the excess over the floor, not on the RMSE itself, because near the
+/// floor every candidate's RMSE is mostly noise: a bearing friction found alone leaves a
+/// drum runout 1 % behind in RMSE but 12 % to 18 % behind in what it explains, while a
+/// compliance beside a ratio shape left an encoder scale error, a drum runout and a bearing
+/// friction within 1 % to 6 %.
+pub const TIE_FRACTION: f64 = 0.1;
+
+/// The rows of `scores` from `from` on that pass the gate within [`TIE_FRACTION`] of the
+/// accepted row `idx` (`floor_mrad` the noise floor); `None` when none does. These are
+/// judged again on the whole model found once the search ends.
+fn near_ties(
+    scores: &[CandidateScore],
+    from: usize,
+    idx: usize,
+    floor_mrad: f64,
+) -> Option<Indistinguishable> {
+    let best = scores[idx].rmse_heldout_mrad;
+    let alternatives: Vec<Alternative> = scores
+        .iter()
+        .enumerate()
+        .skip(from)
+        .filter(|(i, c)| {
+            *i != idx
+                && c.verdict == "qualifies"
+                && ties_with(c.rmse_heldout_mrad, best, floor_mrad)
+        })
+        .map(|(_, c)| Alternative {
+            name: c.name.clone(),
+            rmse_heldout_mrad: c.rmse_heldout_mrad,
+        })
+        .collect();
+    (!alternatives.is_empty()).then(|| Indistinguishable {
+        accepted: scores[idx].name.clone(),
+        rmse_heldout_mrad: best,
+        alternatives,
+    })
+}
+
+/// Whether held-out RMSE `rmse` leaves at most [`TIE_FRACTION`] more above the noise
+/// floor than `best` (same unit as `floor`).
+fn ties_with(rmse: f64, best: f64, floor: f64) -> bool {
+    rmse * rmse - floor * floor <= (1.0 + TIE_FRACTION) * (best * best - floor * floor)
+}
+
 /// The score of a candidate whose fit failed: no numbers, the reason in the verdict.
 fn failed_score(name: String, round: usize, err: &IdentifyError) -> CandidateScore {
     CandidateScore {
@@ -434,6 +481,7 @@ pub fn diagnose_with_progress(
     let mut chosen: Vec<EffectName> = Vec::new();
     let mut scores: Vec<CandidateScore> = Vec::new();
     let mut chosen_fit: Option<Fitted> = None;
+    let mut indistinguishable: Vec<Indistinguishable> = Vec::new();
     for round in 1..=ident.max_effects {
         if pool.is_empty() || current <= 1.05 * floor {
             break;
@@ -495,6 +543,7 @@ pub fn diagnose_with_progress(
             };
             (verdict == "qualifies", row)
         };
+        let round_from = scores.len();
         let mut best: Option<(usize, f64)> = None;
         // Candidates that improve on the current model, for the joint search of pairs.
         let mut helpful: Vec<(EffectName, f64)> = Vec::new();
@@ -524,6 +573,7 @@ pub fn diagnose_with_progress(
         let accepted: Vec<EffectName> = if let Some((idx, rmse)) = best {
             scores[idx].accepted = true;
             scores[idx].verdict = "accepted (best qualifying)".into();
+            indistinguishable.extend(near_ties(&scores, round_from, idx, floor * 1e3));
             current = rmse;
             pool.iter()
                 .copied()
@@ -547,6 +597,7 @@ pub fn diagnose_with_progress(
                     ((*a, *b), r)
                 })
                 .collect();
+            let pairs_from = scores.len();
             let mut best_pair: Option<(usize, f64, (EffectName, EffectName), Fitted)> = None;
             for ((a, b), r) in results {
                 let name = format!("{a} + {b}");
@@ -569,6 +620,7 @@ pub fn diagnose_with_progress(
                     scores[idx].verdict =
                         "accepted as a pair (neither passes alone; judged together, held out)"
                             .into();
+                    indistinguishable.extend(near_ties(&scores, pairs_from, idx, floor * 1e3));
                     current = rmse;
                     chosen_fit = Some(fit);
                     vec![a, b]
@@ -608,6 +660,73 @@ pub fn diagnose_with_progress(
                 }
             }
         }
+    }
+
+    // A tie seen in the round that chose an effect is judged again on the whole model
+    // found: the alternative in the accepted one's place, the other effects kept, held out
+    // on the same calibration. An alternative the model already holds is no alternative.
+    if !indistinguishable.is_empty() {
+        use rayon::prelude::*;
+        let score = |effs: &[EffectName]| {
+            cross_validate(
+                &prepared,
+                &search_ident,
+                &full_drive,
+                &fold_drives,
+                &split.folds,
+                &split.full,
+                &keep,
+                effs,
+                top,
+            )
+            .ok()
+            .filter(|(_, _, fit)| plausible(fit, drive0.ratio()))
+            .map(|(rmse, _, _)| rmse)
+        };
+        let found = score(&chosen);
+        indistinguishable = match found {
+            None => Vec::new(),
+            Some(found) => indistinguishable
+                .into_iter()
+                .filter_map(|t| {
+                    let gone: Vec<&str> = t.accepted.split(" + ").collect();
+                    let kept: Vec<EffectName> = chosen
+                        .iter()
+                        .copied()
+                        .filter(|c| !gone.contains(&c.as_str()))
+                        .collect();
+                    let mut alternatives: Vec<Alternative> = t
+                        .alternatives
+                        .par_iter()
+                        .filter_map(|a| {
+                            let parts: Vec<EffectName> = a
+                                .name
+                                .split(" + ")
+                                .map(str::parse)
+                                .collect::<Result<_, _>>()
+                                .ok()?;
+                            if parts.iter().any(|p| kept.contains(p)) {
+                                return None;
+                            }
+                            let effs: Vec<EffectName> =
+                                kept.iter().chain(&parts).copied().collect();
+                            let rmse = score(&effs)?;
+                            ties_with(rmse, found, floor).then(|| Alternative {
+                                name: a.name.clone(),
+                                rmse_heldout_mrad: rmse * 1e3,
+                            })
+                        })
+                        .collect();
+                    alternatives
+                        .sort_by(|a, b| a.rmse_heldout_mrad.total_cmp(&b.rmse_heldout_mrad));
+                    (!alternatives.is_empty()).then_some(Indistinguishable {
+                        accepted: t.accepted,
+                        rmse_heldout_mrad: found * 1e3,
+                        alternatives,
+                    })
+                })
+                .collect(),
+        };
     }
 
     // The search stopped before its last possible round: the candidates judged (one
@@ -870,6 +989,7 @@ pub fn diagnose_with_progress(
     };
     Ok(Diagnosis {
         residual_signatures,
+        indistinguishable,
         calibrated_model,
         cause,
         causes: chosen.iter().map(|c| c.to_string()).collect(),

@@ -157,6 +157,29 @@ pub struct CandidateScore {
     pub verdict: String,
 }
 
+/// Candidates that explain the logs as well as an accepted one, held out: the logs cannot
+/// tell them apart, and the accepted name is one of several that fit. Found in the round
+/// that accepted the effect and confirmed on the whole model the search ended with.
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct Indistinguishable {
+    /// The accepted effect, or pair (`a + b`).
+    pub accepted: String,
+    /// Held-out RMSE of the effects found, on the search's last calibration, mrad.
+    pub rmse_heldout_mrad: f64,
+    /// Each candidate that, in the accepted one's place with the other effects kept,
+    /// leaves at most [`super::TIE_FRACTION`] more above the noise floor, closest first.
+    pub alternatives: Vec<Alternative>,
+}
+
+/// One candidate as good as an accepted effect, held out.
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct Alternative {
+    /// Effect name, or pair (`a + b`).
+    pub name: String,
+    /// Held-out RMSE of the effects found with it in the accepted one's place, mrad.
+    pub rmse_heldout_mrad: f64,
+}
+
 /// A baseline model's held-out score.
 #[derive(Clone, Debug, Serialize)]
 pub struct BaselineScore {
@@ -276,6 +299,11 @@ pub struct Diagnosis {
     /// their values are one of many that fit as well, and their `std` means little.
     #[serde(default)]
     pub not_identifiable: Vec<identifiability::NotIdentifiable>,
+    /// Accepted effects that other candidates explain as well, held out (within
+    /// [`super::TIE_FRACTION`]): the logs cannot tell them apart. Empty when every choice
+    /// stood clear of the rest.
+    #[serde(default)]
+    pub indistinguishable: Vec<Indistinguishable>,
     /// The extended model's residual along each logged variable, strongest first: which
     /// variable the structure that remains follows (the residual plot to look at).
     #[serde(default)]

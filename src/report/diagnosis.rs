@@ -180,6 +180,23 @@ pub fn summary_text(d: &Diagnosis) -> String {
             d.causes.join(", ")
         );
     }
+    for t in &d.indistinguishable {
+        let names: Vec<&str> = t.alternatives.iter().map(|a| a.name.as_str()).collect();
+        let rmses: Vec<String> = t
+            .alternatives
+            .iter()
+            .map(|a| format!("{:.4}", a.rmse_heldout_mrad))
+            .collect();
+        let _ = writeln!(
+            s,
+            "Not told apart: {}, or in its place {} (the effects found: {:.4} mrad held out; with each in its place {} mrad): each leaves at most {:.0} % more structure above the noise, so these data cannot tell them apart; logs at other loads, speeds or strokes can",
+            t.accepted,
+            names.join(" or "),
+            t.rmse_heldout_mrad,
+            rmses.join(", "),
+            100.0 * crate::identify::TIE_FRACTION
+        );
+    }
     let extended = if d.calibrated_model.is_some() {
         "extended (the calibrated model and what was found on top)"
     } else {
