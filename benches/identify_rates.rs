@@ -19,22 +19,23 @@ fn main() {
     for e in EffectName::EVERY {
         let r = run_effect(e, seeds);
         table.push(format!(
-            "| `{e}` | {}/{seeds} | {}/{seeds} within {:.0} % | {:.1} % |",
+            "| `{e}` | {}/{seeds} | {}/{seeds} within {:.0} % | {:.1} % | {}/{seeds} |",
             r.named,
             r.sized,
             size_tolerance(e) * 100.0,
-            r.worst * 100.0
+            r.worst * 100.0,
+            r.tied
         ));
     }
     let none = clean_rate(seeds, &opts(), "library searched");
     let none_every = clean_rate(seeds, &opts_every(), "every effect searched");
-    println!("| effect | named | sized | worst size error |");
-    println!("|---|---|---|---|");
+    println!("| effect | named | sized | worst size error | not told apart |");
+    println!("|---|---|---|---|---|");
     for row in table {
         println!("{row}");
     }
-    println!("| clean logs, library searched | `none` {none}/{seeds} | | |");
-    println!("| clean logs, every effect searched | `none` {none_every}/{seeds} | | |");
+    println!("| clean logs, library searched | `none` {none}/{seeds} | | | |");
+    println!("| clean logs, every effect searched | `none` {none_every}/{seeds} | | | |");
     println!(
         "{seeds} seeds per row in {:.0} s",
         start.elapsed().as_secs_f64()

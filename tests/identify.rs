@@ -668,8 +668,8 @@ fn pairs_of_multi_wrap_effects_are_both_named() {
 /// A compliance beside a ratio shape at the small end of its range leaves, once the shape is
 /// found, a residual that an encoder scale error, a drum runout and a bearing friction fit
 /// as well as the compliance itself: the answer names the accepted one and, as not told
-/// apart, the others, the hidden compliance among them. Single effects near the noise
-/// floor, where every candidate's RMSE is close, keep a clear answer.
+/// apart, the others, the hidden compliance among them. Single effects a little above the
+/// noise floor, where every candidate's RMSE is close, keep a clear answer.
 #[test]
 fn candidates_the_log_cannot_tell_apart_are_named_as_such() {
     use EffectName::{AngleDependentRatio as Ratio, LoadCompliance as Compliance};
@@ -699,6 +699,26 @@ fn candidates_the_log_cannot_tell_apart_are_named_as_such() {
         let text = cable_servo::report::diagnosis::summary_text(&d);
         assert!(text.contains("Not told apart: "), "{text}");
     }
+    // A small compliance alone, where a drum runout brings the residual as far down, below
+    // the noise floor: the runout is named, and the compliance beside it.
+    let seed = 46;
+    let sc = scenario(true);
+    let v = support::rates::size_of(Compliance, seed);
+    let d = diagnose(
+        &sc,
+        &[truth(&sc, &[(Compliance, v)], seed)],
+        &opts_for(Compliance),
+    )
+    .expect("diagnosis");
+    assert!(
+        d.indistinguishable.iter().any(|t| {
+            t.accepted == "load_compliance"
+                || t.alternatives.iter().any(|a| a.name == "load_compliance")
+        }),
+        "compliance {v:.3e}: {} {:?}",
+        d.cause,
+        d.indistinguishable
+    );
     // Found alone, each leaves a drum runout within 1 % in RMSE but well behind in what it
     // explains above the noise.
     for (e, seed) in [

@@ -167,7 +167,8 @@ pub struct Indistinguishable {
     /// Held-out RMSE of the effects found, on the search's last calibration, mrad.
     pub rmse_heldout_mrad: f64,
     /// Each candidate that, in the accepted one's place with the other effects kept,
-    /// leaves at most [`super::TIE_FRACTION`] more above the noise floor, closest first.
+    /// leaves at most [`super::TIE_FRACTION`] more above the noise floor or comes within
+    /// [`super::TIE_RMSE_FRACTION`] of its held-out RMSE, closest first.
     pub alternatives: Vec<Alternative>,
 }
 
@@ -300,7 +301,8 @@ pub struct Diagnosis {
     #[serde(default)]
     pub not_identifiable: Vec<identifiability::NotIdentifiable>,
     /// Accepted effects that other candidates explain as well, held out (within
-    /// [`super::TIE_FRACTION`]): the logs cannot tell them apart. Empty when every choice
+    /// [`super::TIE_FRACTION`] above the floor or [`super::TIE_RMSE_FRACTION`] in RMSE):
+    /// the logs cannot tell them apart. Empty when every choice
     /// stood clear of the rest.
     #[serde(default)]
     pub indistinguishable: Vec<Indistinguishable>,

@@ -189,12 +189,13 @@ pub fn summary_text(d: &Diagnosis) -> String {
             .collect();
         let _ = writeln!(
             s,
-            "Not told apart: {}, or in its place {} (the effects found: {:.4} mrad held out; with each in its place {} mrad): each leaves at most {:.0} % more structure above the noise, so these data cannot tell them apart; logs at other loads, speeds or strokes can",
+            "Not told apart: {}, or in its place {} (the effects found: {:.4} mrad held out; with each in its place {} mrad): each leaves at most {:.0} % more structure above the noise or comes within {:.1} % of its error, so these data cannot tell them apart; logs at other loads, speeds or strokes can",
             t.accepted,
             names.join(" or "),
             t.rmse_heldout_mrad,
             rmses.join(", "),
-            100.0 * crate::identify::TIE_FRACTION
+            100.0 * crate::identify::TIE_FRACTION,
+            100.0 * crate::identify::TIE_RMSE_FRACTION
         );
     }
     let extended = if d.calibrated_model.is_some() {

@@ -112,6 +112,8 @@ pub struct Rates {
     pub named: usize,
     pub sized: usize,
     pub worst: f64,
+    /// Draws whose answer came with candidates it could not tell apart.
+    pub tied: usize,
 }
 
 pub fn run_effect(e: EffectName, seeds: u64) -> Rates {
@@ -119,6 +121,7 @@ pub fn run_effect(e: EffectName, seeds: u64) -> Rates {
         named: 0,
         sized: 0,
         worst: 0.0,
+        tied: 0,
     };
     for seed in 0..seeds {
         let v = size_of(e, seed);
@@ -128,6 +131,7 @@ pub fn run_effect(e: EffectName, seeds: u64) -> Rates {
         if d.cause == e.as_str() {
             r.named += 1;
         }
+        r.tied += usize::from(!d.indistinguishable.is_empty());
         if let Some(est) = effect_value(&d, e) {
             // A runout's sign is its phase shifted by pi; every other effect is sized with
             // its sign.
@@ -142,20 +146,22 @@ pub fn run_effect(e: EffectName, seeds: u64) -> Rates {
             }
         }
         eprintln!(
-            "{e} seed {seed}: true {v:.4e} -> cause {} est {:?} base {:.4} ext {:.4} floor {:.4}",
+            "{e} seed {seed}: true {v:.4e} -> cause {} est {:?} base {:.4} ext {:.4} floor {:.4}; not told apart {:?}",
             d.cause,
             effect_value(&d, e),
             d.rmse_base_mrad,
             d.rmse_extended_mrad,
-            d.noise_floor_mrad
+            d.noise_floor_mrad,
+            d.indistinguishable
         );
     }
     eprintln!(
-        "RATE {e}: named {}/{seeds}, sized within {:.0} % {}/{seeds}, worst size error {:.1} %",
+        "RATE {e}: named {}/{seeds}, sized within {:.0} % {}/{seeds}, worst size error {:.1} %, not told apart from another {}/{seeds}",
         r.named,
         size_tolerance(e) * 100.0,
         r.sized,
-        r.worst * 100.0
+        r.worst * 100.0,
+        r.tied
     );
     r
 }
