@@ -490,25 +490,27 @@ pub fn diagnose_with_progress(
     let mut scores: Vec<CandidateScore> = Vec::new();
     let mut chosen_fit: Option<Fitted> = None;
     let mut indistinguishable: Vec<Indistinguishable> = Vec::new();
+    // Held-out score of a set of effects on a calibration (the search's moves on).
+    let held_out = |full: &DriveParams, folds: &[DriveParams], effs: &[EffectName]| {
+        cross_validate(
+            &prepared,
+            &search_ident,
+            full,
+            folds,
+            &split.folds,
+            &split.full,
+            &keep,
+            effs,
+            top,
+        )
+    };
     for round in 1..=ident.max_effects {
         if pool.is_empty() || current <= 1.05 * floor {
             break;
         }
         use rayon::prelude::*;
         // Held-out score of the chosen effects and more, on this round's calibration.
-        let score_with = |effs: &[EffectName]| {
-            cross_validate(
-                &prepared,
-                &search_ident,
-                &full_drive,
-                &fold_drives,
-                &split.folds,
-                &split.full,
-                &keep,
-                effs,
-                top,
-            )
-        };
+        let score_with = |effs: &[EffectName]| held_out(&full_drive, &fold_drives, effs);
         let results: Vec<(EffectName, CvResult)> = pool
             .par_iter()
             .map(|e| {
@@ -676,20 +678,10 @@ pub fn diagnose_with_progress(
     if !indistinguishable.is_empty() {
         use rayon::prelude::*;
         let score = |effs: &[EffectName]| {
-            cross_validate(
-                &prepared,
-                &search_ident,
-                &full_drive,
-                &fold_drives,
-                &split.folds,
-                &split.full,
-                &keep,
-                effs,
-                top,
-            )
-            .ok()
-            .filter(|(_, _, fit)| plausible(fit, drive0.ratio()))
-            .map(|(rmse, _, _)| rmse)
+            held_out(&full_drive, &fold_drives, effs)
+                .ok()
+                .filter(|(_, _, fit)| plausible(fit, drive0.ratio()))
+                .map(|(rmse, _, _)| rmse)
         };
         let found = score(&chosen);
         indistinguishable = match found {
