@@ -234,10 +234,10 @@ const PAIR_POOL: usize = 6;
 /// gate may leave unexplained, held out, than the accepted one, for the logs to be said
 /// not to tell them apart: `rmse_alt^2 - floor^2 <= (1 + TIE_FRACTION) (rmse^2 - floor^2)`
 /// (0.1). Judged on the excess over the floor, not on the RMSE itself, because near the
-/// floor every candidate's RMSE is mostly noise: a bearing friction found alone leaves a
-/// drum runout 1 % behind in RMSE but 12 % to 18 % behind in what it explains, while a
-/// compliance beside a ratio shape left an encoder scale error, a drum runout and a bearing
-/// friction within 1 % to 6 %.
+/// floor every candidate's RMSE is mostly noise: a bearing friction found alone usually
+/// leaves a drum runout 0.7 % to 4 % behind in RMSE but 12 % or more behind in what it
+/// explains, while a compliance beside a ratio shape left an encoder scale error, a drum
+/// runout and a bearing friction within 1 % to 6 %.
 pub const TIE_FRACTION: f64 = 0.1;
 
 /// Held-out RMSEs this close, as a fraction, tie whatever the floor says (0.005): where the
