@@ -309,6 +309,10 @@ pub enum MemoryLaw {
 /// with the others at their first-round values).
 const LAW_SCAN: (usize, usize) = (13, 2);
 
+/// Intervals of the coarse grid of the slack's width and take-up torque tried after the
+/// scan (`LAW_GRID` widths above zero times `LAW_GRID + 1` torques).
+const LAW_GRID: usize = 4;
+
 /// How far apart the logs' lightest and heaviest mean torque magnitudes must lie, as a
 /// fraction of the heaviest, for them to be at more than one load level (the da Vinci logs
 /// run from 0.013 to 0.119 N m; logs of one bench setting agree within a few percent).
@@ -993,33 +997,68 @@ impl<'a> Evaluator<'a> {
                     .map(move |(k, _)| (pass, k))
             })
             .collect();
+        // One parameter over its range with the others held; returns the cost at the best
+        // point (infinite when no point could be evaluated).
+        let scan_one = |k: usize, start: &mut Vec<f64>, me: &mut Self| -> f64 {
+            let n = &nl[k];
+            let mut best = (f64::INFINITY, start[k]);
+            let ns = if let NlParam::Memory(_) = n.0 {
+                law_points
+            } else {
+                7
+            };
+            for g in 0..ns {
+                let f = g as f64 / (ns - 1) as f64;
+                let v = if n.1 > 0.0 {
+                    n.1 * (n.2 / n.1).powf(f)
+                } else {
+                    n.2 * f * f
+                };
+                let mut xs = start.clone();
+                xs[k] = v;
+                if let Some(r) = resid(&xs, me) {
+                    let c: f64 = r.iter().map(|e| e * e).sum();
+                    if c < best.0 {
+                        best = (c, v);
+                    }
+                }
+            }
+            start[k] = best.1;
+            best.0
+        };
         if x0.is_none() {
+            let mut cost = f64::INFINITY;
             for (_, k) in scan {
-                let n = &nl[k];
-                {
-                    let mut best = (f64::INFINITY, start[k]);
-                    let ns = if let NlParam::Memory(_) = n.0 {
-                        law_points
-                    } else {
-                        7
-                    };
-                    for g in 0..ns {
-                        let f = g as f64 / (ns - 1) as f64;
-                        let v = if n.1 > 0.0 {
-                            n.1 * (n.2 / n.1).powf(f)
-                        } else {
-                            n.2 * f * f
-                        };
+                cost = scan_one(k, &mut start, self);
+            }
+            // The slack does nothing while the torque that takes it up lies below every
+            // log's load, and that torque nothing while the slack is zero: scanned one at
+            // a time from such a corner they stay in it, where the cost is flat. A coarse
+            // grid of the pair is kept only when it beats the scan, then refined one
+            // parameter at a time again.
+            let at = |p: MemoryLaw| nl.iter().position(|n| n.0 == NlParam::Memory(p));
+            if let (Some(ks), Some(ku)) = (at(MemoryLaw::Slack), at(MemoryLaw::TakenUp)) {
+                let mut best = (cost, start[ks], start[ku]);
+                for i in 1..=LAW_GRID {
+                    for j in 0..=LAW_GRID {
                         let mut xs = start.clone();
-                        xs[k] = v;
+                        xs[ks] = nl[ks].2 * (i as f64 / LAW_GRID as f64).powi(2);
+                        xs[ku] = nl[ku].1 * (nl[ku].2 / nl[ku].1).powf(j as f64 / LAW_GRID as f64);
                         if let Some(r) = resid(&xs, self) {
                             let c: f64 = r.iter().map(|e| e * e).sum();
                             if c < best.0 {
-                                best = (c, v);
+                                best = (c, xs[ks], xs[ku]);
                             }
                         }
                     }
-                    start[k] = best.1;
+                }
+                if best.0 < cost {
+                    (start[ks], start[ku]) = (best.1, best.2);
+                    for (k, n) in nl.iter().enumerate() {
+                        if let NlParam::Memory(_) = n.0 {
+                            scan_one(k, &mut start, self);
+                        }
+                    }
                 }
             }
         }
