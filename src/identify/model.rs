@@ -997,6 +997,9 @@ impl<'a> Evaluator<'a> {
                     .map(move |(k, _)| (pass, k))
             })
             .collect();
+        let cost_at = |x: &[f64], me: &mut Self| -> Option<f64> {
+            resid(x, me).map(|r| r.iter().map(|e| e * e).sum())
+        };
         // One parameter over its range with the others held; returns the cost at the best
         // point (infinite when no point could be evaluated).
         let scan_one = |k: usize, start: &mut Vec<f64>, me: &mut Self| -> f64 {
@@ -1016,11 +1019,8 @@ impl<'a> Evaluator<'a> {
                 };
                 let mut xs = start.clone();
                 xs[k] = v;
-                if let Some(r) = resid(&xs, me) {
-                    let c: f64 = r.iter().map(|e| e * e).sum();
-                    if c < best.0 {
-                        best = (c, v);
-                    }
+                if let Some(c) = cost_at(&xs, me).filter(|c| *c < best.0) {
+                    best = (c, v);
                 }
             }
             start[k] = best.1;
@@ -1044,11 +1044,8 @@ impl<'a> Evaluator<'a> {
                         let mut xs = start.clone();
                         xs[ks] = nl[ks].2 * (i as f64 / LAW_GRID as f64).powi(2);
                         xs[ku] = nl[ku].1 * (nl[ku].2 / nl[ku].1).powf(j as f64 / LAW_GRID as f64);
-                        if let Some(r) = resid(&xs, self) {
-                            let c: f64 = r.iter().map(|e| e * e).sum();
-                            if c < best.0 {
-                                best = (c, xs[ks], xs[ku]);
-                            }
+                        if let Some(c) = cost_at(&xs, self).filter(|c| *c < best.0) {
+                            best = (c, xs[ks], xs[ku]);
                         }
                     }
                 }
