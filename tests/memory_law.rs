@@ -52,29 +52,32 @@ fn lag(fx: &EffectsParams, m: f64) -> f64 {
     contacts + slack
 }
 
+/// A log of `davinci_tool4` with `overrides`, its friction memory following `truth`'s law:
+/// 8192 and 4000-count encoders, white angle noise before quantisation, load-cell noise.
+fn law_log(truth: &EffectsParams, overrides: &[String], seed: u64) -> BenchLog {
+    let sc = Scenario::load("davinci_tool4", overrides).expect("shipped scenario");
+    let o = SynthOptions {
+        input_counts_per_rev: 8192.0,
+        output_counts_per_rev: 4000.0,
+        angle_noise_rad: 3e-4,
+        load_noise_nm: 0.002,
+        memory_law: Some(truth.clone()),
+        ..SynthOptions::default()
+    };
+    synthesize(&sc, &[], seed, &o).expect("synthesis")
+}
+
 fn logs(truth: &EffectsParams, seed: u64) -> (Scenario, Vec<BenchLog>) {
     let base = Scenario::load("davinci_tool4", &[]).expect("shipped scenario");
     let logs = LOADS
         .iter()
         .enumerate()
         .map(|(i, m)| {
-            let sc = Scenario::load(
-                "davinci_tool4",
-                &[
-                    format!("load.constant_nm={m}"),
-                    "quasi_static.duration_s=20".into(),
-                ],
-            )
-            .expect("shipped scenario");
-            let o = SynthOptions {
-                input_counts_per_rev: 8192.0,
-                output_counts_per_rev: 4000.0,
-                angle_noise_rad: 3e-4,
-                load_noise_nm: 0.002,
-                memory_law: Some(truth.clone()),
-                ..SynthOptions::default()
-            };
-            let mut l = synthesize(&sc, &[], seed * 10 + i as u64, &o).expect("synthesis");
+            let overrides = [
+                format!("load.constant_nm={m}"),
+                "quasi_static.duration_s=20".into(),
+            ];
+            let mut l = law_log(truth, &overrides, seed * 10 + i as u64);
             l.source = format!("law-{seed}-{i}");
             l
         })
@@ -262,20 +265,8 @@ fn a_drive_whose_free_travel_narrows_with_the_load_is_one_drive() {
         .iter()
         .enumerate()
         .map(|(i, m)| {
-            let sc = Scenario::load(
-                "davinci_tool4",
-                &[format!("load.constant_nm={m}"), radius.clone()],
-            )
-            .expect("shipped scenario");
-            let o = SynthOptions {
-                input_counts_per_rev: 8192.0,
-                output_counts_per_rev: 4000.0,
-                angle_noise_rad: 3e-4,
-                load_noise_nm: 0.002,
-                memory_law: Some(truth.clone()),
-                ..SynthOptions::default()
-            };
-            let mut l = synthesize(&sc, &[], 100 + i as u64, &o).expect("synthesis");
+            let overrides = [format!("load.constant_nm={m}"), radius.clone()];
+            let mut l = law_log(&truth, &overrides, 100 + i as u64);
             l.source = format!("load-{m}");
             l
         })
