@@ -309,6 +309,7 @@ fn a_drive_whose_free_travel_narrows_with_the_load_is_one_drive() {
         shared("friction_memory_slack_rad"),
         shared("friction_memory_slack_taken_up_nm"),
     );
+    println!("slack {slack:.4} rad, taken up at {taken_up:.4} N m");
     assert!((slack / 0.1 - 1.0).abs() < 0.15, "slack {slack} rad");
     assert!(
         (taken_up / 0.045 - 1.0).abs() < 0.15,
