@@ -285,6 +285,57 @@ fn ties_with(rmse: f64, best: f64, floor: f64) -> bool {
         || rmse * rmse - floor * floor <= (1.0 + TIE_FRACTION) * (best * best - floor * floor)
 }
 
+/// Tie `t`, seen in the round that accepted its effect, judged on the whole model the
+/// search ended with (`chosen`, held-out RMSE `found`, rad; `floor` in rad): each
+/// alternative takes the accepted effect's place beside the other effects found and is
+/// scored by `score` (held-out RMSE, rad; `None` when its fit fails or is implausible).
+/// An alternative the model already holds is no alternative. `None` when no tie stands.
+fn confirm_tie<F>(
+    t: Indistinguishable,
+    chosen: &[EffectName],
+    found: f64,
+    floor: f64,
+    score: &F,
+) -> Option<Indistinguishable>
+where
+    F: Fn(&[EffectName]) -> Option<f64> + Sync,
+{
+    use rayon::prelude::*;
+    let gone: Vec<&str> = t.accepted.split(" + ").collect();
+    let kept: Vec<EffectName> = chosen
+        .iter()
+        .copied()
+        .filter(|c| !gone.contains(&c.as_str()))
+        .collect();
+    let mut alternatives: Vec<Alternative> = t
+        .alternatives
+        .par_iter()
+        .filter_map(|a| {
+            let parts: Vec<EffectName> = a
+                .name
+                .split(" + ")
+                .map(str::parse)
+                .collect::<Result<_, _>>()
+                .ok()?;
+            if parts.iter().any(|p| kept.contains(p)) {
+                return None;
+            }
+            let effs: Vec<EffectName> = kept.iter().chain(&parts).copied().collect();
+            let rmse = score(&effs)?;
+            ties_with(rmse, found, floor).then(|| Alternative {
+                name: a.name.clone(),
+                rmse_heldout_mrad: rmse * 1e3,
+            })
+        })
+        .collect();
+    alternatives.sort_by(|a, b| a.rmse_heldout_mrad.total_cmp(&b.rmse_heldout_mrad));
+    (!alternatives.is_empty()).then_some(Indistinguishable {
+        accepted: t.accepted,
+        rmse_heldout_mrad: found * 1e3,
+        alternatives,
+    })
+}
+
 /// The score of a candidate whose fit failed: no numbers, the reason in the verdict.
 fn failed_score(name: String, round: usize, err: &IdentifyError) -> CandidateScore {
     CandidateScore {
@@ -673,58 +724,19 @@ pub fn diagnose_with_progress(
     }
 
     // A tie seen in the round that chose an effect is judged again on the whole model
-    // found: the alternative in the accepted one's place, the other effects kept, held out
-    // on the same calibration. An alternative the model already holds is no alternative.
+    // found ([`confirm_tie`]), held out on the same calibration.
     if !indistinguishable.is_empty() {
-        use rayon::prelude::*;
         let score = |effs: &[EffectName]| {
             held_out(&full_drive, &fold_drives, effs)
                 .ok()
                 .filter(|(_, _, fit)| plausible(fit, drive0.ratio()))
                 .map(|(rmse, _, _)| rmse)
         };
-        let found = score(&chosen);
-        indistinguishable = match found {
+        indistinguishable = match score(&chosen) {
             None => Vec::new(),
             Some(found) => indistinguishable
                 .into_iter()
-                .filter_map(|t| {
-                    let gone: Vec<&str> = t.accepted.split(" + ").collect();
-                    let kept: Vec<EffectName> = chosen
-                        .iter()
-                        .copied()
-                        .filter(|c| !gone.contains(&c.as_str()))
-                        .collect();
-                    let mut alternatives: Vec<Alternative> = t
-                        .alternatives
-                        .par_iter()
-                        .filter_map(|a| {
-                            let parts: Vec<EffectName> = a
-                                .name
-                                .split(" + ")
-                                .map(str::parse)
-                                .collect::<Result<_, _>>()
-                                .ok()?;
-                            if parts.iter().any(|p| kept.contains(p)) {
-                                return None;
-                            }
-                            let effs: Vec<EffectName> =
-                                kept.iter().chain(&parts).copied().collect();
-                            let rmse = score(&effs)?;
-                            ties_with(rmse, found, floor).then(|| Alternative {
-                                name: a.name.clone(),
-                                rmse_heldout_mrad: rmse * 1e3,
-                            })
-                        })
-                        .collect();
-                    alternatives
-                        .sort_by(|a, b| a.rmse_heldout_mrad.total_cmp(&b.rmse_heldout_mrad));
-                    (!alternatives.is_empty()).then_some(Indistinguishable {
-                        accepted: t.accepted,
-                        rmse_heldout_mrad: found * 1e3,
-                        alternatives,
-                    })
-                })
+                .filter_map(|t| confirm_tie(t, &chosen, found, floor, &score))
                 .collect(),
         };
     }
