@@ -5,7 +5,7 @@
 
 mod support;
 
-use cable_servo::identify::{diagnose, effect_value, DiagnoseOptions, EffectName};
+use cable_servo::identify::{diagnose, effect_value, BenchLog, DiagnoseOptions, EffectName};
 use cable_servo::io::benchlog::{read_bench_log, write_bench_log};
 use cable_servo::scenario::Scenario;
 use support::rates::{
@@ -134,6 +134,81 @@ fn finds_load_compliance_of_either_sign() {
         named >= (rate * SEEDS_EXTENDED as f64).ceil() as usize,
         "named {named}/{SEEDS_EXTENDED}"
     );
+}
+
+/// The same log seen from the other side: input, output and load negated, the two spans
+/// swapped. Nothing in the model may assume which way the drive turns or is loaded, so the
+/// diagnosis must be the same drive: the same causes, the same held-out errors and sizes
+/// (to rounding), a compliance of the same sign, and only a drift of the output angle
+/// reversed, with its direction in words.
+#[test]
+fn a_drive_turning_the_other_way_is_the_same_drive() {
+    use EffectName::{
+        AngleDependentRatio as Ratio, DistributedFrictionMemory as Memory,
+        InputPulleyRunout as Runout, LoadCompliance as Compliance, ThermalDrift as Drift,
+    };
+    let mirrored = |log: &BenchLog| {
+        let neg = |v: &[f64]| v.iter().map(|x| -x).collect::<Vec<f64>>();
+        BenchLog {
+            theta_in_rad: neg(&log.theta_in_rad),
+            theta_out_rad: neg(&log.theta_out_rad),
+            load_nm: neg(&log.load_nm),
+            tension_upper_n: log.tension_lower_n.clone(),
+            tension_lower_n: log.tension_upper_n.clone(),
+            motor_current_a: log.motor_current_a.as_deref().map(neg),
+            ..log.clone()
+        }
+    };
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * a.abs().max(b.abs());
+    // (effects with the sign of their size, seed)
+    let cases = [
+        ([(Compliance, -1.0), (Memory, 1.0)], 701u64),
+        ([(Ratio, 1.0), (Memory, 1.0)], 711),
+        ([(Runout, 1.0), (Drift, 1.0)], 721),
+    ];
+    for (effs, s) in cases {
+        let effects: Vec<(EffectName, f64)> = effs
+            .iter()
+            .map(|(e, sign)| (*e, sign * support::rates::size_of(*e, s)))
+            .collect();
+        let sc = scenario(true);
+        let log = truth(&sc, &effects, s);
+        let a = diagnose(&sc, std::slice::from_ref(&log), &opts_every()).expect("diagnosis");
+        let b = diagnose(&sc, &[mirrored(&log)], &opts_every()).expect("diagnosis");
+        let what = format!(
+            "{effects:?}: {:?} {:.6} -> {:.6} mrad; mirrored {:?} {:.6} -> {:.6} mrad",
+            a.causes,
+            a.rmse_base_mrad,
+            a.rmse_extended_mrad,
+            b.causes,
+            b.rmse_base_mrad,
+            b.rmse_extended_mrad
+        );
+        eprintln!("{what}");
+        let mut want: Vec<&str> = effects.iter().map(|(e, _)| e.as_str()).collect();
+        want.sort_unstable();
+        let mut got: Vec<&str> = a.causes.iter().map(String::as_str).collect();
+        got.sort_unstable();
+        assert_eq!(got, want, "{what}");
+        assert_eq!(a.causes, b.causes, "{what}");
+        assert!(close(a.rmse_base_mrad, b.rmse_base_mrad), "{what}");
+        assert!(close(a.rmse_extended_mrad, b.rmse_extended_mrad), "{what}");
+        for (e, _) in &effects {
+            let (va, vb) = (effect_value(&a, *e), effect_value(&b, *e));
+            let (va, vb) = (va.expect("sized"), vb.expect("sized"));
+            let flips = if *e == Drift { -1.0 } else { 1.0 };
+            assert!(close(va, flips * vb), "{e}: {va:e} against {vb:e}; {what}");
+        }
+        for x in &a.directions {
+            let y = b.directions.iter().find(|y| y.effect == x.effect);
+            let y = y.expect("the same directions");
+            if x.effect == Drift.as_str() {
+                assert_ne!(x.meaning, y.meaning, "{}", x.meaning);
+            } else {
+                assert_eq!(x.meaning, y.meaning);
+            }
+        }
+    }
 }
 
 /// Below the smallest size of the ranges above: at a tenth of it an effect may be found
