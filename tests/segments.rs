@@ -15,7 +15,7 @@ use cable_servo::identify::{diagnose, BenchLog, DiagnoseOptions, EffectName};
 use cable_servo::scenario::Scenario;
 use rand::{Rng, SeedableRng};
 use std::f64::consts::TAU;
-use support::rates::{opts, scenario, size_of, truth};
+use support::rates::{opts, opts_every, scenario, size_of, truth};
 
 /// The truth's encoder steps (65536 and 2^20 counts per revolution), rad.
 const Q_IN: f64 = TAU / 65536.0;
@@ -341,11 +341,11 @@ fn hidden_effect_is_still_named_under_a_fault() {
 
 /// Every fault kind on top of every effect of the library (one draw each, the fault at a
 /// random time, the effect at a size of its realistic range): with the stretch excluded the
-/// effect is named in at least 36 of the 40 cases, and at most one names another effect.
-/// Measured: 36 named; after an input jerk (real motion, a radian in 0.2 s, whose own rows
-/// go) preload relaxation, bearing friction and thermal drift come out `unexplained`, and
-/// bearing friction under a stuck input (its rows out up to the next reversal) is read as
-/// an output drum runout.
+/// effect is named in at least 38 of the 40 cases, and at most one names another effect.
+/// Measured: 39 named; bearing friction under a stuck input (its rows out up to the next
+/// reversal) is read as an output drum runout. When an input jerk (a radian in 0.2 s) kept
+/// only its own rows out, preload relaxation, bearing friction and thermal drift came out
+/// `unexplained` after it (36 named).
 #[test]
 fn each_fault_on_top_of_each_effect() {
     let mut right = 0;
@@ -371,7 +371,7 @@ fn each_fault_on_top_of_each_effect() {
     let total = EffectName::ALL.len() * FAULTS.len();
     eprintln!("named {right}/{total}");
     assert!(wrong.len() <= 1, "{wrong:?}");
-    assert!(right >= total * 9 / 10, "named {right}/{total}");
+    assert!(right >= total * 19 / 20, "named {right}/{total}");
 }
 
 /// A reading that holds still but keeps reading its noise (an analog chain after a stuck
@@ -501,4 +501,39 @@ fn a_short_log_of_one_reversal_is_diagnosed_whole() {
         );
         assert_eq!(d.cause, e.as_str(), "seed {seed}");
     }
+}
+
+/// The multi-wrap effects after an input jerk: through a radian in a fifth of a second the
+/// quasi-static replay cannot follow the drive, so the rows up to the input's next reversal
+/// stay out, and each effect is named with a residual near the noise floor. With the jerk's
+/// own rows alone kept out, the residual after it stayed at 3 to 5 times the floor and two
+/// of these six draws (the compliances) came out `unexplained`.
+#[test]
+fn the_multi_wrap_effects_are_named_after_an_input_jerk() {
+    let mut missed = Vec::new();
+    for (k, e) in EffectName::EXTENDED.iter().enumerate() {
+        for rep in 0..2u64 {
+            let seed = 9000 + 10 * k as u64 + Fault::Jerk as u64 + 100 * rep;
+            let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+            let sc = scenario(seed % 2 == 1);
+            let mut log = truth(&sc, &[(*e, size_of(*e, seed))], seed);
+            let t0 = rng.gen_range(8.0..20.0);
+            inject(&mut log, Fault::Jerk, t0, sc.drive.ratio(), &mut rng);
+            let d = diagnose(&sc, std::slice::from_ref(&log), &opts_every()).expect("diagnosis");
+            let what = format!(
+                "{e} seed {seed}, jerk at {t0:.2} s: {}, {:.5} mrad against a floor of {:.5}",
+                d.cause, d.rmse_extended_mrad, d.noise_floor_mrad
+            );
+            eprintln!("{what}");
+            let jerk = d
+                .excluded_segments
+                .iter()
+                .find(|s| s.channel == Channel::Input);
+            assert!(jerk.is_some_and(|s| s.excluded_to_s > s.end_s), "{what}");
+            if d.cause != e.as_str() || d.rmse_extended_mrad > 2.0 * d.noise_floor_mrad {
+                missed.push(what);
+            }
+        }
+    }
+    assert!(missed.is_empty(), "{missed:#?}");
 }
