@@ -316,7 +316,9 @@ enum Command {
         #[arg(long = "keep-segments")]
         keep_segments: bool,
         /// Effect of the extension scored by --leave-one-out (repeatable; default: the
-        /// scenario's [identify] candidates).
+        /// scenario's [identify] candidates). Only with --leave-one-out; a single diagnosis
+        /// searches the scenario's [identify] candidates, e.g. --set
+        /// 'identify.candidates=["load_compliance"]'.
         #[arg(long = "extension", value_name = "EFFECT")]
         extension: Vec<String>,
         /// Results directory (default: results/<scenario name>-diagnosis).
@@ -762,6 +764,22 @@ fn main() -> ExitCode {
             set,
             force,
         } => {
+            // Silently ignored, it would leave the user believing the effect was searched.
+            if !leave_one_out && !extension.is_empty() {
+                tell!(
+                    "error: --extension names the extension that --leave-one-out scores, and is \
+                     not used without it. To search {} in a single diagnosis, set the scenario's \
+                     [identify] candidates (the list replaces the default one), e.g. --set \
+                     'identify.candidates=[{}]'",
+                    extension.join(", "),
+                    extension
+                        .iter()
+                        .map(|e| format!("\"{e}\""))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+                return ExitCode::from(exit::USAGE);
+            }
             let scenario = match load(&scenario, &set) {
                 Ok(s) => s,
                 Err(code) => return code,

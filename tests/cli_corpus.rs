@@ -348,12 +348,29 @@ fn usage_errors_exit_2() {
         &["run", "--bogus"][..],
         &["run", "--set"][..],
         &["sweep"][..],
+        // An extension outside --leave-one-out would be ignored: refused, with the way to
+        // search the effect in a single diagnosis.
+        &[
+            "diagnose",
+            "--scenario",
+            "gimbal_ident",
+            "--data",
+            "log.csv",
+            "--extension",
+            "load_compliance",
+        ][..],
     ] {
         let out = run(args, tmp.path());
         let err = stderr(&out);
         assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
         assert!(!err.contains("panicked"), "{args:?}: {err}");
         assert!(entries(tmp.path()).is_empty(), "{args:?}");
+        if args.contains(&"--extension") {
+            assert!(
+                err.contains("identify.candidates=[\"load_compliance\"]"),
+                "{err}"
+            );
+        }
     }
 }
 
