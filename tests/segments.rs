@@ -339,6 +339,22 @@ fn hidden_effect_is_still_named_under_a_fault() {
     }
 }
 
+/// A log of the independent truth with `effects` (scenario from the seed's parity) and
+/// `fault` injected at a time drawn from the seed; returns the scenario, the log and the
+/// fault's start, s.
+fn faulted_log(
+    effects: &[(EffectName, f64)],
+    fault: Fault,
+    seed: u64,
+) -> (Scenario, BenchLog, f64) {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let sc = scenario(seed % 2 == 1);
+    let mut log = truth(&sc, effects, seed);
+    let t0 = rng.gen_range(8.0..20.0);
+    inject(&mut log, fault, t0, sc.drive.ratio(), &mut rng);
+    (sc, log, t0)
+}
+
 /// Every fault kind on top of every effect of the library (one draw each, the fault at a
 /// random time, the effect at a size of its realistic range): with the stretch excluded the
 /// effect is named in at least 38 of the 40 cases, and at most one names another effect.
@@ -353,11 +369,7 @@ fn each_fault_on_top_of_each_effect() {
     for (k, e) in EffectName::ALL.iter().enumerate() {
         for fault in FAULTS {
             let seed = 7000 + 10 * k as u64 + fault as u64;
-            let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-            let sc = scenario(seed % 2 == 1);
-            let mut log = truth(&sc, &[(*e, size_of(*e, seed))], seed);
-            let t0 = rng.gen_range(8.0..20.0);
-            inject(&mut log, fault, t0, sc.drive.ratio(), &mut rng);
+            let (sc, log, _) = faulted_log(&[(*e, size_of(*e, seed))], fault, seed);
             let d = diagnose(&sc, std::slice::from_ref(&log), &opts()).expect("diagnosis");
             eprintln!("{e} under {fault:?}: {}", d.cause);
             assert!(!d.excluded_segments.is_empty(), "{e} under {fault:?}");
@@ -514,11 +526,7 @@ fn the_multi_wrap_effects_are_named_after_an_input_jerk() {
     for (k, e) in EffectName::EXTENDED.iter().enumerate() {
         for rep in 0..2u64 {
             let seed = 9000 + 10 * k as u64 + Fault::Jerk as u64 + 100 * rep;
-            let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-            let sc = scenario(seed % 2 == 1);
-            let mut log = truth(&sc, &[(*e, size_of(*e, seed))], seed);
-            let t0 = rng.gen_range(8.0..20.0);
-            inject(&mut log, Fault::Jerk, t0, sc.drive.ratio(), &mut rng);
+            let (sc, log, t0) = faulted_log(&[(*e, size_of(*e, seed))], Fault::Jerk, seed);
             let d = diagnose(&sc, std::slice::from_ref(&log), &opts_every()).expect("diagnosis");
             let what = format!(
                 "{e} seed {seed}, jerk at {t0:.2} s: {}, {:.5} mrad against a floor of {:.5}",
@@ -548,11 +556,7 @@ fn a_clean_log_under_an_input_jerk_is_none() {
     let mut answers = Vec::new();
     for rep in 0..6u64 {
         let seed = 9500 + Fault::Jerk as u64 + 100 * rep;
-        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-        let sc = scenario(seed % 2 == 1);
-        let mut log = truth(&sc, &[], seed);
-        let t0 = rng.gen_range(8.0..20.0);
-        inject(&mut log, Fault::Jerk, t0, sc.drive.ratio(), &mut rng);
+        let (sc, log, t0) = faulted_log(&[], Fault::Jerk, seed);
         let d = diagnose(&sc, std::slice::from_ref(&log), &opts()).expect("diagnosis");
         answers.push(format!(
             "seed {seed}, jerk at {t0:.2} s: {}, {:.5} mrad against a floor of {:.5}",
