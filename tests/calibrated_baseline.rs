@@ -49,3 +49,77 @@ fn the_calibrated_scenario_replays_within_its_held_out_errors() {
         );
     }
 }
+
+/// A calibration whose drive only just holds its heaviest log stops the replay of a log a
+/// little heavier: the joint calibration on the ten other logs leaves the friction at
+/// 0.0875 and the preload at 27.14 N, where tool4_09 (100 % jaw load) slips grossly at
+/// 2.14 s. The diagnosis does not stop there: the calibrated model as given is reported as
+/// stopped (no number), its preload is raised by the least number of 5 % steps that carries
+/// the log, and the model on that drive is judged held out like any other.
+#[test]
+fn a_log_the_calibrated_drive_cannot_carry_is_still_judged() {
+    use cable_servo::identify::{diagnose, DiagnoseOptions};
+    let dir = repo().join("../shared/real-data/davinci");
+    if !dir.join("tool4_09.csv").exists() {
+        eprintln!("skipped: {} is not beside the repository", dir.display());
+        return;
+    }
+    let path = repo().join("scenarios/davinci_tool4.toml");
+    let sc = cable_servo::scenario::Scenario::load(
+        path.to_str().unwrap_or(""),
+        &[
+            "drive.friction_coefficient=0.0875".to_string(),
+            "drive.preload_n=27.14".to_string(),
+        ],
+    )
+    .expect("scenario");
+    let raw = read_bench_log(&dir.join("tool4_09.csv")).expect("log");
+    let d = diagnose(&sc, std::slice::from_ref(&raw), &DiagnoseOptions::default())
+        .expect("a drive that stops is reported, not an error");
+    let c = d
+        .calibrated_model
+        .as_ref()
+        .expect("calibrated model judged");
+    assert_eq!(c.rmse_mrad, None, "a replay that stopped is no number");
+    assert_eq!(c.per_log_mrad, [None]);
+    let carry = c.cannot_carry.as_ref().expect("named as stopped");
+    assert!(
+        carry.fault.contains("tool4_09") && carry.fault.contains("gross slip"),
+        "{}",
+        carry.fault
+    );
+    assert_eq!(carry.friction_coefficient, [0.0875, 0.0875]);
+    let raised = carry.preload_n[1];
+    // The least raise: the drive carries the log at it and not one step below.
+    let ident = sc.identify.clone().unwrap_or_default();
+    let fx = sc.effects.clone().expect("calibrated effects");
+    let (cut, _) = startup::cut_start(&raw, startup::StartMode::Detect);
+    let p = model::prepare(&cut, ident.max_rate_hz).expect("prepared");
+    let keep = vec![true; p.t.len()];
+    let replay = |preload_n: f64| {
+        let mut drive = sc.drive.clone();
+        drive.preload_n = preload_n;
+        baseline::score(&drive, &fx, std::slice::from_ref(&p), &keep, &[])
+    };
+    assert!(replay(raised).is_ok(), "raised to {raised} N");
+    assert!(replay(raised / 1.05).is_err(), "one step below {raised} N");
+    assert!(raised > 27.14 && raised < 27.14 * 1.25, "{raised} N");
+    // On that drive the instrument's model still beats the base model recalibrated on the
+    // log and the play operator fitted to it, held out.
+    let play = d
+        .play_operator
+        .as_ref()
+        .expect("play operator")
+        .rmse_heldout_mrad;
+    assert!(
+        d.rmse_extended_mrad < play && d.rmse_extended_mrad < d.rmse_base_mrad,
+        "extended {} mrad, play operator {play}, base {}",
+        d.rmse_extended_mrad,
+        d.rmse_base_mrad
+    );
+    let text = cable_servo::report::diagnosis::summary_text(&d);
+    assert!(
+        text.contains("cannot carry the load") && text.contains("27.14 -> "),
+        "{text}"
+    );
+}

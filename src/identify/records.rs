@@ -89,10 +89,14 @@ pub struct ParamEstimate {
 /// log, so its error is as good as held out).
 #[derive(Clone, Debug, Serialize)]
 pub struct CalibratedModelScore {
-    /// RMS transmission error over the logs, mrad.
-    pub rmse_mrad: f64,
-    /// The same per log, in `logs` order, mrad.
-    pub per_log_mrad: Vec<f64>,
+    /// RMS transmission error over the logs, mrad; `None` when the calibrated drive cannot
+    /// carry one of them (`cannot_carry` says where): a replay that stopped is no number.
+    pub rmse_mrad: Option<f64>,
+    /// The same per log, in `logs` order, mrad (`None` for a log the drive cannot carry).
+    pub per_log_mrad: Vec<Option<f64>>,
+    /// Where the calibrated drive as given cannot carry a log's load, and the drive the
+    /// search on top then ran on; `None` when it carries every log.
+    pub cannot_carry: Option<CarryRefit>,
     /// What was fitted on each log before it was judged: its encoder zero and the terms the
     /// scenario marks as per log (`identify.per_log`).
     pub refitted_per_log: Vec<String>,
@@ -101,6 +105,22 @@ pub struct CalibratedModelScore {
     pub per_log_terms: Vec<PerLogTerms>,
     /// What its residual still follows, strongest first.
     pub residual_signatures: Vec<ResidualSignature>,
+}
+
+/// A calibrated drive that cannot carry a log's load (gross slip or slack in the replay),
+/// and the drive raised so that it does (its preload, or its friction coefficient when the
+/// preload is known, by the least number of 5 % steps). The friction coefficient and
+/// preload of an instrument whose load never reverses are weakly pinned, and a joint
+/// calibration tends to leave them where the heaviest calibration log only just holds: a
+/// new log a few per cent heavier stops the replay there.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct CarryRefit {
+    /// Why the replay stopped: the log, the time and the fault.
+    pub fault: String,
+    /// Friction coefficient as calibrated and as raised here (typical 0.05 to 0.3).
+    pub friction_coefficient: [f64; 2],
+    /// Preload as calibrated and as raised here, N.
+    pub preload_n: [f64; 2],
 }
 
 /// One log's own values of the terms a calibrated scenario refits per log.

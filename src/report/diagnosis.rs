@@ -42,11 +42,31 @@ pub fn summary_text(d: &Diagnosis) -> String {
                 terms.join(", ")
             ),
         };
+        let given = match (c.rmse_mrad, &c.cannot_carry) {
+            (Some(r), _) => format!("{r:.2} mrad RMS"),
+            (None, Some(f)) => format!("cannot carry the load: {}", f.fault),
+            (None, None) => "no replay".to_string(),
+        };
         let _ = writeln!(
             s,
-            "Calibrated model of the scenario, as given ({refitted}): {:.2} mrad RMS; the base capstan model recalibrated here: {:.2} mrad held out{play}.",
-            c.rmse_mrad, d.rmse_base_mrad
+            "Calibrated model of the scenario, as given ({refitted}): {given}; the base capstan model recalibrated here: {:.2} mrad held out{play}.",
+            d.rmse_base_mrad
         );
+        if let Some(f) = &c.cannot_carry {
+            let [(p0, p1), (m0, m1)] = [
+                (f.preload_n[0], f.preload_n[1]),
+                (f.friction_coefficient[0], f.friction_coefficient[1]),
+            ];
+            let raised = if p1 != p0 {
+                format!("preload, weakly pinned where the load never reverses, raised here to the least that carries this log (in steps of 5 %), everything else as calibrated: {p0:.2} -> {p1:.2} N")
+            } else {
+                format!("friction coefficient raised here to the least that carries this log (in steps of 5 %), everything else as calibrated: {m0:.4} -> {m1:.4}")
+            };
+            let _ = writeln!(
+                s,
+                "Its {raised}; the search below runs on that drive. Recalibrate the instrument with this log."
+            );
+        }
         for t in &c.per_log_terms {
             let values: Vec<String> = t
                 .values
@@ -60,11 +80,13 @@ pub fn summary_text(d: &Diagnosis) -> String {
                 .collect();
             let _ = writeln!(s, "  {}: {}", t.log, values.join(", "));
         }
+        // A replay that stopped beats nothing.
+        let rmse = c.rmse_mrad.unwrap_or(f64::INFINITY);
         let beats_play = d
             .play_operator
             .as_ref()
-            .is_none_or(|p| c.rmse_mrad < p.rmse_heldout_mrad);
-        let verdict = match (c.rmse_mrad < d.rmse_base_mrad, beats_play) {
+            .is_none_or(|p| rmse < p.rmse_heldout_mrad);
+        let verdict = match (rmse < d.rmse_base_mrad, beats_play) {
             (true, true) => "The calibrated model beats both on this log",
             (true, false) => "The calibrated model beats the base model but not the play operator on this log",
             (false, true) => "The calibrated model beats the play operator but not the recalibrated base model on this log",
@@ -101,8 +123,13 @@ pub fn summary_text(d: &Diagnosis) -> String {
         } else {
             writeln!(
                 s,
-                "What is still missing was searched on top of it ({}): its drive and effects held as calibrated, only each log's zero and the candidates fitted.",
-                searched.join(", ")
+                "What is still missing was searched on top of it ({}): its drive {} and its effects held as calibrated, only each log's zero and the candidates fitted.",
+                searched.join(", "),
+                if c.cannot_carry.is_some() {
+                    "as raised above"
+                } else {
+                    "as calibrated"
+                }
             )
         };
     }
