@@ -43,6 +43,13 @@ pub fn shipped_scenario() -> Scenario {
     Scenario::load(path.to_str().unwrap_or(""), &[]).expect("scenario")
 }
 
+/// `scenarios/davinci_tool4_uncalibrated.toml`: the instrument before calibration, where
+/// the guide's leave-one-log-out starts every fold.
+pub fn uncalibrated_scenario() -> Scenario {
+    let path = repo().join("scenarios/davinci_tool4_uncalibrated.toml");
+    Scenario::load(path.to_str().unwrap_or(""), &[]).expect("scenario")
+}
+
 /// One row of the guide's eleven-log table (`docs/diagnose.md`): log, base, extended, play operator, pull (%).
 #[derive(Debug)]
 pub struct GuideRow {
