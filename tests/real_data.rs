@@ -50,7 +50,14 @@ fn leave_one_out_on_the_shipped_logs_gives_the_table_of_the_guide() {
             want.log
         );
         let play = row.play_mrad.unwrap_or(f64::INFINITY);
+        let alone = row.as_new_log.as_ref().expect("diagnosed alone");
+        assert!(
+            alone.beats_both(),
+            "{}: diagnosed alone against the others' calibration: {alone:?}",
+            want.log
+        );
         for (what, got, readme, tol) in [
+            ("diagnosed alone", alone.extended_mrad, want.alone, 0.006),
             ("base", row.base_mrad, want.base, 0.006),
             ("extended", row.extended_mrad, want.extended, 0.006),
             ("play operator", play, want.play, 0.006),
@@ -81,5 +88,6 @@ fn leave_one_out_on_the_shipped_logs_gives_the_table_of_the_guide() {
     // and no log named as disagreeing with the others.
     assert_eq!(t.wins_over_base, 11);
     assert_eq!(t.wins_over_play, 11);
+    assert_eq!(t.new_log_wins, 11);
     assert!(t.disagreeing.is_empty(), "{:?}", t.disagreeing);
 }

@@ -42,6 +42,37 @@ pub struct LooRow {
     /// in-sample RMS with it in the joint calibration less without it, over the former,
     /// % (a few % for a log that agrees with the rest).
     pub pull_percent: f64,
+    /// The log diagnosed alone against the calibration on the other logs, as
+    /// `diagnose --scenario` judges a new log of the instrument once that calibration is
+    /// saved as a scenario; `None` when that diagnosis failed (the message is in `notes`).
+    pub as_new_log: Option<NewLogScore>,
+}
+
+/// A left-out log diagnosed alone against the calibration on the others, as a new log of
+/// the instrument would be: the calibrated model with what the search finds on top, its
+/// encoder zero fitted on the log's other time blocks, against the base capstan model
+/// recalibrated on the log and a play operator fitted to it, all held out on those blocks.
+#[derive(Clone, Debug, Serialize)]
+pub struct NewLogScore {
+    /// Held-out error of the calibrated model with what was found on top, mrad.
+    pub extended_mrad: f64,
+    /// Held-out error of the base capstan model recalibrated on the log, mrad.
+    pub base_mrad: f64,
+    /// Held-out error of the play operator fitted to the log, mrad.
+    pub play_mrad: Option<f64>,
+    /// The diagnosis's cause (`none`, `unexplained` or the effects found).
+    pub cause: String,
+    /// Whether the calibrated drive could not carry the log and had its preload raised
+    /// ([`super::CarryRefit`]).
+    pub preload_raised: bool,
+}
+
+impl NewLogScore {
+    /// Whether the calibrated model beats both baselines on the log.
+    pub fn beats_both(&self) -> bool {
+        self.extended_mrad < self.base_mrad
+            && self.play_mrad.is_some_and(|p| self.extended_mrad < p)
+    }
 }
 
 /// Bins for the residual structure check (equal counts).
@@ -168,6 +199,9 @@ pub struct LooTable {
     pub wins_over_base: usize,
     /// Logs where the extended model beats the play operator fitted to the log.
     pub wins_over_play: usize,
+    /// Logs where the diagnosis of the log alone, against the calibration on the others,
+    /// beats both the base model and the play operator ([`LooRow::as_new_log`]).
+    pub new_log_wins: usize,
     /// Drive of the joint calibration on every log.
     pub drive: DriveParams,
     /// Effects of the joint calibration, as stored in a scenario.
@@ -184,6 +218,12 @@ struct Fold {
     x: Vec<f64>,
     /// Every log's RMS, rad (in-sample for the others).
     per_log_rms: Vec<f64>,
+    /// The fit on the other logs.
+    fit: Fitted,
+    /// Its nonlinear parameters' layout.
+    nl: Vec<(NlParam, f64, f64, f64)>,
+    /// Stroke and memory thresholds of the design.
+    basis: ((f64, f64), [f64; extra_effects::MEMORY_THRESHOLDS]),
 }
 
 /// A log whose exclusion lowers the others' error by more than this (%) is named in the
@@ -339,7 +379,7 @@ pub fn leave_one_out_with_segments(
         })
         .collect();
 
-    let fold = |k: usize| -> Result<(LooRow, Vec<f64>), IdentifyError> {
+    let fold = |k: usize| -> Result<(LooRow, Vec<f64>, Option<String>), IdentifyError> {
         let train: Vec<bool> = (0..n).map(|i| !ranges[k].contains(&i) && keep[i]).collect();
         let kept = |r: &[f64], g: &std::ops::Range<usize>| -> Vec<f64> {
             r[g.clone()]
@@ -361,8 +401,11 @@ pub fn leave_one_out_with_segments(
             Ok(Fold {
                 held_rms: rms(&kept(&r, &ranges[k])),
                 held,
-                x: f.x,
+                x: f.x.clone(),
                 per_log_rms: ranges.iter().map(|g| rms(&kept(&r, g))).collect(),
+                nl: ev.nonlinear(),
+                basis: ev.stroke_and_thresholds(),
+                fit: f,
             })
         };
         let base_fold = score(&[], None)?;
@@ -371,8 +414,36 @@ pub fn leave_one_out_with_segments(
             held_rms: ext,
             held: ext_resid,
             per_log_rms: others,
+            fit: ext_fit,
+            nl: ext_nl,
+            basis,
             ..
         } = score(effects, Some(&xb))?;
+        let train_torques = prepared
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| *j != k)
+            .map(|(_, p)| p.torque.as_slice());
+        let (_, fold_drive, fold_effects) = as_scenario(
+            drive,
+            &ext_nl,
+            &ext_fit,
+            &nalgebra::DMatrix::from_element(
+                ext_nl.len() + ext_fit.coef.len(),
+                ext_nl.len() + ext_fit.coef.len(),
+                f64::NAN,
+            ),
+            basis,
+            train_torques,
+        );
+        let as_new_log = new_log_score(
+            &fold_drive,
+            &fold_effects,
+            ident,
+            &logs[k],
+            start,
+            keep_segments,
+        );
         let one = std::slice::from_ref(&prepared[k]);
         let keep_k = &keep_per_log[k];
         let folds = super::block_folds(one, ident.holdout_blocks, keep_k);
@@ -397,13 +468,20 @@ pub fn leave_one_out_with_segments(
                 floor_mrad: floor * 1e3,
                 residual: residual_verdict(&prepared[k], &ext_resid, keep_k, ext, floor),
                 pull_percent: 0.0,
+                as_new_log: as_new_log.as_ref().ok().cloned(),
             },
             others,
+            as_new_log.err().map(|e| {
+                format!(
+                    "{}: diagnosed alone against the calibration on the others, it failed: {e}",
+                    prepared[k].source
+                )
+            }),
         ))
     };
     use rayon::prelude::*;
     let counter = crate::progress::Counter::new(prepared.len(), progress);
-    let folds: Vec<(LooRow, Vec<f64>)> = (0..prepared.len())
+    let folds: Vec<(LooRow, Vec<f64>, Option<String>)> = (0..prepared.len())
         .into_par_iter()
         .map(|k| {
             let r = fold(k);
@@ -421,30 +499,14 @@ pub fn leave_one_out_with_segments(
     let cov = ev
         .covariance(&f, &all)
         .unwrap_or_else(|_| nalgebra::DMatrix::from_element(np, np, f64::NAN));
-    let mut d = drive.clone();
-    for (p, v) in nl.iter().zip(&f.x) {
-        match p.0 {
-            NlParam::Mu => d.friction_coefficient = *v,
-            NlParam::Preload => d.preload_n = *v,
-            NlParam::Effect(_) | NlParam::Memory(_) => {}
-        }
-    }
-    let (mut shared, joint_drive, mut eff) = estimates::parameters(drive, &d, &nl, &f, &cov);
     let (stroke, thresholds) = ev.stroke_and_thresholds();
-    extra_effects::parameters(
+    let (mut shared, joint_drive, eff) = as_scenario(
+        drive,
+        &nl,
         &f,
-        nl.len(),
         &cov,
-        &extra_effects::Basis {
-            stroke,
-            thresholds: &thresholds,
-            mean_load_factor: extra_effects::mean_load_factor(
-                prepared.iter().map(|l| l.torque.as_slice()),
-                super::model::memory_load_exponent(&nl, &f.x),
-            ),
-        },
-        &mut shared,
-        &mut eff,
+        (stroke, thresholds),
+        prepared.iter().map(|l| l.torque.as_slice()),
     );
     shared.retain(|p| !p.name.starts_with("encoder_zero["));
     let not_pinned: Vec<String> = shared
@@ -479,7 +541,9 @@ pub fn leave_one_out_with_segments(
         .collect();
     let mut rows = Vec::with_capacity(folds.len());
     let mut pulling = Vec::new();
-    for (k, (mut row, without)) in folds.into_iter().enumerate() {
+    let mut new_log_failures = Vec::new();
+    for (k, (mut row, without, failed)) in folds.into_iter().enumerate() {
+        new_log_failures.extend(failed);
         let others = |v: &[f64]| -> f64 {
             let sum: f64 = v
                 .iter()
@@ -518,6 +582,7 @@ pub fn leave_one_out_with_segments(
             100.0 * sep
         ));
     }
+    notes.extend(new_log_failures);
     for (k, r) in rows.iter().enumerate() {
         if r.play_mrad.is_none() {
             notes.push(format!(
@@ -534,6 +599,10 @@ pub fn leave_one_out_with_segments(
         .iter()
         .filter(|r| r.play_mrad.is_some_and(|p| r.extended_mrad < p))
         .count();
+    let new_log_wins = rows
+        .iter()
+        .filter(|r| r.as_new_log.as_ref().is_some_and(NewLogScore::beats_both))
+        .count();
     Ok(LooTable {
         effects: effects.iter().map(|e| e.to_string()).collect(),
         rows,
@@ -547,8 +616,95 @@ pub fn leave_one_out_with_segments(
         disagreeing: pulling,
         wins_over_base,
         wins_over_play,
+        new_log_wins,
         drive: joint_drive,
         effects_params: eff,
+    })
+}
+
+/// A fit of the shared model as a scenario stores it: the parameter table (with `cov`,
+/// NaN where unknown), the drive and the effects. `basis` is the design's stroke and memory
+/// thresholds, `torques` the loads of the logs it was fitted on (the memory's size is
+/// reported at their mean).
+fn as_scenario<'a>(
+    drive: &DriveParams,
+    nl: &[(NlParam, f64, f64, f64)],
+    f: &Fitted,
+    cov: &nalgebra::DMatrix<f64>,
+    basis: ((f64, f64), [f64; extra_effects::MEMORY_THRESHOLDS]),
+    torques: impl Iterator<Item = &'a [f64]>,
+) -> (
+    Vec<ParamEstimate>,
+    DriveParams,
+    super::effects::EffectsParams,
+) {
+    let mut d = drive.clone();
+    for (p, v) in nl.iter().zip(&f.x) {
+        match p.0 {
+            NlParam::Mu => d.friction_coefficient = *v,
+            NlParam::Preload => d.preload_n = *v,
+            NlParam::Effect(_) | NlParam::Memory(_) => {}
+        }
+    }
+    let (mut shared, out_drive, mut eff) = estimates::parameters(drive, &d, nl, f, cov);
+    let (stroke, thresholds) = basis;
+    extra_effects::parameters(
+        f,
+        nl.len(),
+        cov,
+        &extra_effects::Basis {
+            stroke,
+            thresholds: &thresholds,
+            mean_load_factor: extra_effects::mean_load_factor(
+                torques,
+                super::model::memory_load_exponent(nl, &f.x),
+            ),
+        },
+        &mut shared,
+        &mut eff,
+    );
+    (shared, out_drive, eff)
+}
+
+/// `log` diagnosed alone against `drive` and `effects` (a fold's calibration, as a saved
+/// scenario carries it), as `diagnose --scenario` judges a new log.
+fn new_log_score(
+    drive: &DriveParams,
+    effects: &super::effects::EffectsParams,
+    ident: &IdentifyParams,
+    log: &BenchLog,
+    start: StartMode,
+    keep_segments: bool,
+) -> Result<NewLogScore, IdentifyError> {
+    let load = crate::physics::LoadParams::default();
+    let setup = super::IdentifySetup {
+        name: "leave-one-out fold",
+        drive,
+        load: &load,
+        identify: Some(ident),
+        quasi_static: None,
+        effects: Some(effects),
+    };
+    let options = super::DiagnoseOptions {
+        start,
+        keep_segments,
+        ..Default::default()
+    };
+    let d = super::diagnose_with_progress(
+        &setup,
+        std::slice::from_ref(log),
+        &options,
+        &crate::progress::Silent,
+    )?;
+    Ok(NewLogScore {
+        extended_mrad: d.rmse_extended_mrad,
+        base_mrad: d.rmse_base_mrad,
+        play_mrad: d.play_operator.as_ref().map(|p| p.rmse_heldout_mrad),
+        preload_raised: d
+            .calibrated_model
+            .as_ref()
+            .is_some_and(|c| c.cannot_carry.is_some()),
+        cause: d.cause,
     })
 }
 
@@ -567,9 +723,9 @@ pub fn loo_text(t: &LooTable) -> String {
     );
     let _ = writeln!(
         s,
-        "| log left out | base (mrad) | extended (mrad) | play operator fitted to the log (mrad) | noise floor (mrad) | pull on the others (%) | extended residual |"
+        "| log left out | base (mrad) | extended (mrad) | play operator fitted to the log (mrad) | noise floor (mrad) | pull on the others (%) | extended residual | diagnosed alone against the others' calibration (mrad) |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
     for r in &t.rows {
         let name = std::path::Path::new(&r.log)
             .file_name()
@@ -577,9 +733,28 @@ pub fn loo_text(t: &LooTable) -> String {
         let play = r
             .play_mrad
             .map_or("fit failed".to_string(), |p| format!("{p:.2}"));
+        let alone = r.as_new_log.as_ref().map_or("failed".to_string(), |a| {
+            let versus = if a.beats_both() {
+                "beats both"
+            } else {
+                "does not beat both"
+            };
+            let raised = if a.preload_raised {
+                ", preload raised to carry it"
+            } else {
+                ""
+            };
+            format!(
+                "{:.2} ({versus}: base {:.2}, play {}{raised})",
+                a.extended_mrad,
+                a.base_mrad,
+                a.play_mrad
+                    .map_or("failed".to_string(), |p| format!("{p:.2}"))
+            )
+        });
         let _ = writeln!(
             s,
-            "| {name} | {:.2} | {:.2} | {play} | {:.2} | {:.1} | {} |",
+            "| {name} | {:.2} | {:.2} | {play} | {:.2} | {:.1} | {} | {alone} |",
             r.base_mrad, r.extended_mrad, r.floor_mrad, r.pull_percent, r.residual
         );
     }
@@ -591,6 +766,21 @@ pub fn loo_text(t: &LooTable) -> String {
         t.wins_over_play,
         t.rows.len()
     );
+    let alone: Vec<f64> = t
+        .rows
+        .iter()
+        .filter_map(|r| r.as_new_log.as_ref().map(|a| a.extended_mrad))
+        .collect();
+    if !alone.is_empty() {
+        let _ = writeln!(
+            s,
+            "Each log diagnosed alone against the calibration on the others (as `diagnose --scenario` judges a new log): beats the base model recalibrated on it and its play operator, held out on its time blocks, on {}/{} logs (mean {:.2} mrad over the {} diagnosed).",
+            t.new_log_wins,
+            t.rows.len(),
+            alone.iter().sum::<f64>() / alone.len() as f64,
+            alone.len()
+        );
+    }
     for c in t.start_cuts.iter().filter(|c| c.cut_s > 0.0) {
         let _ = writeln!(s, "Start-up: {}: {}", c.log, c.reason);
     }

@@ -67,6 +67,8 @@ pub struct GuideRow {
     pub pull: f64,
     /// What the extended residual still follows: the signal and its binned RMS, mrad.
     pub follows: (String, f64),
+    /// The log diagnosed alone against the calibration on the others, held out, mrad.
+    pub alone: f64,
 }
 
 /// A table cell's number (units and markup dropped).
@@ -112,6 +114,7 @@ pub fn guide_rows() -> Vec<GuideRow> {
             floor: number(c[5]),
             pull: number(c[6]),
             follows: follows(c[7]),
+            alone: number(c[8]),
         });
     }
     rows
