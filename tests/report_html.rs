@@ -137,6 +137,37 @@ fn cases() -> Vec<Case> {
             }),
         },
         Case {
+            name: "leave_one_out",
+            args: strings(&[
+                "diagnose",
+                "--scenario",
+                "gimbal_ident",
+                "--leave-one-out",
+                "--data",
+                "a.csv",
+                "--data",
+                "b.csv",
+            ]),
+            verdict: "none",
+            setup: Some(|cwd| {
+                for (seed, out) in [("1", "a.csv"), ("2", "b.csv")] {
+                    let o = cable_servo(
+                        &strings(&[
+                            "synth",
+                            "--scenario",
+                            "gimbal_ident",
+                            "--seed",
+                            seed,
+                            "--out",
+                            out,
+                        ]),
+                        cwd,
+                    );
+                    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+                }
+            }),
+        },
+        Case {
             name: "design_tune",
             args: strings(&[&["design", "tune", "--quick"][..], &short].concat()),
             verdict: "pass",
@@ -321,6 +352,13 @@ fn static_checks(case: &Case, dir: &Path) -> usize {
     let path = dir.join("report.html");
     let html = std::fs::read_to_string(&path)
         .unwrap_or_else(|e| panic!("{}: {}: {e}", case.name, path.display()));
+    if case.name == "leave_one_out" {
+        // The page shows the table the console prints, not a bare verdict.
+        assert!(
+            html.contains("Leave one log out") && html.contains("Extended beats base on"),
+            "leave_one_out: the page lacks the table"
+        );
+    }
     for r in references(&html) {
         let lower = r.to_ascii_lowercase();
         assert!(

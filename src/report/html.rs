@@ -363,6 +363,10 @@ fn describe(
             }
             page.texts.push(("Diagnosis".into(), t));
         }
+        // The leave-one-out table and the shared parameters, as the console prints them.
+        if let Ok(t) = std::fs::read_to_string(dir.join("leave_one_out.txt")) {
+            page.texts.push(("Leave one log out".into(), t));
+        }
         if let Some(fault) = record["result"]["fault"].as_str() {
             page.outcome = Outcome::Stopped(fault.to_string());
         }
