@@ -63,7 +63,7 @@ pub struct NewLogScore {
     /// The diagnosis's cause (`none`, `unexplained` or the effects found).
     pub cause: String,
     /// Whether the calibrated drive could not carry the log and had its preload raised
-    /// ([`super::CarryRefit`]).
+    /// ([`super::CarryRaise`]).
     pub preload_raised: bool,
 }
 

@@ -502,13 +502,13 @@ pub fn diagnose_with_progress(
         ident.clone()
     };
     let mut current = rmse_base;
-    let mut cannot_carry: Option<CarryRefit> = None;
+    let mut cannot_carry: Option<CarryRaise> = None;
     if let Some(fx) = top {
         full_drive = drive0.clone();
         fold_drives = vec![drive0.clone(); split.folds.len()];
         if let Some(fault) = first_replay_fault(&drive0, fx, &prepared) {
             let raised = raise_to_carry(&prepared, &ident, &drive0, fx).ok_or(fault.0)?;
-            cannot_carry = Some(CarryRefit {
+            cannot_carry = Some(CarryRaise {
                 fault: fault.1,
                 friction_coefficient: [drive0.friction_coefficient, raised.friction_coefficient],
                 preload_n: [drive0.preload_n, raised.preload_n],
@@ -1026,10 +1026,10 @@ pub fn diagnose_with_progress(
                         ),
                     }
                 }
-                Some(refit) => CalibratedModelScore {
+                Some(raise) => CalibratedModelScore {
                     rmse_mrad: None,
                     per_log_mrad: per_log_calibrated(&drive0, fx, &prepared, &keep, &ident.per_log),
-                    cannot_carry: Some(refit.clone()),
+                    cannot_carry: Some(raise.clone()),
                     refitted_per_log,
                     per_log_terms: Vec::new(),
                     residual_signatures: Vec::new(),

@@ -96,7 +96,7 @@ pub struct CalibratedModelScore {
     pub per_log_mrad: Vec<Option<f64>>,
     /// Where the calibrated drive as given cannot carry a log's load, and the drive the
     /// search on top then ran on; `None` when it carries every log.
-    pub cannot_carry: Option<CarryRefit>,
+    pub cannot_carry: Option<CarryRaise>,
     /// What was fitted on each log before it was judged: its encoder zero and the terms the
     /// scenario marks as per log (`identify.per_log`).
     pub refitted_per_log: Vec<String>,
@@ -114,7 +114,7 @@ pub struct CalibratedModelScore {
 /// calibration tends to leave them where the heaviest calibration log only just holds: a
 /// new log a few per cent heavier stops the replay there.
 #[derive(Clone, Debug, Serialize, PartialEq)]
-pub struct CarryRefit {
+pub struct CarryRaise {
     /// Why the replay stopped: the log, the time and the fault.
     pub fault: String,
     /// Friction coefficient as calibrated and as raised here (typical 0.05 to 0.3).
