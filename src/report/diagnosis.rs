@@ -123,12 +123,12 @@ pub fn summary_text(d: &Diagnosis) -> String {
         } else {
             writeln!(
                 s,
-                "What is still missing was searched on top of it ({}): its drive {} and its effects held as calibrated, only each log's zero and the candidates fitted.",
+                "What is still missing was searched on top of it ({}): {}, only each log's zero and the candidates fitted.",
                 searched.join(", "),
                 if c.cannot_carry.is_some() {
-                    "as raised above"
+                    "its drive as raised above and its effects held as calibrated"
                 } else {
-                    "as calibrated"
+                    "its drive and effects held as calibrated"
                 }
             )
         };
