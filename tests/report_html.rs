@@ -120,21 +120,7 @@ fn cases() -> Vec<Case> {
                 "log.csv",
             ]),
             verdict: "none",
-            setup: Some(|cwd| {
-                let o = cable_servo(
-                    &strings(&[
-                        "synth",
-                        "--scenario",
-                        "gimbal_ident",
-                        "--seed",
-                        "1",
-                        "--out",
-                        "log.csv",
-                    ]),
-                    cwd,
-                );
-                assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-            }),
+            setup: Some(|cwd| synth_log(cwd, "1", "log.csv")),
         },
         Case {
             name: "leave_one_out",
@@ -150,21 +136,8 @@ fn cases() -> Vec<Case> {
             ]),
             verdict: "none",
             setup: Some(|cwd| {
-                for (seed, out) in [("1", "a.csv"), ("2", "b.csv")] {
-                    let o = cable_servo(
-                        &strings(&[
-                            "synth",
-                            "--scenario",
-                            "gimbal_ident",
-                            "--seed",
-                            seed,
-                            "--out",
-                            out,
-                        ]),
-                        cwd,
-                    );
-                    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-                }
+                synth_log(cwd, "1", "a.csv");
+                synth_log(cwd, "2", "b.csv");
             }),
         },
         Case {
@@ -185,6 +158,23 @@ fn cable_servo(args: &[String], cwd: &Path) -> std::process::Output {
 }
 
 /// Run every case in its own directory, side by side; the results directory of each.
+/// A `gimbal_ident` bench log drawn with `seed`, written to `out` in `cwd`.
+fn synth_log(cwd: &Path, seed: &str, out: &str) {
+    let o = cable_servo(
+        &strings(&[
+            "synth",
+            "--scenario",
+            "gimbal_ident",
+            "--seed",
+            seed,
+            "--out",
+            out,
+        ]),
+        cwd,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 fn run_all(root: &Path) -> Vec<(Case, PathBuf)> {
     let cases = cases();
     std::thread::scope(|s| {
