@@ -461,13 +461,7 @@ pub fn diagnose_with_progress(
     // Base model: full calibration, then per fold from there.
     let base_spec = spec_for(&drive0, &ident, &[], true, None);
     let mut ev = Evaluator::new(base_spec.clone(), &prepared);
-    // A scenario's drive that cannot carry the logs (a calibration that left its friction
-    // and preload where its own heaviest log only just holds) is started where it does.
-    let x0 = match ev.design(&ev.nonlinear().iter().map(|n| n.3).collect::<Vec<_>>()) {
-        Ok(_) => None,
-        Err(e) => Some(raised_start(&mut ev).ok_or(e)?),
-    };
-    let base_fit = ev.fit(&split.full, x0.as_deref(), 40)?;
+    let base_fit = ev.fit(&split.full, None, 40)?;
     let nl = ev.nonlinear();
     let base_drive = with_base(&drive0, &nl, &base_fit.x);
     let mut full_drive = base_drive.clone();
@@ -1156,15 +1150,9 @@ fn first_replay_fault(
     })
 }
 
-/// Step of the preload raise (the friction coefficient's, when the preload is known) that
-/// looks for a drive carrying every log: 5 %, up to [`CARRY_MAX`] times the scenario's.
-const CARRY_STEP: f64 = 1.05;
-/// Largest raise tried (33 steps of 5 %).
-const CARRY_MAX: f64 = 5.0;
-
 /// The calibrated drive raised so that it carries the logs: its preload (its friction
 /// coefficient, when `identify.unknown` leaves the preload known) raised in steps of
-/// [`CARRY_STEP`] to the first value at which the calibrated model's replay carries every
+/// [`model::CARRY_STEP`] to the first value at which the calibrated model's replay carries every
 /// log, every effect held; `None` when neither is free or no raise within the bounds
 /// carries the logs. Nothing is fitted: a fit of the two along their valley wandered far
 /// (friction to its bound of 1) and did worse held out than the least raise (on the
@@ -1186,36 +1174,8 @@ fn raise_to_carry(
     };
     let mut ev = Evaluator::new(spec_for(drive0, &carry_ident, &[], true, Some(fx)), logs);
     let nl = ev.nonlinear();
-    let x = raised_start(&mut ev)?;
+    let x = ev.carrying_start()?;
     Some(with_base(drive0, &nl, &x))
-}
-
-/// The least raise of `ev`'s starting drive, its preload (the friction coefficient's, when
-/// the preload is not fitted) in steps of [`CARRY_STEP`] within its bounds, at which the
-/// replay carries every log; `None` when none does or neither is fitted.
-fn raised_start(ev: &mut Evaluator) -> Option<Vec<f64>> {
-    let nl = ev.nonlinear();
-    let raised = [NlParam::Preload, NlParam::Mu]
-        .into_iter()
-        .find(|p| nl.iter().any(|n| n.0 == *p))?;
-    let mut f = CARRY_STEP;
-    while f <= CARRY_MAX {
-        let x: Vec<f64> = nl
-            .iter()
-            .map(|n| {
-                if n.0 == raised {
-                    (n.3 * f).min(n.2)
-                } else {
-                    n.3
-                }
-            })
-            .collect();
-        if ev.design(&x).is_ok() {
-            return Some(x);
-        }
-        f *= CARRY_STEP;
-    }
-    None
 }
 
 /// Each log's error under the calibrated model as given (`None` where its drive cannot

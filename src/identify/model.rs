@@ -407,6 +407,12 @@ pub fn on_bounds(nl: &[(NlParam, f64, f64, f64)], x: &[f64]) -> Vec<String> {
         .collect()
 }
 
+/// Step of the preload raise (the friction coefficient's, when the preload is known) that
+/// looks for a drive carrying every log ([`Evaluator::carrying_start`]): 5 %.
+pub const CARRY_STEP: f64 = 1.05;
+/// Largest raise tried, times the drive's own value (33 steps of 5 %).
+pub const CARRY_MAX: f64 = 5.0;
+
 /// A model: the base drive (reference values), what is calibrated and which effects.
 #[derive(Clone, Debug)]
 pub struct Spec {
@@ -955,7 +961,39 @@ impl<'a> Evaluator<'a> {
         self.y.iter().flatten().copied().collect()
     }
 
+    /// The least raise of the spec's drive, its preload (the friction coefficient's, when
+    /// the preload is not fitted) in steps of [`CARRY_STEP`] up to [`CARRY_MAX`] times its
+    /// value and within its bounds, at which the replay carries every log, as a start in
+    /// the nonlinear layout; `None` when none does or neither is fitted.
+    pub fn carrying_start(&mut self) -> Option<Vec<f64>> {
+        let nl = self.nonlinear();
+        let raised = [NlParam::Preload, NlParam::Mu]
+            .into_iter()
+            .find(|p| nl.iter().any(|n| n.0 == *p))?;
+        let mut f = CARRY_STEP;
+        while f <= CARRY_MAX {
+            let x: Vec<f64> = nl
+                .iter()
+                .map(|n| {
+                    if n.0 == raised {
+                        (n.3 * f).min(n.2)
+                    } else {
+                        n.3
+                    }
+                })
+                .collect();
+            if self.design(&x).is_ok() {
+                return Some(x);
+            }
+            f *= CARRY_STEP;
+        }
+        None
+    }
+
     /// Fit on rows `mask`, starting from `x0` (nonlinear layout), at most `iters` LM steps.
+    /// Without `x0` the fit starts from the spec's drive, or, when that drive cannot carry
+    /// the logs (a calibration that left its friction and preload where its own heaviest
+    /// log only just holds), from [`Self::carrying_start`].
     pub fn fit(
         &mut self,
         mask: &[bool],
@@ -967,7 +1005,13 @@ impl<'a> Evaluator<'a> {
         let hi: Vec<f64> = nl.iter().map(|n| n.2).collect();
         let mut start: Vec<f64> = match x0 {
             Some(x) if x.len() == nl.len() => x.to_vec(),
-            _ => nl.iter().map(|n| n.3).collect(),
+            _ => {
+                let own: Vec<f64> = nl.iter().map(|n| n.3).collect();
+                match self.design(&own) {
+                    Ok(_) => own,
+                    Err(e) => self.carrying_start().ok_or(e)?,
+                }
+            }
         };
         let n_fit = mask.iter().filter(|m| **m).count();
         let resid = |x: &[f64], me: &mut Self| -> Option<Vec<f64>> {
