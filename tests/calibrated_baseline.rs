@@ -7,12 +7,31 @@
 //! operator there. A replay that dropped or mis-signed an effect, or read a key wrong,
 //! lands far above those figures.
 
-use cable_servo::identify::{baseline, model, startup};
+use cable_servo::identify::{
+    baseline, model, startup, BenchLog, EffectsParams, IdentifyError, IdentifyParams,
+};
 use cable_servo::io::benchlog::read_bench_log;
+use cable_servo::physics::DriveParams;
 
 #[path = "support/davinci.rs"]
 mod davinci;
 use davinci::{guide_rows, repo, shipped_scenario};
+
+/// `raw` with its start-up load step cut, prepared as the diagnosis prepares it.
+fn prepared(raw: &BenchLog, ident: &IdentifyParams) -> model::Prepared {
+    let (cut, _) = startup::cut_start(raw, startup::StartMode::Detect);
+    model::prepare(&cut, ident.max_rate_hz).expect("prepared")
+}
+
+/// The calibrated model `drive` with `fx` replayed on every row of `p`.
+fn replay(
+    drive: &DriveParams,
+    fx: &EffectsParams,
+    p: &model::Prepared,
+) -> Result<baseline::CalibratedScore, IdentifyError> {
+    let keep = vec![true; p.t.len()];
+    baseline::score(drive, fx, std::slice::from_ref(p), &keep, &[])
+}
 
 #[test]
 fn the_calibrated_scenario_replays_within_its_held_out_errors() {
@@ -29,11 +48,7 @@ fn the_calibrated_scenario_replays_within_its_held_out_errors() {
     for row in rows {
         let (log, base, held_out, play) = (row.log, row.base, row.extended, row.play);
         let raw = read_bench_log(&dir.join(format!("{log}.csv"))).expect("log");
-        let (cut, _) = startup::cut_start(&raw, startup::StartMode::Detect);
-        let p = model::prepare(&cut, ident.max_rate_hz).expect("prepared");
-        let keep = vec![true; p.t.len()];
-        let s =
-            baseline::score(&sc.drive, &fx, std::slice::from_ref(&p), &keep, &[]).expect("replay");
+        let s = replay(&sc.drive, &fx, &prepared(&raw, &ident)).expect("replay");
         eprintln!("{log}: replay {:.3} mrad, held out {held_out}", s.rmse_mrad);
         assert!(
             s.rmse_mrad <= held_out + 0.006 && s.rmse_mrad < play && s.rmse_mrad < base,
@@ -64,15 +79,9 @@ fn a_log_the_calibrated_drive_cannot_carry_is_still_judged() {
         eprintln!("skipped: {} is not beside the repository", dir.display());
         return;
     }
-    let path = repo().join("scenarios/davinci_tool4.toml");
-    let sc = cable_servo::scenario::Scenario::load(
-        path.to_str().unwrap_or(""),
-        &[
-            "drive.friction_coefficient=0.0875".to_string(),
-            "drive.preload_n=27.14".to_string(),
-        ],
-    )
-    .expect("scenario");
+    let mut sc = shipped_scenario();
+    sc.drive.friction_coefficient = 0.0875;
+    sc.drive.preload_n = 27.14;
     let raw = read_bench_log(&dir.join("tool4_09.csv")).expect("log");
     let d = diagnose(&sc, std::slice::from_ref(&raw), &DiagnoseOptions::default())
         .expect("a drive that stops is reported, not an error");
@@ -91,18 +100,15 @@ fn a_log_the_calibrated_drive_cannot_carry_is_still_judged() {
     assert_eq!(carry.friction_coefficient, [0.0875, 0.0875]);
     let raised = carry.preload_n[1];
     // The least raise: the drive carries the log at it and not one step below.
-    let ident = sc.identify.clone().unwrap_or_default();
     let fx = sc.effects.clone().expect("calibrated effects");
-    let (cut, _) = startup::cut_start(&raw, startup::StartMode::Detect);
-    let p = model::prepare(&cut, ident.max_rate_hz).expect("prepared");
-    let keep = vec![true; p.t.len()];
-    let replay = |preload_n: f64| {
+    let p = prepared(&raw, &sc.identify.clone().unwrap_or_default());
+    let at = |preload_n: f64| {
         let mut drive = sc.drive.clone();
         drive.preload_n = preload_n;
-        baseline::score(&drive, &fx, std::slice::from_ref(&p), &keep, &[])
+        replay(&drive, &fx, &p)
     };
-    assert!(replay(raised).is_ok(), "raised to {raised} N");
-    assert!(replay(raised / 1.05).is_err(), "one step below {raised} N");
+    assert!(at(raised).is_ok(), "raised to {raised} N");
+    assert!(at(raised / 1.05).is_err(), "one step below {raised} N");
     assert!(raised > 27.14 && raised < 27.14 * 1.25, "{raised} N");
     // On that drive the instrument's model still beats the base model recalibrated on the
     // log and the play operator fitted to it, held out.

@@ -214,8 +214,6 @@ struct Fold {
     held_rms: f64,
     /// Residual on the log left out, rad.
     held: Vec<f64>,
-    /// Nonlinear parameters.
-    x: Vec<f64>,
     /// Every log's RMS, rad (in-sample for the others).
     per_log_rms: Vec<f64>,
     /// The fit on the other logs.
@@ -401,7 +399,6 @@ pub fn leave_one_out_with_segments(
             Ok(Fold {
                 held_rms: rms(&kept(&r, &ranges[k])),
                 held,
-                x: f.x.clone(),
                 per_log_rms: ranges.iter().map(|g| rms(&kept(&r, g))).collect(),
                 nl: ev.nonlinear(),
                 basis: ev.stroke_and_thresholds(),
@@ -409,7 +406,7 @@ pub fn leave_one_out_with_segments(
             })
         };
         let base_fold = score(&[], None)?;
-        let (base, xb) = (base_fold.held_rms, base_fold.x);
+        let (base, xb) = (base_fold.held_rms, base_fold.fit.x);
         let Fold {
             held_rms: ext,
             held: ext_resid,
