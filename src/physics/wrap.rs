@@ -84,7 +84,10 @@ pub(crate) struct WrapLaw {
     /// falling, exactly `lo` when stuck.
     lo: f64,
     hi: f64,
-    /// Coefficients of `E*A * elongation`, see the type's documentation.
+    /// Coefficients of `E*A * elongation`, see the type's documentation. On an `End` law
+    /// `q` holds the tension at the inner end of the longest wrap per unit `Tb` instead:
+    /// one field for both keeps the law within 128 bytes, which its copies (a cache slot
+    /// per search, a solution per half) then make without a call to `memcpy`.
     a: f64,
     bt: f64,
     q: f64,
@@ -103,8 +106,6 @@ pub(crate) struct WrapLaw {
     rest0: f64,
     /// Weight (sum of radii, m) of the segment where the slip zone ends.
     w_seg: f64,
-    /// Tension at the inner end of the longest wrap per unit `Tb` (`End` only).
-    end_factor: f64,
 }
 
 impl WrapLaw {
@@ -126,7 +127,6 @@ impl WrapLaw {
         disc1: 0.0,
         rest0: 0.0,
         w_seg: 0.0,
-        end_factor: 0.0,
     };
 
     /// `(a, beta, c)` such that `E*A * elongation = a*Tb + beta*sqrt(Tb) + c` on this
@@ -187,7 +187,7 @@ impl WrapLaw {
         match self.kind {
             LawKind::Sloped => (self.q * tb_n).sqrt(),
             LawKind::Plateau => preload_n,
-            LawKind::End => tb_n * self.end_factor,
+            LawKind::End => tb_n * self.q,
             LawKind::Stuck | LawKind::Invalid => tb_n,
         }
     }
@@ -676,7 +676,7 @@ impl WrapRegion {
             a: self.slip_coefficient(rising, at_cut, at_end),
             c: -pre * self.weight_total_m,
             w_seg: self.weight_outer_m,
-            end_factor: at_end,
+            q: at_end,
             ..WrapLaw::INVALID
         }
     }
@@ -1183,6 +1183,11 @@ mod tests {
     const MU: f64 = 0.2;
     const TPRE: f64 = 100.0;
     const G: f64 = 1.4e4;
+
+    #[test]
+    fn a_law_fits_in_the_size_copied_without_a_call() {
+        assert!(std::mem::size_of::<WrapLaw>() <= 128);
+    }
 
     #[test]
     fn first_loading_matches_closed_form() {
