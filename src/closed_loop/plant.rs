@@ -441,7 +441,7 @@ pub fn derivative(
 }
 
 impl System<f64, State> for &PeriodRhs<'_> {
-    #[inline]
+    #[inline(always)]
     fn system(&self, tau: f64, x: &State, dx: &mut State) {
         let c = self.c;
         let t = self.t0 + tau * self.h;
