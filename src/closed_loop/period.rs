@@ -16,7 +16,7 @@ use crate::physics::{DriveFault, LoadParams};
 /// neither `brake` nor `x` changes. `base` is the base's `(angle, acceleration)` at `t`
 /// (rad, rad/s^2; zeros without base motion): a held drum must also carry the base's
 /// pseudo-torque `-Jo beta''`.
-#[inline]
+#[inline(always)]
 pub fn settle_boundary(
     c: &PlantCoefficients,
     cable: &mut PlantCable,
@@ -64,7 +64,7 @@ pub struct PeriodEnd {
 /// is exact. On success `x` holds the end state (output speed zero while the brake
 /// holds); the state is not checked for finiteness.
 #[allow(clippy::too_many_arguments)]
-#[inline]
+#[inline(always)]
 pub fn integrate_period(
     c: &PlantCoefficients,
     cable: &PlantCable,

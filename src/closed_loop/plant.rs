@@ -111,7 +111,7 @@ impl PlantCable {
     }
 
     /// Elastic span tensions `(Tu, Tl)` for displacement `D` (m); memory not committed.
-    #[inline]
+    #[inline(always)]
     pub fn tensions(&self, d: f64) -> Result<(f64, f64), DriveFault> {
         match self {
             PlantCable::Hysteretic(drive) => {
