@@ -94,10 +94,28 @@ impl Encoder {
             None => theta,
         };
         match self.rad_per_count {
-            Some(q) => (noisy / q).round() * q,
+            Some(q) => round(noisy / q) * q,
             None => noisy,
         }
     }
+}
+
+/// `x.round()` (half away from zero), bit for bit, without the library call that
+/// `f64::round` compiles to on baseline x86-64, which has no rounding instruction: two
+/// encoders read every control period.
+#[inline(always)]
+pub(crate) fn round(x: f64) -> f64 {
+    // Adding 2^52 leaves no fraction bits, so the sum rounds `|x|` to the nearest
+    // integer (ties to even); a tie that went down is moved up. `|x| - r` is exact, the
+    // two being within a half of each other.
+    const NO_FRACTION: f64 = 4_503_599_627_370_496.0;
+    let a = x.abs();
+    if !(a < NO_FRACTION) {
+        return x;
+    }
+    let r = (a + NO_FRACTION) - NO_FRACTION;
+    let r = if a - r == 0.5 { r + 1.0 } else { r };
+    r.copysign(x)
 }
 
 /// Both encoders and their random source.
@@ -243,6 +261,46 @@ impl BrakePredictor {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn round_is_the_library_round_bit_for_bit() {
+        use rand::{Rng, SeedableRng};
+        let same = |x: f64| {
+            assert_eq!(round(x).to_bits(), x.round().to_bits(), "{x:e}");
+            assert_eq!(round(-x).to_bits(), (-x).round().to_bits(), "{:e}", -x);
+        };
+        let two52 = 4_503_599_627_370_496.0_f64;
+        for x in [
+            0.0,
+            f64::MIN_POSITIVE,
+            1e-310,
+            0.49999999999999994,
+            0.5,
+            0.5000000000000001,
+            1.5,
+            2.5,
+            two52 - 0.5,
+            two52 - 1.5,
+            two52,
+            two52 + 1.0,
+            2.0 * two52 + 2.0,
+            f64::MAX,
+            f64::INFINITY,
+        ] {
+            same(x);
+        }
+        assert!(round(f64::NAN).is_nan());
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..200_000 {
+            let x = rng.gen_range(-1.0..1.0) * 10f64.powi(rng.gen_range(-3..17));
+            same(x);
+            // Ties and their neighbours.
+            let tie = x.trunc() + 0.5;
+            same(tie);
+            same(tie.next_up());
+            same(tie.next_down());
+        }
+    }
 
     #[test]
     fn brake_prediction_peaks_at_breakaway_then_slides() {
