@@ -110,7 +110,7 @@ pub(crate) fn round(x: f64) -> f64 {
     // two being within a half of each other.
     const NO_FRACTION: f64 = 4_503_599_627_370_496.0;
     let a = x.abs();
-    if !(a < NO_FRACTION) {
+    if a >= NO_FRACTION || a.is_nan() {
         return x;
     }
     let r = (a + NO_FRACTION) - NO_FRACTION;
