@@ -348,6 +348,23 @@ fn static_checks(case: &Case, dir: &Path) -> usize {
             html.contains("Leave one log out") && html.contains("Extended beats base on"),
             "leave_one_out: the page lacks the table"
         );
+        // As a table of the page, one row per log, not Markdown in a text block.
+        let table = html
+            .split("<table class=\"text-table\">")
+            .nth(1)
+            .and_then(|t| t.split("</table>").next())
+            .expect("leave_one_out: the per-log table is an HTML table");
+        assert!(table.contains("<th>log left out</th>"), "{table}");
+        let logs: Vec<&str> = table
+            .split("<tr><td>")
+            .skip(1)
+            .filter_map(|r| r.split("</td>").next())
+            .collect();
+        assert_eq!(logs, ["a.csv", "b.csv"], "{table}");
+        assert!(
+            !html.contains("|---|"),
+            "leave_one_out: Markdown left in the page"
+        );
     }
     for r in references(&html) {
         let lower = r.to_ascii_lowercase();

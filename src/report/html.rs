@@ -1003,7 +1003,8 @@ fn render(page: &Page, record: &Value, record_name: &str, figures: &[Figure]) ->
         render_table(&mut h, t);
     }
     for (heading, body) in &page.texts {
-        let _ = write!(h, "<h2>{}</h2>\n<pre>{}</pre>\n", esc(heading), esc(body));
+        let _ = writeln!(h, "<h2>{}</h2>", esc(heading));
+        render_text(&mut h, body);
     }
     if !figures.is_empty() {
         h.push_str("<h2>Figures</h2>\n");
@@ -1033,6 +1034,74 @@ fn render(page: &Page, record: &Value, record_name: &str, figures: &[Figure]) ->
     render_provenance(&mut h, page, record, record_name);
     h.push_str("</body>\n</html>\n");
     h
+}
+
+/// A plain-text record as the console prints it: the Markdown tables in it (a header
+/// row, a `|---|` row, then rows, each line starting with `|`) become HTML tables whose
+/// number cells align right; everything else stays preformatted, line for line.
+fn render_text(h: &mut String, body: &str) {
+    let lines: Vec<&str> = body.lines().collect();
+    let mut plain: Vec<&str> = Vec::new();
+    let flush = |h: &mut String, plain: &mut Vec<&str>| {
+        while plain.last().is_some_and(|l| l.trim().is_empty()) {
+            plain.pop();
+        }
+        let start = plain.iter().take_while(|l| l.trim().is_empty()).count();
+        if start < plain.len() {
+            let _ = writeln!(h, "<pre>{}</pre>", esc(&plain[start..].join("\n")));
+        }
+        plain.clear();
+    };
+    let mut i = 0;
+    while i < lines.len() {
+        let rows = lines[i..]
+            .iter()
+            .take_while(|l| l.trim_start().starts_with('|'))
+            .count();
+        let is_table = rows >= 2 && separator_row(lines[i + 1]);
+        if !is_table {
+            plain.push(lines[i]);
+            i += 1;
+            continue;
+        }
+        flush(h, &mut plain);
+        h.push_str("<table class=\"text-table\">\n<thead><tr>");
+        for c in markdown_cells(lines[i]) {
+            let _ = write!(h, "<th>{}</th>", esc(c));
+        }
+        h.push_str("</tr></thead>\n<tbody>\n");
+        for line in &lines[i + 2..i + rows] {
+            h.push_str("<tr>");
+            for c in markdown_cells(line) {
+                let class = if c.parse::<f64>().is_ok() {
+                    " class=\"num\""
+                } else {
+                    ""
+                };
+                let _ = write!(h, "<td{class}>{}</td>", esc(c));
+            }
+            h.push_str("</tr>\n");
+        }
+        h.push_str("</tbody>\n</table>\n");
+        i += rows;
+    }
+    flush(h, &mut plain);
+}
+
+/// The cells of a Markdown table row `| a | b |`, trimmed.
+fn markdown_cells(line: &str) -> Vec<&str> {
+    let inner = line.trim().trim_start_matches('|');
+    let inner = inner.strip_suffix('|').unwrap_or(inner);
+    inner.split('|').map(str::trim).collect()
+}
+
+/// Whether a line is a Markdown table's header separator, `|---|:--:|`.
+fn separator_row(line: &str) -> bool {
+    let cells = markdown_cells(line);
+    !cells.is_empty()
+        && cells
+            .iter()
+            .all(|c| !c.is_empty() && c.chars().all(|ch| ch == '-' || ch == ':'))
 }
 
 fn render_table(h: &mut String, t: &Table) {
@@ -1173,6 +1242,28 @@ fn render_provenance(h: &mut String, page: &Page, record: &Value, record_name: &
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn markdown_tables_in_a_text_become_html_tables_and_the_rest_stays_text() {
+        let body = "Heading line\n\n| log | rms (mrad) |\n|---|---:|\n| a<b.csv | 1.25 |\n| c.csv | n/a |\n\nAfter the table.\n| a lone bar line\n";
+        let mut h = String::new();
+        render_text(&mut h, body);
+        assert_eq!(h.matches("<table").count(), 1, "{h}");
+        assert!(h.contains("<th>log</th><th>rms (mrad)</th>"), "{h}");
+        assert!(
+            h.contains("<tr><td>a&lt;b.csv</td><td class=\"num\">1.25</td></tr>"),
+            "{h}"
+        );
+        assert!(h.contains("<tr><td>c.csv</td><td>n/a</td></tr>"), "{h}");
+        assert!(h.starts_with("<pre>Heading line</pre>\n<table"), "{h}");
+        assert!(
+            h.ends_with("</table>\n<pre>After the table.\n| a lone bar line</pre>\n"),
+            "{h}"
+        );
+        let mut plain = String::new();
+        render_text(&mut plain, "no table\n| x |\nmore");
+        assert_eq!(plain, "<pre>no table\n| x |\nmore</pre>\n");
+    }
 
     #[test]
     fn svg_is_inlined_scalable_with_unique_ids() {
