@@ -52,6 +52,11 @@ fn figures(s: &Scenario) -> BTreeMap<String, BTreeMap<&'static str, Option<f64>>
         .collect()
 }
 
+/// A figure as the table shows it; a stopped mode has none.
+fn shown(v: Option<f64>) -> String {
+    v.map_or("stopped".to_string(), |v| format!("{v:.6}"))
+}
+
 fn with_preload(name: &str, factor: f64) -> Scenario {
     let mut s = Scenario::load(name, &[]).expect("shipped scenario");
     s.drive.preload_n *= factor;
@@ -87,7 +92,6 @@ fn main() -> ExitCode {
                         (a.min(*v), b.max(*v))
                     });
                 let mean = done.iter().sum::<f64>() / done.len().max(1) as f64;
-                let shown = |v: Option<f64>| v.map_or("stopped".to_string(), |v| format!("{v:.6}"));
                 let spread = if done.is_empty() || mean == 0.0 {
                     "-".to_string()
                 } else {

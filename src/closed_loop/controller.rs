@@ -101,8 +101,8 @@ impl Encoder {
 }
 
 /// `x.round()` (half away from zero), bit for bit, without the library call that
-/// `f64::round` compiles to on baseline x86-64, which has no rounding instruction: two
-/// encoders read every control period.
+/// `f64::round` compiles to on baseline x86-64, which has no rounding instruction: the
+/// encoders and the gyro quantise a reading every control period.
 #[inline(always)]
 pub(crate) fn round(x: f64) -> f64 {
     // Adding 2^52 leaves no fraction bits, so the sum rounds `|x|` to the nearest

@@ -67,7 +67,7 @@ impl GyroReader {
                 v += n.sample(&mut self.rng);
             }
             if self.quantum > 0.0 {
-                v = (v / self.quantum).round() * self.quantum;
+                v = super::controller::round(v / self.quantum) * self.quantum;
             }
             self.held = v;
         }
