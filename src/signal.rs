@@ -238,6 +238,23 @@ pub struct SignalPoint {
 }
 
 impl Signal {
+    /// A bound on `|value|` at every time, rad, where one is known without sampling (a
+    /// sine: `|offset| + |amplitude|`; a step: `|amplitude|`); `None` for the other kinds.
+    /// Every sampled value's magnitude is at most this bound in floating point too, since
+    /// `|sin| <= 1` and rounding is monotonic.
+    pub fn value_bound(&self) -> Option<f64> {
+        let b = match self {
+            Signal::Sine {
+                amplitude_rad,
+                offset_rad,
+                ..
+            } => offset_rad.abs() + amplitude_rad.abs(),
+            Signal::Step { amplitude_rad, .. } => amplitude_rad.abs(),
+            _ => return None,
+        };
+        b.is_finite().then_some(b)
+    }
+
     /// Evaluate at time `t_s`.
     pub fn at(&self, t_s: f64) -> SignalPoint {
         use std::f64::consts::TAU;
@@ -603,6 +620,52 @@ mod tests {
                 p.rate
             );
         }
+    }
+
+    proptest::proptest! {
+        /// No sample of a sine or a step exceeds its bound, in floating point, whatever
+        /// the signs and sizes: the validation trusts the bound in place of its samples.
+        #[test]
+        fn no_sample_exceeds_the_bound(
+            amplitude in -1e6f64..1e6,
+            offset in -1e6f64..1e6,
+            frequency in 0.0f64..1e4,
+            phase in -10.0f64..10.0,
+            t in 0.0f64..1e4,
+        ) {
+            let sine = Signal::Sine {
+                amplitude_rad: amplitude,
+                frequency_hz: frequency,
+                phase_rad: phase,
+                offset_rad: offset,
+            };
+            let b = sine.value_bound().expect("a sine is bounded");
+            proptest::prop_assert!(sine.at(t).value.abs() <= b);
+            let step = Signal::Step { amplitude_rad: amplitude, time_s: 1.0 };
+            let b = step.value_bound().expect("a step is bounded");
+            proptest::prop_assert!(step.at(t).value.abs() <= b);
+        }
+    }
+
+    /// The bound of a sine that sits exactly on its limit is reached, not exceeded: an
+    /// amplitude of 1 at a quarter period.
+    #[test]
+    fn the_bound_is_reached_at_the_crest() {
+        let s = Signal::Sine {
+            amplitude_rad: 1.0,
+            frequency_hz: 0.25,
+            phase_rad: 0.0,
+            offset_rad: 99.0,
+        };
+        assert_eq!(s.value_bound(), Some(100.0));
+        assert_eq!(s.at(1.0).value, 100.0);
+        assert!(Signal::Ramp {
+            rate_rad_s: 1.0,
+            start_s: 0.0,
+            stop_s: None
+        }
+        .value_bound()
+        .is_none());
     }
 
     #[test]

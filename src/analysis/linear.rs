@@ -26,6 +26,7 @@
 use nalgebra::{Complex, DMatrix, DVector};
 use serde::Serialize;
 
+use super::stack_lu;
 use crate::closed_loop::filters::{Biquad, FilterSpec};
 use crate::closed_loop::params::{Amplifier, ClosedLoopParams, Feedback, RateSource};
 pub use crate::closed_loop::sim::Instability;
@@ -363,9 +364,8 @@ impl LinearLoop {
     /// torque held on the drum at `f_hz` (rad, or rad/s for the gyro, per N m); with
     /// [`Self::plant_rows`] they give the loop's compliance to a load such as a brake.
     pub fn drum_torque_rows(&self, f_hz: f64) -> [Complex<f64>; 3] {
-        let rhs = self.drum_torque.map(Complex::from);
-        let x = self.resolvent(f_hz, &rhs);
-        self.rows.clone().map(|r| dot(&r, &x))
+        let x = self.resolvent(f_hz, |i| Complex::from(self.drum_torque[i]));
+        [0, 1, 2].map(|j| dot(&self.rows[j], x.as_slice()))
     }
 
     /// Closed-loop compliance of the drum to a torque held on it, rad per N m at `f_hz`:
@@ -386,22 +386,34 @@ impl LinearLoop {
         self.law.is_none()
     }
 
-    /// `(zI - Ad)^-1 v` at `f_hz`.
-    fn resolvent(&self, f_hz: f64, v: &DVector<Complex<f64>>) -> DVector<Complex<f64>> {
+    /// `(zI - Ad)^-1 v` at `f_hz`, `v` given by its components: on the stack for the
+    /// usual sizes, through `DMatrix` beyond them, with the same arithmetic either way.
+    fn resolvent(&self, f_hz: f64, v: impl Fn(usize) -> Complex<f64>) -> Resolved {
         let z = Complex::from_polar(1.0, std::f64::consts::TAU * f_hz * self.ts);
         let n = self.ad.nrows();
+        if n <= stack_lu::MAX_DIM {
+            let mut rhs = [Complex::new(0.0, 0.0); stack_lu::MAX_DIM];
+            for (i, e) in rhs.iter_mut().enumerate().take(n) {
+                *e = v(i);
+            }
+            if let Some(x) = stack_lu::resolvent(&self.ad, z, &rhs[..n]) {
+                return Resolved::Stack(x);
+            }
+        }
         let m = DMatrix::<Complex<f64>>::identity(n, n) * z - self.ad.map(Complex::from);
-        m.lu().solve(v).unwrap_or_else(|| DVector::zeros(n))
+        let rhs = DVector::from_fn(n, |i, _| v(i));
+        Resolved::Heap(m.lu().solve(&rhs).unwrap_or_else(|| DVector::zeros(n)))
     }
 
     /// Responses of the motor angle, the drum angle and the gyro's rate to the held
     /// command at `f_hz`, delay included (rad, or rad/s for the gyro, per A or V).
     pub fn plant_rows(&self, f_hz: f64) -> [Complex<f64>; 3] {
         let zi = Complex::from_polar(1.0, -std::f64::consts::TAU * f_hz * self.ts);
-        let rhs = self.b1.map(|v| Complex::from(v) * zi) + self.b2.map(Complex::from);
-        let x = self.resolvent(f_hz, &rhs);
+        let x = self.resolvent(f_hz, |i| {
+            Complex::from(self.b1[i]) * zi + Complex::from(self.b2[i])
+        });
         let d = zi.powi(self.whole as i32);
-        self.rows.clone().map(|r| dot(&r, &x) * d)
+        [0, 1, 2].map(|j| dot(&self.rows[j], x.as_slice()) * d)
     }
 
     /// The command as a combination of the three measured quantities, `u = sum k_j y_j`
@@ -463,10 +475,20 @@ impl LinearLoop {
     /// Plant `P` from held command to the position loop's measurement at `f_hz`, delay
     /// included (for gyro-angle feedback: to `ic` times the gyro's rate).
     pub fn plant(&self, f_hz: f64) -> Complex<f64> {
-        let zi = Complex::from_polar(1.0, -std::f64::consts::TAU * f_hz * self.ts);
-        let rhs = self.b1.map(|v| Complex::from(v) * zi) + self.b2.map(Complex::from);
-        let x = self.resolvent(f_hz, &rhs);
-        dot(&self.c, &x) * zi.powi(self.whole as i32)
+        self.plant_at(f_hz, self.z_inverse(f_hz))
+    }
+
+    /// `z^-1 = e^{-j 2 pi f T}` at `f_hz`.
+    fn z_inverse(&self, f_hz: f64) -> Complex<f64> {
+        Complex::from_polar(1.0, -std::f64::consts::TAU * f_hz * self.ts)
+    }
+
+    /// [`Self::plant`] with its `z^-1` given.
+    fn plant_at(&self, f_hz: f64, zi: Complex<f64>) -> Complex<f64> {
+        let x = self.resolvent(f_hz, |i| {
+            Complex::from(self.b1[i]) * zi + Complex::from(self.b2[i])
+        });
+        dot(&self.c, x.as_slice()) * zi.powi(self.whole as i32)
     }
 
     /// Line of sight over base angle at `f_hz` (complex ratio at the samples): the base
@@ -544,7 +566,11 @@ impl LinearLoop {
 
     /// Controller `K` at `f_hz`.
     pub fn controller(&self, f_hz: f64) -> Complex<f64> {
-        let zi = Complex::from_polar(1.0, -std::f64::consts::TAU * f_hz * self.ts);
+        self.controller_at(self.z_inverse(f_hz))
+    }
+
+    /// [`Self::controller`] at a given `z^-1`.
+    fn controller_at(&self, zi: Complex<f64>) -> Complex<f64> {
         let one = Complex::from(1.0);
         Complex::from(self.kp)
             + Complex::from(self.ki_t) / (one - zi)
@@ -564,7 +590,9 @@ impl LinearLoop {
     /// term).
     pub fn loop_gain(&self, f_hz: f64) -> Complex<f64> {
         if self.law.is_none() {
-            return self.controller(f_hz) * self.plant(f_hz);
+            // One z^-1 for both: the margins read the loop at thousands of frequencies.
+            let zi = self.z_inverse(f_hz);
+            return self.controller_at(zi) * self.plant_at(f_hz, zi);
         }
         let p = self.plant_rows(f_hz);
         let k = self.law_row(f_hz);
@@ -1094,8 +1122,23 @@ fn chain_response(chain: &[Biquad], f_hz: f64, fs: f64) -> Complex<f64> {
         .fold(Complex::from(1.0), |acc, b| acc * b.response(f_hz, fs))
 }
 
-fn dot(r: &DVector<f64>, x: &DVector<Complex<f64>>) -> Complex<f64> {
+fn dot(r: &DVector<f64>, x: &[Complex<f64>]) -> Complex<f64> {
     r.iter().zip(x.iter()).map(|(c, x)| x * *c).sum()
+}
+
+/// A resolvent's solution, on the stack or (beyond [`stack_lu::MAX_DIM`] states) not.
+enum Resolved {
+    Stack(stack_lu::Solved),
+    Heap(DVector<Complex<f64>>),
+}
+
+impl Resolved {
+    fn as_slice(&self) -> &[Complex<f64>] {
+        match self {
+            Resolved::Stack(s) => s.as_slice(),
+            Resolved::Heap(v) => v.as_slice(),
+        }
+    }
 }
 
 #[cfg(test)]

@@ -272,14 +272,17 @@ pub fn margins(lin: &LinearLoop, points: usize) -> Margins {
     };
     let mut gain_crossovers = Vec::new();
     let mut phase_crossovers = Vec::new();
+    // Each magnitude once: the tests below read each point's twice or more.
+    let mag: Vec<f64> = l.iter().map(|l| l.norm()).collect();
     for i in 1..points {
         let (l0, l1) = (l[i - 1], l[i]);
-        if (l0.norm() - 1.0) * (l1.norm() - 1.0) <= 0.0 && l0.norm() != l1.norm() {
+        let (m0, m1) = (mag[i - 1], mag[i]);
+        if (m0 - 1.0) * (m1 - 1.0) <= 0.0 && m0 != m1 {
             let f = refine(freqs[i - 1], freqs[i], &|f| lin.loop_gain(f).norm() - 1.0);
             gain_crossovers.push(GainCrossover {
                 frequency_hz: f,
                 phase_margin_deg: 180.0 - lin.loop_gain(f).arg().to_degrees().abs(),
-                direction: if l1.norm() < l0.norm() {
+                direction: if m1 < m0 {
                     MagnitudeSlope::Down
                 } else {
                     MagnitudeSlope::Up

@@ -387,6 +387,7 @@ fn by_metric(
     target_mrad: Option<f64>,
 ) -> Result<Vec<PathBuf>, ReportError> {
     let mut files = Vec::new();
+    let mut charts = Vec::new();
     let figures = drawn_figures(figure_columns, rows, max_figures);
     // One chart per metric and parameter, every mode in it in its own colour.
     let mut metrics: Vec<&str> = Vec::new();
@@ -452,11 +453,18 @@ fn by_metric(
                 log_x: log_spaced(&xs_all),
                 ..Chart::default()
             };
-            files.extend(save_chart(
-                &chart,
-                &dir.join(format!("{metric}_vs_{param}")),
-            )?);
+            charts.push((chart, dir.join(format!("{metric}_vs_{param}"))));
         }
+    }
+    // Drawing is the whole cost here, and the charts are independent: one per core,
+    // written in order.
+    use rayon::prelude::*;
+    let saved: Vec<_> = charts
+        .par_iter()
+        .map(|(chart, stem)| save_chart(chart, stem))
+        .collect();
+    for s in saved {
+        files.extend(s?);
     }
     Ok(files)
 }
