@@ -479,6 +479,7 @@ pub fn diagnose_with_progress(
     recenter_unfitted(&prepared, &mut base_resid, &split.full, &keep);
     let ic_fit = fitted_ratio(&drive0, &base_fit);
     let floor = noise_floor(&prepared, &base_resid, &keep, ic_fit).max(1e-12);
+    let min_drift = least_resolvable_drift(&prepared, floor);
 
     // On a calibrated instrument (a scenario's `[effects]`) the search asks what is still
     // missing on top of it: its drive and effects held as calibrated, only each log's zero
@@ -594,6 +595,8 @@ pub fn diagnose_with_progress(
             let gain_mrad = (current - rmse) * 1e3;
             let verdict = if !physical {
                 "size outside physical bounds (stands in for something else)"
+            } else if !resolvable(fit, min_drift) {
+                "drift below the noise over the record (not told from the sensor's wander)"
             } else if gain < ident.min_gain_percent {
                 "gain below threshold"
             } else if gain_mrad < ident.min_gain_mrad {
@@ -628,7 +631,7 @@ pub fn diagnose_with_progress(
                 }
             };
             let (ok, row) = judge(e.to_string(), rmse, &fit);
-            if rmse < current && plausible(&fit, drive0.ratio()) {
+            if rmse < current && plausible(&fit, drive0.ratio()) && resolvable(&fit, min_drift) {
                 helpful.push((e, rmse));
             }
             scores.push(row);
@@ -740,7 +743,7 @@ pub fn diagnose_with_progress(
         let score = |effs: &[EffectName]| {
             held_out(&full_drive, &fold_drives, effs)
                 .ok()
-                .filter(|(_, _, fit)| plausible(fit, drive0.ratio()))
+                .filter(|(_, _, fit)| plausible(fit, drive0.ratio()) && resolvable(fit, min_drift))
                 .map(|(rmse, _, _)| rmse)
         };
         indistinguishable = match score(&chosen) {
@@ -1274,6 +1277,34 @@ fn plausible(f: &Fitted, ic: f64) -> bool {
         };
         v <= limit(*e)
     })
+}
+
+/// The smallest thermal drift the logs can tell from their sensors' own slow wander,
+/// rad/s: one that moves the reading by the noise floor (`floor`, rad RMS) over the longest
+/// record. A random walk's slope over a record of length `T` scatters by about its end RMS
+/// over `T`, so a smaller drift is no more than the encoder's wander: on a clean 30 s log
+/// with an input jerk kept out, a drift of 0.13 µrad/s (4 µrad over the log, under the
+/// floor of 5.7 µrad) passed the gain gate at 5 %. The realistic drifts of a bench, 1 to 5
+/// µrad/s, move a 30 s record by 5 to 25 times that floor.
+fn least_resolvable_drift(logs: &[Prepared], floor: f64) -> f64 {
+    let longest = logs
+        .iter()
+        .filter_map(|l| Some(l.t.last()? - l.t.first()?))
+        .fold(0.0, f64::max);
+    if longest > 0.0 {
+        floor / longest
+    } else {
+        0.0
+    }
+}
+
+/// Whether a fit's thermal drift, if it has one, is at least `min_drift_rad_s` in size
+/// (see [`least_resolvable_drift`]).
+fn resolvable(f: &Fitted, min_drift_rad_s: f64) -> bool {
+    f.lin
+        .iter()
+        .position(|p| *p == LinParam::Effect(EffectName::ThermalDrift, 0))
+        .is_none_or(|i| f.coef[i].abs() >= min_drift_rad_s)
 }
 
 /// Ratio implied by a fit's inverse-ratio coefficient.
