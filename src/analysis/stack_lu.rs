@@ -196,7 +196,7 @@ mod tests {
     }
 
     /// Random matrices of every size up to the largest, with entries spread over many
-    /// decades, exact zeros (signed), repeated rows and columns, and `z` on and off the
+    /// decades, exact zeros (signed), a repeated column, and `z` on and off the
     /// unit circle: the solution is nalgebra's bit for bit, signs of zero included.
     #[test]
     fn the_solution_is_nalgebras_bit_for_bit() {
