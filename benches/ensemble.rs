@@ -86,16 +86,18 @@ fn main() -> ExitCode {
                 let values: Vec<Option<f64>> = members.iter().map(|m| m[mode][figure]).collect();
                 let stopped = values.iter().filter(|v| v.is_none()).count();
                 let done: Vec<f64> = values.iter().flatten().copied().collect();
-                let (lo, hi) = done
-                    .iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                        (a.min(*v), b.max(*v))
-                    });
+                // The members' range, none when every member stopped.
+                let range = (!done.is_empty()).then(|| {
+                    done.iter()
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                            (a.min(*v), b.max(*v))
+                        })
+                });
+                let (lo, hi) = (range.map(|r| r.0), range.map(|r| r.1));
                 let mean = done.iter().sum::<f64>() / done.len().max(1) as f64;
-                let spread = if done.is_empty() || mean == 0.0 {
-                    "-".to_string()
-                } else {
-                    format!("{:.3}", (hi - lo) / mean.abs() * 100.0)
+                let spread = match range {
+                    Some((l, h)) if mean != 0.0 => format!("{:.3}", (h - l) / mean.abs() * 100.0),
+                    _ => "-".to_string(),
                 };
                 let members_note = if stopped > 0 {
                     format!(" ({stopped} of {} stopped)", values.len())
@@ -105,13 +107,12 @@ fn main() -> ExitCode {
                 println!(
                     "| {name} | {mode} | {figure} | {} | {} | {} | {spread}{members_note} |",
                     shown(*value),
-                    shown((!done.is_empty()).then_some(lo)),
-                    shown((!done.is_empty()).then_some(hi)),
+                    shown(lo),
+                    shown(hi),
                 );
                 per_mode.insert(
                     figure.to_string(),
-                    json!({"unperturbed": value, "min": (!done.is_empty()).then_some(lo),
-                           "max": (!done.is_empty()).then_some(hi), "stopped": stopped}),
+                    json!({"unperturbed": value, "min": lo, "max": hi, "stopped": stopped}),
                 );
                 if let Some(reference) = &check {
                     let r = &reference[name][mode.as_str()][*figure];

@@ -1203,20 +1203,15 @@ impl ClosedLoopParams {
         } else {
             0.0
         };
-        // A reference bounded within the limit passes as its samples would; a sweep
-        // validates every case, and the 8190 samples were about 1 % of a 2 s case.
-        let within = self
-            .reference
-            .value_bound()
-            .is_some_and(|b| b <= MAX_POINTING_RAD);
-        let peak = if within {
-            0.0
-        } else {
-            [4096u32, 4093]
+        // A bound within the limit stands in for the samples, which cannot exceed it; a
+        // sweep validates every case, and the 8190 samples were about 1 % of a 2 s case.
+        let peak = match self.reference.value_bound() {
+            Some(bound) if bound <= MAX_POINTING_RAD => bound,
+            _ => [4096u32, 4093]
                 .iter()
                 .flat_map(|&n| (0..=n).map(move |i| duration * f64::from(i) / f64::from(n)))
                 .map(|t| self.reference.at(t).value.abs())
-                .fold(0.0, f64::max)
+                .fold(0.0, f64::max),
         };
         if peak.is_nan() || peak > MAX_POINTING_RAD {
             return Err((

@@ -480,6 +480,8 @@ pub fn diagnose_with_progress(
     let ic_fit = fitted_ratio(&drive0, &base_fit);
     let floor = noise_floor(&prepared, &base_resid, &keep, ic_fit).max(1e-12);
     let min_drift = least_resolvable_drift(&prepared, floor);
+    // A fit the search may build on: sizes physically possible and a drift resolvable.
+    let admissible = |fit: &Fitted| plausible(fit, drive0.ratio()) && resolvable(fit, min_drift);
 
     // On a calibrated instrument (a scenario's `[effects]`) the search asks what is still
     // missing on top of it: its drive and effects held as calibrated, only each log's zero
@@ -631,7 +633,7 @@ pub fn diagnose_with_progress(
                 }
             };
             let (ok, row) = judge(e.to_string(), rmse, &fit);
-            if rmse < current && plausible(&fit, drive0.ratio()) && resolvable(&fit, min_drift) {
+            if rmse < current && admissible(&fit) {
                 helpful.push((e, rmse));
             }
             scores.push(row);
@@ -743,7 +745,7 @@ pub fn diagnose_with_progress(
         let score = |effs: &[EffectName]| {
             held_out(&full_drive, &fold_drives, effs)
                 .ok()
-                .filter(|(_, _, fit)| plausible(fit, drive0.ratio()) && resolvable(fit, min_drift))
+                .filter(|(_, _, fit)| admissible(fit))
                 .map(|(rmse, _, _)| rmse)
         };
         indistinguishable = match score(&chosen) {
