@@ -26,7 +26,7 @@
 use nalgebra::{Complex, DMatrix, DVector};
 use serde::Serialize;
 
-use super::stack_lu;
+use super::resolvent::{self, StateMatrix};
 use crate::closed_loop::filters::{Biquad, FilterSpec};
 use crate::closed_loop::params::{Amplifier, ClosedLoopParams, Feedback, RateSource};
 pub use crate::closed_loop::sim::Instability;
@@ -43,6 +43,9 @@ pub struct LinearLoop {
     voltage: bool,
     /// State transition over one period.
     ad: DMatrix<f64>,
+    /// `ad` on the stack, for its resolvent at the margins' thousands of frequencies;
+    /// `None` beyond [`resolvent::MAX_DIM`] states.
+    ad_stack: Option<StateMatrix>,
     /// Input matrix of the command held over the first `fraction` of the period.
     b1: DVector<f64>,
     /// Input matrix of the command held over the rest.
@@ -322,6 +325,7 @@ impl LinearLoop {
             a_cont: a,
             b_cont: b,
             voltage,
+            ad_stack: StateMatrix::of(&ad),
             ad,
             b1: phi_rest * gam_first,
             b2: gam_rest,
@@ -387,16 +391,20 @@ impl LinearLoop {
     }
 
     /// `(zI - Ad)^-1 v` at `f_hz`, `v` given by its components: on the stack for the
-    /// usual sizes, through `DMatrix` beyond them, with the same arithmetic either way.
+    /// usual sizes, through nalgebra's LU beyond them.
     fn resolvent(&self, f_hz: f64, v: impl Fn(usize) -> Complex<f64>) -> Resolved {
-        let z = Complex::from_polar(1.0, std::f64::consts::TAU * f_hz * self.ts);
+        self.resolvent_at(self.z_inverse(f_hz).conj(), v)
+    }
+
+    /// [`Self::resolvent`] at `z` (on the unit circle: `e^{j 2 pi f T}`).
+    fn resolvent_at(&self, z: Complex<f64>, v: impl Fn(usize) -> Complex<f64>) -> Resolved {
         let n = self.ad.nrows();
-        if n <= stack_lu::MAX_DIM {
-            let mut rhs = [Complex::new(0.0, 0.0); stack_lu::MAX_DIM];
+        if let Some(r) = &self.ad_stack {
+            let mut rhs = [Complex::new(0.0, 0.0); resolvent::MAX_DIM];
             for (i, e) in rhs.iter_mut().enumerate().take(n) {
                 *e = v(i);
             }
-            if let Some(x) = stack_lu::resolvent(&self.ad, z, &rhs[..n]) {
+            if let Some(x) = r.resolvent(z, &rhs[..n]) {
                 return Resolved::Stack(x);
             }
         }
@@ -408,8 +416,8 @@ impl LinearLoop {
     /// Responses of the motor angle, the drum angle and the gyro's rate to the held
     /// command at `f_hz`, delay included (rad, or rad/s for the gyro, per A or V).
     pub fn plant_rows(&self, f_hz: f64) -> [Complex<f64>; 3] {
-        let zi = Complex::from_polar(1.0, -std::f64::consts::TAU * f_hz * self.ts);
-        let x = self.resolvent(f_hz, |i| {
+        let zi = self.z_inverse(f_hz);
+        let x = self.resolvent_at(zi.conj(), |i| {
             Complex::from(self.b1[i]) * zi + Complex::from(self.b2[i])
         });
         let d = zi.powi(self.whole as i32);
@@ -475,7 +483,7 @@ impl LinearLoop {
     /// Plant `P` from held command to the position loop's measurement at `f_hz`, delay
     /// included (for gyro-angle feedback: to `ic` times the gyro's rate).
     pub fn plant(&self, f_hz: f64) -> Complex<f64> {
-        self.plant_at(f_hz, self.z_inverse(f_hz))
+        self.plant_at(self.z_inverse(f_hz))
     }
 
     /// `z^-1 = e^{-j 2 pi f T}` at `f_hz`.
@@ -484,8 +492,9 @@ impl LinearLoop {
     }
 
     /// [`Self::plant`] with its `z^-1` given.
-    fn plant_at(&self, f_hz: f64, zi: Complex<f64>) -> Complex<f64> {
-        let x = self.resolvent(f_hz, |i| {
+    fn plant_at(&self, zi: Complex<f64>) -> Complex<f64> {
+        // On the unit circle z is the conjugate of z^-1: one sine and cosine for both.
+        let x = self.resolvent_at(zi.conj(), |i| {
             Complex::from(self.b1[i]) * zi + Complex::from(self.b2[i])
         });
         dot(&self.c, x.as_slice()) * zi.powi(self.whole as i32)
@@ -592,7 +601,7 @@ impl LinearLoop {
         if self.law.is_none() {
             // One z^-1 for both: the margins read the loop at thousands of frequencies.
             let zi = self.z_inverse(f_hz);
-            return self.controller_at(zi) * self.plant_at(f_hz, zi);
+            return self.controller_at(zi) * self.plant_at(zi);
         }
         let p = self.plant_rows(f_hz);
         let k = self.law_row(f_hz);
@@ -1126,9 +1135,9 @@ fn dot(r: &DVector<f64>, x: &[Complex<f64>]) -> Complex<f64> {
     r.iter().zip(x.iter()).map(|(c, x)| x * *c).sum()
 }
 
-/// A resolvent's solution, on the stack or (beyond [`stack_lu::MAX_DIM`] states) not.
+/// A resolvent's solution, on the stack or (beyond [`resolvent::MAX_DIM`] states) not.
 enum Resolved {
-    Stack(stack_lu::Solved),
+    Stack(resolvent::Solved),
     Heap(DVector<Complex<f64>>),
 }
 
@@ -1250,6 +1259,7 @@ mod tests {
             a_cont: a.clone(),
             b_cont: b.clone(),
             voltage: false,
+            ad_stack: StateMatrix::of(&ad),
             ad: ad.clone(),
             b1: DVector::zeros(2),
             b2: bd.clone(),

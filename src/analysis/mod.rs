@@ -8,5 +8,5 @@ pub mod freqresp;
 pub mod linear;
 pub mod linear_model;
 pub mod margins;
-mod stack_lu;
+mod resolvent;
 pub mod verdict;
