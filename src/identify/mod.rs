@@ -1249,12 +1249,7 @@ fn recalibrate(
 /// Whether every effect size in a fit is physically possible; a runout of half the radius
 /// or a delay of seconds is a sign that the effect is standing in for something else.
 fn plausible(f: &Fitted, ic: f64) -> bool {
-    let coef = |e: EffectName, k: usize| {
-        f.lin
-            .iter()
-            .position(|p| *p == LinParam::Effect(e, k))
-            .map(|i| f.coef[i])
-    };
+    let coef = |e: EffectName, k: usize| f.effect_coef(e, k);
     let limit = |e: EffectName| match e {
         EffectName::InputPulleyRunout | EffectName::OutputDrumRunout => 0.05,
         EffectName::EncoderDelay => 0.05,
@@ -1303,10 +1298,8 @@ fn least_resolvable_drift(logs: &[Prepared], floor: f64) -> f64 {
 /// Whether a fit's thermal drift, if it has one, is at least `min_drift_rad_s` in size
 /// (see [`least_resolvable_drift`]).
 fn resolvable(f: &Fitted, min_drift_rad_s: f64) -> bool {
-    f.lin
-        .iter()
-        .position(|p| *p == LinParam::Effect(EffectName::ThermalDrift, 0))
-        .is_none_or(|i| f.coef[i].abs() >= min_drift_rad_s)
+    f.effect_coef(EffectName::ThermalDrift, 0)
+        .is_none_or(|v| v.abs() >= min_drift_rad_s)
 }
 
 /// Ratio implied by a fit's inverse-ratio coefficient.

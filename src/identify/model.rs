@@ -456,6 +456,17 @@ pub struct Fitted {
     pub converged: bool,
 }
 
+impl Fitted {
+    /// The fitted linear coefficient `k` of effect `e` (its unit is the effect's), or
+    /// `None` when the fit does not carry it.
+    pub fn effect_coef(&self, e: EffectName, k: usize) -> Option<f64> {
+        self.lin
+            .iter()
+            .position(|p| *p == LinParam::Effect(e, k))
+            .map(|i| self.coef[i])
+    }
+}
+
 type ReplayKey = [u64; 5];
 
 /// Evaluates a model on a set of logs, caching base replays.
