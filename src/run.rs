@@ -447,6 +447,8 @@ impl QuasiStaticRunner {
 /// Figures of one closed-loop case: per compensation mode, the pointing metrics.
 pub struct ClosedLoopRunner {
     modes: Vec<closed_loop::CompensationMode>,
+    // The cases vary the plant, not the reference: it is sampled once for all of them.
+    reference: closed_loop::ReferenceCache,
 }
 
 impl ClosedLoopRunner {
@@ -458,6 +460,7 @@ impl ClosedLoopRunner {
                 .as_ref()
                 .map(|c| c.modes.clone())
                 .unwrap_or_default(),
+            reference: closed_loop::ReferenceCache::new(),
         }
     }
 
@@ -498,7 +501,7 @@ impl CaseRunner for ClosedLoopRunner {
     }
 
     fn run(&self, scenario: &Scenario, _case: &Case) -> Vec<Cell> {
-        let result = match closed_loop::run_closed_loop_metrics(scenario) {
+        let result = match closed_loop::run_closed_loop_metrics_shared(scenario, &self.reference) {
             Ok(r) => r,
             // Could not run at all: every mode is an error, apart from a physical stop.
             Err(e) => {

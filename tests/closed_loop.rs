@@ -783,3 +783,33 @@ fn a_command_stuck_at_the_amplifier_limit_stops_the_run() {
     assert!(ok.complete);
     assert!(ok.modes.iter().all(|m| m.saturation.longest_s < 0.1));
 }
+
+/// A sweep's cases read the reference from one table: every figure of a run that reads
+/// it is bit for bit the figure of a run that evaluates the signal itself, also when the
+/// table was made by an earlier run and when a run with another reference replaces it.
+#[test]
+fn a_shared_reference_table_changes_no_result() {
+    let cache = ReferenceCache::new();
+    let strip = |r: ClosedLoopResult| -> Vec<ModeResult> {
+        r.modes
+            .into_iter()
+            .map(|mut m| {
+                m.stats.wall_s = 0.0;
+                m
+            })
+            .collect()
+    };
+    for name in ["eots_tracking", "eots_scan", "step_stare", "eots_tracking"] {
+        let mut s = builtin(name);
+        {
+            let p = params(&mut s);
+            p.duration_s = 0.6;
+            p.metrics_start_s = 0.1;
+        }
+        let own = strip(run_closed_loop_metrics(&s).unwrap());
+        for _ in 0..2 {
+            let shared = strip(run_closed_loop_metrics_shared(&s, &cache).unwrap());
+            assert_eq!(shared, own, "{name}");
+        }
+    }
+}

@@ -17,6 +17,7 @@ pub mod params;
 pub mod period;
 pub mod plant;
 pub mod probe;
+pub mod reference;
 pub mod requirements;
 pub mod sim;
 
@@ -25,10 +26,11 @@ pub use params::{
     DisturbanceObserverParams, DriveOverride, Feedback, GyroParams, MotorParams, OutputParams,
     RateLoopParams, RateSource, SensorParams, StartState,
 };
+pub use reference::{ReferenceCache, SampledReference};
 pub use requirements::Requirements;
 pub use sim::{
-    estimate_work, run_closed_loop, run_closed_loop_metrics, run_closed_loop_then, ClosedLoopError,
-    ClosedLoopResult, ClosedLoopSetup, ClosedLoopSource, CommandSaturation, Completion, Injection,
-    InjectionSite, Instability, ModeResult, RunOptions, SolverStats, StopKind, TimeSeries,
-    WorkEstimate,
+    estimate_work, run_closed_loop, run_closed_loop_metrics, run_closed_loop_metrics_shared,
+    run_closed_loop_shared, run_closed_loop_then, ClosedLoopError, ClosedLoopResult,
+    ClosedLoopSetup, ClosedLoopSource, CommandSaturation, Completion, Injection, InjectionSite,
+    Instability, ModeResult, RunOptions, SolverStats, StopKind, TimeSeries, WorkEstimate,
 };

@@ -15,6 +15,7 @@ use super::plant::{
     load_torque, BaseSegment, BrakeState, PlantCable, PlantCoefficients, State, CURRENT, GYRO,
     OMEGA_M, OMEGA_O, THETA_M, THETA_O,
 };
+use super::reference::{ReferenceCache, SampledReference};
 use crate::metrics::limit_cycle::{Forcing, LimitCycle, LimitCycleDetector};
 use crate::metrics::los::{error_spectrum, los_metrics, ErrorSpectrum, LosMetrics};
 use crate::metrics::{Metrics, MetricsAccumulator, MetricsConfig, Sample, StepEvent};
@@ -558,6 +559,17 @@ pub fn run_closed_loop_then<T: Send>(
     options: &RunOptions,
     then: impl Fn(&ModeResult) -> T + Sync,
 ) -> Result<(ClosedLoopResult, Vec<T>), ClosedLoopError> {
+    run_closed_loop_shared(source, options, None, then)
+}
+
+/// [`run_closed_loop_then`] reading the reference from `reference`, a cache shared by the
+/// runs of one study (the cases of a sweep): the results are bit for bit those without it.
+pub fn run_closed_loop_shared<T: Send>(
+    source: &(impl ClosedLoopSource + ?Sized),
+    options: &RunOptions,
+    reference: Option<&ReferenceCache>,
+    then: impl Fn(&ModeResult) -> T + Sync,
+) -> Result<(ClosedLoopResult, Vec<T>), ClosedLoopError> {
     let setup = source.closed_loop_setup()?;
     let scenario = &setup;
     let p = setup.params;
@@ -649,12 +661,15 @@ pub fn run_closed_loop_then<T: Send>(
         });
     }
     let instability = setup.instability;
+    let sampled =
+        reference.and_then(|c| c.get(&p.reference, 1.0 / p.controller.sample_rate_hz, p.periods()));
+    let sampled = sampled.as_deref();
     // Modes are independent runs, side by side on the cores (results in mode order).
     // Inside a pool (a sweep's cases) the pool shares the cores out; alone, one thread
     // per mode: three modes on two cores then finish together in 1.5 mode-times, where
     // a two-thread pool needs two.
     let one = |m: CompensationMode| {
-        let r = run_mode(&setup, m, options, instability);
+        let r = run_mode(&setup, m, options, instability, sampled);
         let t = then(&r);
         (r, t)
     };
@@ -687,6 +702,16 @@ pub fn run_closed_loop_metrics(
     source: &(impl ClosedLoopSource + ?Sized),
 ) -> Result<ClosedLoopResult, ClosedLoopError> {
     run_closed_loop(source, &RunOptions::metrics_only())
+}
+
+/// [`run_closed_loop_metrics`] reading the reference from a cache shared by the cases of
+/// a sweep; the same results.
+pub fn run_closed_loop_metrics_shared(
+    source: &(impl ClosedLoopSource + ?Sized),
+    reference: &ReferenceCache,
+) -> Result<ClosedLoopResult, ClosedLoopError> {
+    run_closed_loop_shared(source, &RunOptions::metrics_only(), Some(reference), |_| ())
+        .map(|(result, _)| result)
 }
 
 /// Fault message with time and mode. A slack span found while solving by displacement
@@ -906,6 +931,7 @@ fn run_mode(
     mode: CompensationMode,
     options: &RunOptions,
     instability: Option<Instability>,
+    sampled: Option<&SampledReference>,
 ) -> ModeResult {
     let wall = Instant::now();
     let p = scenario.params;
@@ -1040,7 +1066,9 @@ fn run_mode(
         // Controller at t_k.
         let ym = sensors.motor.read(x[THETA_M], &mut sensors.rng);
         let yo = sensors.output.read(output, &mut sensors.rng);
-        let r = p.reference.at(t);
+        let r = sampled
+            .and_then(|s| s.point(k))
+            .unwrap_or_else(|| p.reference.at(t));
         let delta = if r.rate != 0.0 {
             r.rate
         } else {
