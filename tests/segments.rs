@@ -569,3 +569,31 @@ fn a_clean_log_under_an_input_jerk_is_none() {
     let none = answers.iter().filter(|a| a.contains(": none,")).count();
     assert_eq!(none, 6, "{answers:#?}");
 }
+
+/// Short records cut from the eleven real logs (6 and 10 s, many starts, most of them
+/// with one or two reversals): nothing flagged. The free travel after a reversal, where
+/// the jaw stands while the spindle turns back, once read as the output departing from
+/// the input, the straight line's spread being narrow over so few reversals.
+#[test]
+fn short_records_of_the_real_logs_have_nothing_flagged() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/real-data/davinci");
+    if !dir.exists() {
+        eprintln!("{} absent: skipped", dir.display());
+        return;
+    }
+    for l in davinci::eleven_logs(&dir) {
+        let end = l.t_s[l.t_s.len() - 1];
+        for len in [6.0, 10.0] {
+            let mut from = l.t_s[0];
+            while from + len <= end {
+                let s = flagged(&slice(&l, from, from + len));
+                assert!(
+                    s.is_empty(),
+                    "{} from {from:.1} s for {len} s: {s:?}",
+                    l.source
+                );
+                from += 0.7 * len;
+            }
+        }
+    }
+}

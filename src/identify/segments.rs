@@ -677,6 +677,12 @@ fn output_departures(
     let e: Vec<f64> = (0..n).map(|i| xo[i] - gain * xi[i]).collect();
     let (se, me) = robust(&e);
     let te = (ROBUST_K * se).max(10.0 * q_out).max(1e-12);
+    // A record of few reversals has most of its samples on one branch of the drive's
+    // hysteresis, so the straight line's spread is narrow and the free travel after a
+    // reversal reads as a departure; off the drive is off both the line and the play.
+    let e_play = play_residual(xi, xo);
+    let (sp, mp) = robust(&e_play);
+    let tp = (ROBUST_K * sp).max(10.0 * q_out).max(1e-12);
     let speed = |x: &[f64], i: usize| {
         let (a, b) = (i.saturating_sub(h), (i + h).min(n - 1));
         (x[b] - x[a]) / (t[b] - t[a]).max(1e-300)
@@ -688,7 +694,9 @@ fn output_departures(
             speed(xo, i).abs() > JERK_SPEED * driven + floor
         })
         .collect();
-    let flag: Vec<bool> = (0..n).map(|i| (e[i] - me).abs() > te || fast[i]).collect();
+    let flag: Vec<bool> = (0..n)
+        .map(|i| ((e[i] - me).abs() > te && (e_play[i] - mp).abs() > tp) || fast[i])
+        .collect();
     runs(&flag, min_len)
         .into_iter()
         .map(|(a, b)| {
@@ -700,6 +708,52 @@ fn output_departures(
             (Channel::Output, reason, a, b)
         })
         .collect()
+}
+
+/// Widest play half-width tried for [`play_residual`], as a share of the input's range:
+/// the da Vinci drives' free travel is 2 to 6 % of theirs.
+const PLAY_MAX_SHARE: f64 = 0.1;
+
+/// Play half-widths tried, evenly from zero to [`PLAY_MAX_SHARE`] of the range.
+const PLAY_WIDTHS: usize = 20;
+
+/// The output less the drive's response as a play operator: `xo - a - g P_r(xi)`, with the
+/// half-width `r`, the play's state at the first sample (centred or against either side)
+/// and the line `a + g p` chosen for the least robust spread, so that a stretch that
+/// departs from the drive (a minority of the samples) does not pull the fit. The
+/// straight line (`r = 0`) is among the candidates.
+fn play_residual(xi: &[f64], xo: &[f64]) -> Vec<f64> {
+    let n = xi.len().min(xo.len());
+    let (lo, hi) = xi[..n]
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(*v), h.max(*v))
+        });
+    let range = (hi - lo).max(0.0);
+    let mut best: Option<(f64, Vec<f64>)> = None;
+    let mut p = vec![0.0; n];
+    for k in 0..=PLAY_WIDTHS {
+        let r = PLAY_MAX_SHARE * range * k as f64 / PLAY_WIDTHS as f64;
+        let starts: &[f64] = if k == 0 { &[0.0] } else { &[-1.0, 0.0, 1.0] };
+        for side in starts {
+            let mut y = xi[0] + side * r;
+            for (pi, v) in p.iter_mut().zip(&xi[..n]) {
+                y = y.clamp(v - r, v + r);
+                *pi = y;
+            }
+            let mp = p.iter().sum::<f64>() / n as f64;
+            let mo = xo[..n].iter().sum::<f64>() / n as f64;
+            let sxy: f64 = p.iter().zip(xo).map(|(a, b)| (a - mp) * (b - mo)).sum();
+            let sxx: f64 = p.iter().map(|a| (a - mp).powi(2)).sum();
+            let g = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+            let e: Vec<f64> = (0..n).map(|i| xo[i] - mo - g * (p[i] - mp)).collect();
+            let (spread, _) = robust(&e);
+            if best.as_ref().is_none_or(|b| spread < b.0) {
+                best = Some((spread, e));
+            }
+        }
+    }
+    best.map(|b| b.1).unwrap_or_else(|| vec![0.0; n])
 }
 
 /// Band (rad) within which a reading that holds still stays, from its own sample-to-sample
@@ -981,6 +1035,58 @@ mod tests {
 
     fn q(v: f64, step: f64) -> f64 {
         (v / step).round() * step
+    }
+
+    /// A drive with the free travel of the first da Vinci log (0.025 rad of spindle at a
+    /// reversal), recorded for 6 s of a 0.1 Hz scan that reverses once near the end: the
+    /// output standing still through the play after the reversal is the drive, not a
+    /// departure, wherever the record starts. A reading that drops by 0.1 rad for 0.5 s on
+    /// such a record is still caught at its jumps; on so short a record the held stretch
+    /// between them is not named a departure.
+    #[test]
+    fn the_free_travel_after_a_reversal_is_not_a_departure() {
+        use rand::{Rng, SeedableRng};
+        let step_in = std::f64::consts::TAU / 8192.0;
+        let step_out = std::f64::consts::TAU / 4000.0;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        for start in [0.0, 0.7, 1.9, 3.3] {
+            let t: Vec<f64> = (0..6000).map(|i| start + i as f64 * 1e-3).collect();
+            let scan: Vec<f64> = t
+                .iter()
+                .map(|t| 1.0 * (0.2 * std::f64::consts::PI * (t + 2.5)).sin())
+                .collect();
+            let free = crate::identify::play::play(&scan, 0.0125);
+            let xi: Vec<f64> = scan
+                .iter()
+                .map(|x| q(x + 2e-4 * rng.gen_range(-1.0..1.0), step_in))
+                .collect();
+            let clean: Vec<f64> = free
+                .iter()
+                .map(|x| q(0.9 * x - 1.2 + 3e-4 * rng.gen_range(-1.0..1.0), step_out))
+                .collect();
+            let s = detect(&log(t.clone(), xi.clone(), clean.clone()), "excluded");
+            assert!(s.is_empty(), "start {start}: {s:?}");
+            let dropped: Vec<f64> = clean
+                .iter()
+                .zip(&t)
+                .map(|(x, ti)| {
+                    if (start + 2.0..start + 2.5).contains(ti) {
+                        x - 0.1
+                    } else {
+                        *x
+                    }
+                })
+                .collect();
+            let s = detect(&log(t, xi, dropped), "excluded");
+            for edge in [start + 2.0, start + 2.5] {
+                assert!(
+                    s.iter().any(|s| s.channel == Channel::Output
+                        && s.start_s <= edge
+                        && s.end_s >= edge),
+                    "start {start}, edge {edge}: {s:?}"
+                );
+            }
+        }
     }
 
     #[test]
