@@ -9,13 +9,19 @@ use crate::physics::DriveParams;
 
 /// Play operator of half-width `r` applied to `x`, started centred.
 pub fn play(x: &[f64], r: f64) -> Vec<f64> {
-    let mut y = x.first().copied().unwrap_or(0.0);
-    x.iter()
-        .map(|v| {
-            y = y.clamp(v - r, v + r);
-            y
-        })
-        .collect()
+    let mut out = vec![0.0; x.len()];
+    play_into(x, r, x.first().copied().unwrap_or(0.0), &mut out);
+    out
+}
+
+/// Play operator of half-width `r` applied to `x` into `out` (as long as `x`), its output
+/// starting from `y0` (clamped to the first sample's band).
+pub fn play_into(x: &[f64], r: f64, y0: f64, out: &mut [f64]) {
+    let mut y = y0;
+    for (o, v) in out.iter_mut().zip(x) {
+        y = y.clamp(v - r, v + r);
+        *o = y;
+    }
 }
 
 struct PlayFit {
