@@ -196,16 +196,23 @@ fn each_fault_is_flagged_on_its_channel_at_its_times() {
     }
 }
 
-/// The eleven real da Vinci logs: nothing flagged after their start-up cut.
-#[test]
-fn real_logs_have_nothing_flagged() {
+/// The eleven real da Vinci logs beside the project; `None` (the test says "skipped")
+/// where they are absent.
+fn real_logs() -> Option<Vec<BenchLog>> {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/real-data/davinci");
     if !dir.exists() {
         eprintln!("{} absent: skipped", dir.display());
-        return;
+        return None;
     }
     let _ = davinci::EXTENSION;
-    for l in davinci::eleven_logs(&dir) {
+    Some(davinci::eleven_logs(&dir))
+}
+
+/// The eleven real da Vinci logs: nothing flagged after their start-up cut.
+#[test]
+fn real_logs_have_nothing_flagged() {
+    let Some(logs) = real_logs() else { return };
+    for l in logs {
         let s = flagged(&l);
         assert!(s.is_empty(), "{}: {s:?}", l.source);
     }
@@ -576,12 +583,8 @@ fn a_clean_log_under_an_input_jerk_is_none() {
 /// the input, the straight line's spread being narrow over so few reversals.
 #[test]
 fn short_records_of_the_real_logs_have_nothing_flagged() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/real-data/davinci");
-    if !dir.exists() {
-        eprintln!("{} absent: skipped", dir.display());
-        return;
-    }
-    for l in davinci::eleven_logs(&dir) {
+    let Some(logs) = real_logs() else { return };
+    for l in logs {
         let end = l.t_s[l.t_s.len() - 1];
         for len in [6.0, 10.0] {
             let mut from = l.t_s[0];

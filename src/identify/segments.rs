@@ -728,32 +728,43 @@ fn play_residual(xi: &[f64], xo: &[f64]) -> Vec<f64> {
     if n == 0 {
         return Vec::new();
     }
-    let (lo, hi) = xi[..n]
+    let (xi, xo) = (&xi[..n], &xo[..n]);
+    let (lo, hi) = xi
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
             (l.min(*v), h.max(*v))
         });
     let range = (hi - lo).max(0.0);
-    let mut best: Option<(f64, Vec<f64>)> = None;
+    let mo = xo.iter().sum::<f64>() / n as f64;
     let mut p = vec![0.0; n];
+    let mut e = vec![0.0; n];
+    // The residual of a play `(r, first output)` fitted by least squares, into `e`;
+    // returns its robust spread.
+    let fit = |r: f64, y0: f64, p: &mut [f64], e: &mut [f64]| {
+        super::play::play_into(xi, r, y0, p);
+        let mp = p.iter().sum::<f64>() / n as f64;
+        let sxy: f64 = p.iter().zip(xo).map(|(a, b)| (a - mp) * (b - mo)).sum();
+        let sxx: f64 = p.iter().map(|a| (a - mp).powi(2)).sum();
+        let g = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+        for ((ei, pi), oi) in e.iter_mut().zip(p.iter()).zip(xo) {
+            *ei = oi - mo - g * (pi - mp);
+        }
+        robust(e).0
+    };
+    let mut best = (f64::INFINITY, 0.0, xi[0]);
     for k in 0..=PLAY_WIDTHS {
         let r = PLAY_MAX_SHARE * range * k as f64 / PLAY_WIDTHS as f64;
         let starts: &[f64] = if k == 0 { &[0.0] } else { &[-1.0, 0.0, 1.0] };
         for side in starts {
-            super::play::play_into(&xi[..n], r, xi[0] + side * r, &mut p);
-            let mp = p.iter().sum::<f64>() / n as f64;
-            let mo = xo[..n].iter().sum::<f64>() / n as f64;
-            let sxy: f64 = p.iter().zip(xo).map(|(a, b)| (a - mp) * (b - mo)).sum();
-            let sxx: f64 = p.iter().map(|a| (a - mp).powi(2)).sum();
-            let g = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-            let e: Vec<f64> = (0..n).map(|i| xo[i] - mo - g * (p[i] - mp)).collect();
-            let (spread, _) = robust(&e);
-            if best.as_ref().is_none_or(|b| spread < b.0) {
-                best = Some((spread, e));
+            let y0 = xi[0] + side * r;
+            let spread = fit(r, y0, &mut p, &mut e);
+            if spread < best.0 {
+                best = (spread, r, y0);
             }
         }
     }
-    best.map(|b| b.1).unwrap_or_else(|| vec![0.0; n])
+    fit(best.1, best.2, &mut p, &mut e);
+    e
 }
 
 /// Band (rad) within which a reading that holds still stays, from its own sample-to-sample
