@@ -360,12 +360,15 @@ pub fn leave_one_out_with_segments(
     }
     let (cut, start_cuts): (Vec<BenchLog>, Vec<StartCut>) =
         logs.iter().map(|l| startup::cut_start(l, start)).unzip();
-    let prepared: Vec<Prepared> = cut
+    let mut prepared: Vec<Prepared> = cut
         .iter()
         .map(|l| model::prepare(l, ident.max_rate_hz))
         .collect::<Result<_, _>>()?;
     check_logs(&cut, &prepared)?;
     let (segments, keep_per_log) = super::segments::detect_all(&cut, &prepared, keep_segments);
+    for (p, k) in prepared.iter_mut().zip(&keep_per_log) {
+        p.direction_over(k);
+    }
     let keep: Vec<bool> = keep_per_log.iter().flatten().copied().collect();
     let n: usize = prepared.iter().map(|p| p.t.len()).sum();
     let ranges: Vec<std::ops::Range<usize>> = prepared

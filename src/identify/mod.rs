@@ -448,12 +448,15 @@ pub fn diagnose_with_progress(
         .iter()
         .map(|l| startup::cut_start(l, options.start))
         .unzip();
-    let prepared: Vec<Prepared> = cut_logs
+    let mut prepared: Vec<Prepared> = cut_logs
         .iter()
         .map(|l| model::prepare(l, ident.max_rate_hz))
         .collect::<Result<_, _>>()?;
     let (segments_per_log, keep_per_log) =
         segments::detect_all(&cut_logs, &prepared, options.keep_segments);
+    for (p, k) in prepared.iter_mut().zip(&keep_per_log) {
+        p.direction_over(k);
+    }
     let keep: Vec<bool> = keep_per_log.iter().flatten().copied().collect();
     let split = make_split(&prepared, &ident, options, &keep)?;
     let drive0 = scenario.drive.clone();

@@ -107,24 +107,7 @@ pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyErr
     };
     let vel_in = deriv(&th_in);
     let vel_out = deriv(&th_out);
-    let vmax = vel_in.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-    // Low threshold so the direction flips where the motion reverses (the brake and any
-    // bearing friction flip there), high enough that quantisation steps never flip it.
-    let thr = (0.002 * vmax).max(4.0 * q_in / (2.0 * w as f64 * dt));
-    let first = vel_in
-        .iter()
-        .find(|v| v.abs() > thr)
-        .map_or(1.0, |v| v.signum());
-    let mut cur = first;
-    let dir: Vec<f64> = vel_in
-        .iter()
-        .map(|v| {
-            if v.abs() > thr {
-                cur = v.signum();
-            }
-            cur
-        })
-        .collect();
+    let dir = direction(&vel_in, None, dir_floor(q_in, w, dt));
     let mut travel = vec![0.0; k];
     for i in 1..k {
         travel[i] = (th_in[i] - th_in[i - 1]).abs();
@@ -143,6 +126,57 @@ pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyErr
         q_in,
         q_out,
     })
+}
+
+/// Speed (rad/s) below which the direction of motion never flips: four input encoder
+/// steps `q_in` (rad) over the velocity's difference window of `2 w` rows of `dt` (s).
+fn dir_floor(q_in: f64, w: usize, dt: f64) -> f64 {
+    4.0 * q_in / (2.0 * w as f64 * dt)
+}
+
+/// Direction of motion (+1/-1, held through stops) from the input velocity `vel_in`
+/// (rad/s). It flips where the speed passes 0.2 % of the peak speed of the rows in `keep`
+/// (all rows without it), or `floor` (rad/s) when that is higher.
+fn direction(vel_in: &[f64], keep: Option<&[bool]>, floor: f64) -> Vec<f64> {
+    let vmax = vel_in
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| keep.is_none_or(|k| k.get(*i).copied().unwrap_or(true)))
+        .fold(0.0f64, |a, (_, v)| a.max(v.abs()));
+    // Low threshold so the direction flips where the motion reverses (the brake and any
+    // bearing friction flip there), high enough that quantisation steps never flip it.
+    let thr = (0.002 * vmax).max(floor);
+    let first = vel_in
+        .iter()
+        .find(|v| v.abs() > thr)
+        .map_or(1.0, |v| v.signum());
+    let mut cur = first;
+    vel_in
+        .iter()
+        .map(|v| {
+            if v.abs() > thr {
+                cur = v.signum();
+            }
+            cur
+        })
+        .collect()
+}
+
+impl Prepared {
+    /// Direction of motion again, its threshold from the peak speed of the rows kept
+    /// (`keep`, one per row) only. A stretch that is not the drive (an input jerk, or a
+    /// held reading that jumps back) moves far faster than the motion, and a threshold
+    /// scaled on it flips the direction late at every reversal of the log, where the
+    /// brake and any bearing friction flip. Nothing changes when every row is kept.
+    pub fn direction_over(&mut self, keep: &[bool]) {
+        if keep.iter().all(|k| *k) || self.t.len() < 2 {
+            return;
+        }
+        let k = self.t.len();
+        let dt = (self.t[k - 1] - self.t[0]) / (k - 1) as f64;
+        let w = ((0.025 / dt).round() as usize).max(1);
+        self.dir = direction(&self.vel_in, Some(keep), dir_floor(self.q_in, w, dt));
+    }
 }
 
 /// The torque the cable carries in log `l` when a bearing hides a Coulomb torque `mb`
@@ -1244,5 +1278,37 @@ mod bound_tests {
         assert!(said[0].starts_with("friction_coefficient = 0.02 is on its lower bound"));
         assert!(said[1].starts_with("friction_memory_load_exponent = 8 is on its upper bound"));
         assert!(on_bounds(&nl, &[0.1, 123.0, 2.5]).is_empty());
+    }
+}
+
+#[cfg(test)]
+mod direction_tests {
+    use super::*;
+
+    /// A sine's speed at 100 rows/s with a jump of the reading (a held input catching up)
+    /// at rows 1000 to 1005: the direction from the rows kept flips where the clean one
+    /// does, and the one scaled on the jump flips late.
+    #[test]
+    fn a_jump_left_out_does_not_delay_the_flips() {
+        let v: Vec<f64> = (0..3000)
+            .map(|i| 0.2 * (std::f64::consts::TAU * 0.1 * i as f64 * 0.01).cos())
+            .collect();
+        let mut jumped = v.clone();
+        for x in &mut jumped[1000..1006] {
+            *x = -40.0;
+        }
+        let keep: Vec<bool> = (0..3000).map(|i| !(995..1010).contains(&i)).collect();
+        let floor = 1e-6;
+        let clean = direction(&v, None, floor);
+        let kept = direction(&jumped, Some(&keep), floor);
+        let late = direction(&jumped, None, floor);
+        let flips = |d: &[f64]| -> Vec<usize> {
+            (1..d.len())
+                .filter(|&i| d[i] != d[i - 1] && !(995..1010).contains(&i))
+                .collect()
+        };
+        assert_eq!(flips(&kept), flips(&clean));
+        assert!(flips(&late).iter().zip(flips(&clean)).all(|(l, c)| *l > c));
+        assert_eq!(direction(&v, Some(&[true; 3000]), floor), clean);
     }
 }
