@@ -95,7 +95,7 @@ pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyErr
     let torque: Vec<f64> = avg(&log.load_nm).into_iter().map(|l| -l).collect();
     let k = t.len();
     let dt = span / (n - 1) as f64 * m as f64;
-    let w = ((0.025 / dt).round() as usize).max(1);
+    let w = window_rows(dt);
     let deriv = |v: &[f64]| -> Vec<f64> {
         (0..k)
             .map(|i| {
@@ -126,6 +126,12 @@ pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyErr
         q_in,
         q_out,
     })
+}
+
+/// Rows each side of a velocity's central difference for rows `dt` (s) apart: 25 ms,
+/// at least one.
+fn window_rows(dt: f64) -> usize {
+    ((0.025 / dt).round() as usize).max(1)
 }
 
 /// Speed (rad/s) below which the direction of motion never flips: four input encoder
@@ -174,8 +180,8 @@ impl Prepared {
         }
         let k = self.t.len();
         let dt = (self.t[k - 1] - self.t[0]) / (k - 1) as f64;
-        let w = ((0.025 / dt).round() as usize).max(1);
-        self.dir = direction(&self.vel_in, Some(keep), dir_floor(self.q_in, w, dt));
+        let floor = dir_floor(self.q_in, window_rows(dt), dt);
+        self.dir = direction(&self.vel_in, Some(keep), floor);
     }
 }
 
@@ -1307,7 +1313,9 @@ mod direction_tests {
                 .filter(|&i| d[i] != d[i - 1] && !(995..1010).contains(&i))
                 .collect()
         };
+        assert_eq!(flips(&clean).len(), 6, "{:?}", flips(&clean));
         assert_eq!(flips(&kept), flips(&clean));
+        assert_eq!(flips(&late).len(), 6, "{:?}", flips(&late));
         assert!(flips(&late).iter().zip(flips(&clean)).all(|(l, c)| *l > c));
         assert_eq!(direction(&v, Some(&[true; 3000]), floor), clean);
     }
