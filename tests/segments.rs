@@ -11,7 +11,7 @@ mod support;
 
 use cable_servo::identify::segments::{detect, Channel, Segment, PAD_S};
 use cable_servo::identify::startup::{cut_start, StartMode};
-use cable_servo::identify::{diagnose, BenchLog, DiagnoseOptions, EffectName};
+use cable_servo::identify::{diagnose, effect_value, BenchLog, DiagnoseOptions, EffectName};
 use cable_servo::scenario::Scenario;
 use rand::{Rng, SeedableRng};
 use std::f64::consts::TAU;
@@ -408,11 +408,7 @@ fn bearing_friction_flips_at_the_reversals_under_input_faults() {
             let v = size_of(e, seed);
             let (sc, log, t0) = faulted_log(&[(e, v)], fault, seed);
             let d = diagnose(&sc, std::slice::from_ref(&log), &opts()).expect("diagnosis");
-            let est = d
-                .params
-                .iter()
-                .find(|p| p.name == e.as_str())
-                .map(|p| p.value);
+            let est = effect_value(&d, e);
             if d.cause != e.as_str() || est.is_none_or(|x| (x - v).abs() > 0.1 * v) {
                 missed.push(format!(
                     "{fault:?} at {t0:.2} s, seed {seed}: {} {est:?} for {v:.3}",
