@@ -218,6 +218,19 @@ fn real_logs_have_nothing_flagged() {
     }
 }
 
+/// The eleven real da Vinci logs (1 kHz, averaged to 200 Hz rows): after their start-up
+/// cut no row is averaged across a step of the load, so none is left out for it.
+#[test]
+fn real_logs_have_no_row_across_a_load_step() {
+    let Some(logs) = real_logs() else { return };
+    for l in logs {
+        let (cut, _) = cut_start(&l, StartMode::Detect);
+        let p = cable_servo::identify::model::prepare(&cut, 200.0).expect("prepared");
+        let n = p.straddles_step.iter().filter(|s| **s).count();
+        assert_eq!(n, 0, "{}: {n} rows across a load step", l.source);
+    }
+}
+
 fn diagnose_both(sc: &Scenario, log: &BenchLog, o: &DiagnoseOptions) -> (String, String, usize) {
     let excluded = diagnose(sc, std::slice::from_ref(log), o).expect("diagnosis");
     let kept = diagnose(

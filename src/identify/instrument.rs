@@ -90,6 +90,7 @@ mod tests {
             .collect();
         Prepared {
             source: "test".into(),
+            straddles_step: vec![false; n],
             travel: vec![0.0; n],
             torque: vec![0.0; n],
             vel_out: vel.clone(),

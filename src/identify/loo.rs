@@ -365,9 +365,14 @@ pub fn leave_one_out_with_segments(
         .map(|l| model::prepare(l, ident.max_rate_hz))
         .collect::<Result<_, _>>()?;
     check_logs(&cut, &prepared)?;
-    let (segments, keep_per_log) = super::segments::detect_all(&cut, &prepared, keep_segments);
+    let (segments, mut keep_per_log) = super::segments::detect_all(&cut, &prepared, keep_segments);
     for (p, k) in prepared.iter_mut().zip(&keep_per_log) {
         p.direction_over(k);
+    }
+    for (k, p) in keep_per_log.iter_mut().zip(&prepared) {
+        for (k, s) in k.iter_mut().zip(&p.straddles_step) {
+            *k &= !*s;
+        }
     }
     let keep: Vec<bool> = keep_per_log.iter().flatten().copied().collect();
     let n: usize = prepared.iter().map(|p| p.t.len()).sum();

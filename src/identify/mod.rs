@@ -452,10 +452,15 @@ pub fn diagnose_with_progress(
         .iter()
         .map(|l| model::prepare(l, ident.max_rate_hz))
         .collect::<Result<_, _>>()?;
-    let (segments_per_log, keep_per_log) =
+    let (segments_per_log, mut keep_per_log) =
         segments::detect_all(&cut_logs, &prepared, options.keep_segments);
     for (p, k) in prepared.iter_mut().zip(&keep_per_log) {
         p.direction_over(k);
+    }
+    for (k, p) in keep_per_log.iter_mut().zip(&prepared) {
+        for (k, s) in k.iter_mut().zip(&p.straddles_step) {
+            *k &= !*s;
+        }
     }
     let keep: Vec<bool> = keep_per_log.iter().flatten().copied().collect();
     let split = make_split(&prepared, &ident, options, &keep)?;

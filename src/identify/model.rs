@@ -40,6 +40,9 @@ pub struct Prepared {
     pub q_in: f64,
     /// Quantisation step of the output angle, rad.
     pub q_out: f64,
+    /// Rows whose averaged samples straddle a step of the load ([`straddles_a_step`]):
+    /// neither fitted nor scored.
+    pub straddles_step: Vec<bool>,
 }
 
 /// Decimate by block averaging to at most `max_rate_hz` and derive velocities.
@@ -93,6 +96,7 @@ pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyErr
     let th_in = avg(&log.theta_in_rad);
     let th_out = avg(&log.theta_out_rad);
     let torque: Vec<f64> = avg(&log.load_nm).into_iter().map(|l| -l).collect();
+    let straddles_step = straddles_a_step(&log.load_nm, m);
     let k = t.len();
     let dt = span / (n - 1) as f64 * m as f64;
     let w = window_rows(dt);
@@ -125,7 +129,39 @@ pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyErr
         travel,
         q_in,
         q_out,
+        straddles_step,
     })
+}
+
+/// Per row of `m` samples averaged (the rows [`prepare`] makes): whether the load steps
+/// inside it by more than half its range over the log (1st to 99th percentile). A brake
+/// or a bearing flips its torque within a sample where the drum reverses, and the drum's
+/// lag jumps with it; a row averaged across that instant holds the mean of two states the
+/// drive never passes through slowly, which no replay of the averaged torque gives (on a
+/// 500 Hz log at 250 Hz rows one such row per reversal left 12 times the noise, enough
+/// for a drum runout to be named in a bearing friction's place). Never set when rows are
+/// single samples. On the shipped da Vinci logs (rows of five samples) no row's load
+/// moves by half the range.
+pub fn straddles_a_step(load_nm: &[f64], m: usize) -> Vec<bool> {
+    let rows = load_nm.len() / m.max(1);
+    if m < 2 || rows == 0 {
+        return vec![false; rows];
+    }
+    let mut sorted: Vec<f64> = load_nm.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let at = |q: f64| sorted[((sorted.len() - 1) as f64 * q).round() as usize];
+    let range = at(0.99) - at(0.01);
+    load_nm
+        .chunks_exact(m)
+        .map(|c| {
+            let (lo, hi) = c
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                    (a.min(*v), b.max(*v))
+                });
+            range > 0.0 && hi - lo > 0.5 * range
+        })
+        .collect()
 }
 
 /// Rows each side of a velocity's central difference for rows `dt` (s) apart: 25 ms,
@@ -1290,6 +1326,24 @@ mod bound_tests {
 #[cfg(test)]
 mod direction_tests {
     use super::*;
+
+    /// A brake's load flipping between samples 12 and 13: with rows of four samples only
+    /// the row holding both sides straddles the step; a ramp through the same range over
+    /// the log does not, nor does anything on single-sample rows.
+    #[test]
+    fn only_the_row_across_a_load_step_straddles_it() {
+        let step: Vec<f64> = (0..40)
+            .map(|i| if i <= 12 { 0.7 } else { -0.7 } + 0.01 * (i as f64 * 0.7).sin())
+            .collect();
+        let rows = straddles_a_step(&step, 4);
+        assert_eq!(rows.len(), 10);
+        let marked: Vec<usize> = (0..10).filter(|i| rows[*i]).collect();
+        assert_eq!(marked, vec![3]);
+        assert!(straddles_a_step(&step, 1).iter().all(|s| !s));
+        let ramp: Vec<f64> = (0..40).map(|i| 0.7 - 1.4 * i as f64 / 39.0).collect();
+        assert!(straddles_a_step(&ramp, 4).iter().all(|s| !s));
+        assert!(straddles_a_step(&[0.3; 40], 4).iter().all(|s| !s));
+    }
 
     /// A sine's speed at 100 rows/s with a jump of the reading (a held input catching up)
     /// at rows 1000 to 1005: the direction from the rows kept flips where the clean one
