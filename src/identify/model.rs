@@ -177,31 +177,47 @@ fn dir_floor(q_in: f64, w: usize, dt: f64) -> f64 {
 }
 
 /// Direction of motion (+1/-1, held through stops) from the input velocity `vel_in`
-/// (rad/s). It flips where the speed passes 0.2 % of the peak speed of the rows in `keep`
-/// (all rows without it), or `floor` (rad/s) when that is higher.
+/// (rad/s). A reversal is confirmed where the speed passes 0.2 % of the peak speed of the
+/// rows in `keep` (all rows without it), or `floor` (rad/s) when that is higher, and the
+/// flip is placed where the velocity last took the new sign before it: the reversal
+/// itself, not the row where the speed has grown past the threshold.
 fn direction(vel_in: &[f64], keep: Option<&[bool]>, floor: f64) -> Vec<f64> {
     let vmax = vel_in
         .iter()
         .enumerate()
         .filter(|(i, _)| keep.is_none_or(|k| k.get(*i).copied().unwrap_or(true)))
         .fold(0.0f64, |a, (_, v)| a.max(v.abs()));
-    // Low threshold so the direction flips where the motion reverses (the brake and any
-    // bearing friction flip there), high enough that quantisation steps never flip it.
+    // The threshold only confirms a reversal, so that quantisation steps never flip the
+    // direction. The brake and any bearing friction flip where the motion reverses: a
+    // row between the reversal and the confirmation would carry the friction the wrong
+    // way, and one such row at a reversal between samples (the speed under the threshold
+    // for 3 ms on the gimbal's sine) left 17 times the noise there, enough for a drum
+    // runout to be named in a bearing friction's place.
     let thr = (0.002 * vmax).max(floor);
     let first = vel_in
         .iter()
         .find(|v| v.abs() > thr)
         .map_or(1.0, |v| v.signum());
+    let mut out = vec![first; vel_in.len()];
     let mut cur = first;
-    vel_in
-        .iter()
-        .map(|v| {
-            if v.abs() > thr {
-                cur = v.signum();
+    let mut last_flip = 0;
+    for (i, v) in vel_in.iter().enumerate() {
+        if v.abs() > thr && v.signum() != cur {
+            cur = v.signum();
+            // Back to the first row of the run that already moves the new way (a row at
+            // rest, or the previous flip, ends it).
+            let mut j = i;
+            while j > last_flip && vel_in[j - 1] * cur > 0.0 {
+                j -= 1;
             }
-            cur
-        })
-        .collect()
+            for d in &mut out[j..i] {
+                *d = cur;
+            }
+            last_flip = j;
+        }
+        out[i] = cur;
+    }
+    out
 }
 
 impl Prepared {
@@ -1345,35 +1361,49 @@ mod direction_tests {
         assert!(straddles_a_step(&[0.3; 40], 4).iter().all(|s| !s));
     }
 
-    /// A sine's speed at 100 rows/s with a jump of the reading (a held input catching up)
-    /// at rows 1000 to 1005: the direction from the rows kept flips where the clean one
-    /// does, and the one scaled on the jump flips late.
+    /// A sine's speed at 100 rows/s, reversing 1.5 ms before a row: the direction flips
+    /// on that row, the first of each new sign, though the speed there is still under the
+    /// threshold (0.2 % of its peak) and passes it a row later. With a
+    /// jump of the reading (a held input catching up) at rows 1000 to 1005, the threshold
+    /// from the rows kept flips there too; one scaled on a jump faster than the motion's
+    /// peak speed never flips at all.
     #[test]
-    fn a_jump_left_out_does_not_delay_the_flips() {
+    fn flips_land_on_the_reversals_and_a_jump_left_out_does_not_hide_them() {
         let v: Vec<f64> = (0..3000)
-            .map(|i| 0.2 * (std::f64::consts::TAU * 0.1 * i as f64 * 0.01).cos())
+            .map(|i| {
+                let t = i as f64 * 0.01;
+                0.2 * (std::f64::consts::TAU * 0.1 * (t + 0.0015)).cos()
+            })
             .collect();
-        let mut jumped = v.clone();
-        for x in &mut jumped[1000..1006] {
-            *x = -40.0;
-        }
-        let keep: Vec<bool> = (0..3000).map(|i| !(995..1010).contains(&i)).collect();
+        let crossings: Vec<usize> = (1..3000)
+            .filter(|&i| v[i].signum() != v[i - 1].signum())
+            .collect();
+        assert_eq!(crossings.len(), 6);
         let floor = 1e-6;
-        let clean = direction(&v, None, floor);
-        let kept = direction(&jumped, Some(&keep), floor);
-        let late = direction(&jumped, None, floor);
         let flips = |d: &[f64]| -> Vec<usize> {
             (1..d.len())
                 .filter(|&i| d[i] != d[i - 1] && !(995..1010).contains(&i))
                 .collect()
         };
-        // The speed crosses zero at t = 2.5 + 5 j s (rows 250 + 500 j) and passes 0.2 % of
-        // its peak 3 ms later, so each flip lands on the row after a crossing.
-        let crossings: Vec<usize> = (0..6).map(|j| 251 + 500 * j).collect();
+        let clean = direction(&v, None, floor);
         assert_eq!(flips(&clean), crossings);
-        assert_eq!(flips(&kept), flips(&clean));
-        assert_eq!(flips(&late).len(), 6, "{:?}", flips(&late));
-        assert!(flips(&late).iter().zip(flips(&clean)).all(|(l, c)| *l > c));
+        // Confirmed a row after each crossing, where the threshold alone would flip.
+        let thr = 0.002 * 0.2;
+        assert!(crossings
+            .iter()
+            .all(|&i| v[i].abs() <= thr && v[i + 1].abs() > thr));
+
+        let keep: Vec<bool> = (0..3000).map(|i| !(995..1010).contains(&i)).collect();
+        for (jump, flips_unkept) in [(-40.0, 6), (-200.0, 0)] {
+            let mut jumped = v.clone();
+            for x in &mut jumped[1000..1006] {
+                *x = jump;
+            }
+            let kept = direction(&jumped, Some(&keep), floor);
+            assert_eq!(flips(&kept), crossings, "jump {jump}");
+            let unkept = direction(&jumped, None, floor);
+            assert_eq!(flips(&unkept).len(), flips_unkept, "jump {jump}");
+        }
         assert_eq!(direction(&v, Some(&[true; 3000]), floor), clean);
     }
 }
