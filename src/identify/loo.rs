@@ -366,14 +366,7 @@ pub fn leave_one_out_with_segments(
         .collect::<Result<_, _>>()?;
     check_logs(&cut, &prepared)?;
     let (segments, mut keep_per_log) = super::segments::detect_all(&cut, &prepared, keep_segments);
-    for (p, k) in prepared.iter_mut().zip(&keep_per_log) {
-        p.direction_over(k);
-    }
-    for (k, p) in keep_per_log.iter_mut().zip(&prepared) {
-        for (k, s) in k.iter_mut().zip(&p.straddles_step) {
-            *k &= !*s;
-        }
-    }
+    model::settle_rows(&mut prepared, &mut keep_per_log);
     let keep: Vec<bool> = keep_per_log.iter().flatten().copied().collect();
     let n: usize = prepared.iter().map(|p| p.t.len()).sum();
     let ranges: Vec<std::ops::Range<usize>> = prepared

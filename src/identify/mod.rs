@@ -454,14 +454,7 @@ pub fn diagnose_with_progress(
         .collect::<Result<_, _>>()?;
     let (segments_per_log, mut keep_per_log) =
         segments::detect_all(&cut_logs, &prepared, options.keep_segments);
-    for (p, k) in prepared.iter_mut().zip(&keep_per_log) {
-        p.direction_over(k);
-    }
-    for (k, p) in keep_per_log.iter_mut().zip(&prepared) {
-        for (k, s) in k.iter_mut().zip(&p.straddles_step) {
-            *k &= !*s;
-        }
-    }
+    model::settle_rows(&mut prepared, &mut keep_per_log);
     let keep: Vec<bool> = keep_per_log.iter().flatten().copied().collect();
     let split = make_split(&prepared, &ident, options, &keep)?;
     let drive0 = scenario.drive.clone();

@@ -220,6 +220,19 @@ fn direction(vel_in: &[f64], keep: Option<&[bool]>, floor: f64) -> Vec<f64> {
     out
 }
 
+/// Once the bad stretches of each log are known (`keep_per_log`, one flag per row of each
+/// prepared log): each log's direction of motion from the rows kept
+/// ([`Prepared::direction_over`]), and its rows averaged across a load step
+/// ([`Prepared::straddles_step`]) taken out of the rows to fit and score.
+pub fn settle_rows(prepared: &mut [Prepared], keep_per_log: &mut [Vec<bool>]) {
+    for (p, keep) in prepared.iter_mut().zip(keep_per_log.iter_mut()) {
+        p.direction_over(keep);
+        for (k, s) in keep.iter_mut().zip(&p.straddles_step) {
+            *k &= !*s;
+        }
+    }
+}
+
 impl Prepared {
     /// Direction of motion again, its threshold from the peak speed of the rows kept
     /// (`keep`, one per row) only. A stretch that is not the drive (an input jerk, or a
