@@ -158,18 +158,21 @@ fn bearing_friction_is_named_on_logs_faster_than_the_rows() {
             sample_rate_hz: Some(rate_hz),
             ..TruthOptions::default()
         };
-        let log = truth_log(&sc, &[(e, v)], log_seed, &o).expect("truth").log;
-        let d = diagnose(&sc, &[log], &opts()).expect("diagnosis");
-        let est = effect_value(&d, e);
-        let what = format!(
-            "{rate_hz} Hz, seed {seed}: {v:.4} N m hidden, {} {est:?}",
-            d.cause
-        );
-        eprintln!("{what}");
-        assert_eq!(d.cause, e.as_str(), "{what}");
-        let est = est.expect("a named effect has a size");
-        assert!((est / v - 1.0).abs() <= 0.1, "{what}");
+        bearing_friction_is_named(&sc, v, log_seed, &o, &format!("{rate_hz} Hz, seed {seed}"));
     }
+}
+
+/// A log of the truth with a bearing friction of `v` (N m): named and sized within 10 %.
+fn bearing_friction_is_named(sc: &Scenario, v: f64, log_seed: u64, o: &TruthOptions, draw: &str) {
+    let e = EffectName::BearingFriction;
+    let log = truth_log(sc, &[(e, v)], log_seed, o).expect("truth").log;
+    let d = diagnose(sc, &[log], &opts()).expect("diagnosis");
+    let est = effect_value(&d, e);
+    let what = format!("{draw}: {v:.4} N m hidden, {} {est:?}", d.cause);
+    eprintln!("{what}");
+    assert_eq!(d.cause, e.as_str(), "{what}");
+    let est = est.expect("a named effect has a size");
+    assert!((est / v - 1.0).abs() <= 0.1, "{what}");
 }
 
 /// A sine with an offset and a phase reverses between rows, 1.5 ms before one. A bearing
@@ -188,16 +191,8 @@ fn bearing_friction_is_named_where_the_reversals_fall_between_rows() {
     let sc = Scenario::from_toml(text, "gimbal", "gimbal", &sets).expect("scenario");
     for seed in [0u64, 1] {
         let v = support::rates::size_of(e, 50 + seed);
-        let log = truth_log(&sc, &[(e, v)], 9000 + seed, &TruthOptions::default())
-            .expect("truth")
-            .log;
-        let d = diagnose(&sc, &[log], &opts()).expect("diagnosis");
-        let est = effect_value(&d, e);
-        let what = format!("seed {seed}: {v:.4} N m hidden, {} {est:?}", d.cause);
-        eprintln!("{what}");
-        assert_eq!(d.cause, e.as_str(), "{what}");
-        let est = est.expect("a named effect has a size");
-        assert!((est / v - 1.0).abs() <= 0.1, "{what}");
+        let o = TruthOptions::default();
+        bearing_friction_is_named(&sc, v, 9000 + seed, &o, &format!("seed {seed}"));
     }
 }
 
