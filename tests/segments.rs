@@ -409,7 +409,8 @@ fn each_fault_on_top_of_each_effect() {
 /// A bearing friction is seen in the jump of the lag where the motion reverses, so the
 /// fitted model must flip its direction there. An input fault moves far faster than the
 /// motion (a held reading jumping back, a jerk); with the direction's threshold scaled on
-/// that speed, every reversal of the log flipped late and a drum runout fitted better.
+/// that speed, every reversal of the log flipped late and a drum runout fitted better (all
+/// six stuck-input draws, before the threshold came from the rows kept).
 /// Over draws of both faults at random times: excluded, the friction is named and sized
 /// within 10 %.
 #[test]

@@ -237,8 +237,9 @@ impl Prepared {
     /// Direction of motion again, its threshold from the peak speed of the rows kept
     /// (`keep`, one per row) only. A stretch that is not the drive (an input jerk, or a
     /// held reading that jumps back) moves far faster than the motion, and a threshold
-    /// scaled on it flips the direction late at every reversal of the log, where the
-    /// brake and any bearing friction flip. Nothing changes when every row is kept.
+    /// scaled on it confirms reversals late, or never where it passes the motion's own
+    /// peak speed, and the brake and any bearing friction flip at every reversal.
+    /// Nothing changes when every row is kept.
     pub fn direction_over(&mut self, keep: &[bool]) {
         if keep.iter().all(|k| *k) || self.t.len() < 2 {
             return;
@@ -1353,7 +1354,7 @@ mod bound_tests {
 }
 
 #[cfg(test)]
-mod direction_tests {
+mod row_tests {
     use super::*;
 
     /// A brake's load flipping between samples 12 and 13: with rows of four samples only
