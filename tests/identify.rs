@@ -374,6 +374,43 @@ fn two_effects_are_both_named() {
     }
 }
 
+/// A large smooth error adds its own sample-to-sample differences to the base model's
+/// residual, from which the noise floor is first estimated: an input pulley runout at the
+/// top of its range (2e-3) raised that estimate to about 1.8 times the noise, and the
+/// search then stopped once the runout was found, as if what was left were noise. The
+/// floor the diagnosis reports must be that of the same log's noise without the effects
+/// (the same truth seed, so the same noise), and a bearing friction at the bottom of its
+/// range beside the runout must still be named and sized.
+#[test]
+fn a_small_effect_beside_a_large_one_is_named_and_the_floor_stays_the_noise() {
+    for seed in 0..3u64 {
+        let sc = scenario(seed % 2 == 1);
+        let bf = 0.1 + 0.01 * seed as f64;
+        let effects = [
+            (EffectName::InputPulleyRunout, 2e-3),
+            (EffectName::BearingFriction, bf),
+        ];
+        let d = diagnose(&sc, &[truth(&sc, &effects, 40 + seed)], &opts()).unwrap();
+        let clean = diagnose(&sc, &[truth(&sc, &[], 40 + seed)], &opts()).unwrap();
+        assert!(
+            d.noise_floor_mrad <= 1.1 * clean.noise_floor_mrad,
+            "seed {seed}: floor {} mrad beside the runout, {} mrad on the same noise alone",
+            d.noise_floor_mrad,
+            clean.noise_floor_mrad
+        );
+        let mut got: Vec<&str> = d.causes.iter().map(String::as_str).collect();
+        got.sort_unstable();
+        assert_eq!(
+            got,
+            ["bearing_friction", "input_pulley_runout"],
+            "seed {seed}: {:?}",
+            d.candidates
+        );
+        let est = effect_value(&d, EffectName::BearingFriction).unwrap_or(f64::NAN);
+        assert!((est - bf).abs() < 0.1 * bf, "seed {seed}: {est} vs {bf}");
+    }
+}
+
 /// Two effects that share the structure so that neither passes a strict gate alone (each
 /// explains less than 90 % of it) are found together by the joint search of pairs; with
 /// the pair search's fallback only, a clean log stays `none`.
