@@ -411,6 +411,42 @@ fn a_small_effect_beside_a_large_one_is_named_and_the_floor_stays_the_noise() {
     }
 }
 
+/// A delayed output encoder reads, at the log's first sample, where the axis was a delay
+/// earlier. Both log generators once held the first value there instead, a jump of the
+/// delay times the speed (2.4 mrad at 2 ms on this scan) in one row that no delayed
+/// encoder makes; the diagnosis, fitting the delay as speed times lag throughout, left it
+/// as 0.043 mrad held out, 7.5 times the noise floor, and said more was going on. With
+/// the motion continued back in time, the delay at the top of its range leaves the
+/// noise, on the tool's own synthetic logs and on the independent truth's.
+#[test]
+fn a_delay_at_the_top_of_its_range_leaves_only_the_noise() {
+    use cable_servo::identify::{synthesize, SynthOptions};
+    for seed in 0..2u64 {
+        let sc = scenario(seed == 1);
+        let hidden = [(EffectName::EncoderDelay, 2e-3)];
+        let logs = [
+            (
+                "synth",
+                synthesize(&sc, &hidden, seed, &SynthOptions::default()).unwrap(),
+            ),
+            ("truth", truth(&sc, &hidden, 60 + seed)),
+        ];
+        for (what, log) in logs {
+            let d = diagnose(&sc, &[log], &opts()).unwrap();
+            assert_eq!(
+                d.cause, "encoder_delay",
+                "{what} seed {seed}: {:?}",
+                d.candidates
+            );
+            assert!(
+                !d.unexplained_structure,
+                "{what} seed {seed}: {:.4} mrad held out over a floor of {:.4}",
+                d.rmse_extended_mrad, d.noise_floor_mrad
+            );
+        }
+    }
+}
+
 /// Two effects that share the structure so that neither passes a strict gate alone (each
 /// explains less than 90 % of it) are found together by the joint search of pairs; with
 /// the pair search's fallback only, a clean log stays `none`.
