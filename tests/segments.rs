@@ -641,3 +641,29 @@ fn short_records_of_the_real_logs_have_nothing_flagged() {
         }
     }
 }
+
+/// A log whose output reading is wrong from end to end (here read 5 s late: an
+/// acquisition chain's delay in seconds where milliseconds were meant, so the first
+/// seconds run the motion on backwards at full speed) has every row flagged. With every
+/// row left out nothing is fitted, every error reads zero, and the answer was that
+/// nothing is wrong; it is refused instead, naming the log, what was flagged and
+/// `--keep-segments`, and `--keep-segments` still judges it as it is (never `none`).
+#[test]
+fn a_log_flagged_from_end_to_end_is_refused_not_called_clean() {
+    let sc = scenario(false);
+    let log = truth(&sc, &[(EffectName::EncoderDelay, 5.0)], 5);
+    let err = diagnose(&sc, std::slice::from_ref(&log), &opts())
+        .map(|d| format!("cause {} at {} mrad", d.cause, d.rmse_extended_mrad))
+        .expect_err("a log with no row of the drive left");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("0 of its") && msg.contains("output") && msg.contains("--keep-segments"),
+        "{msg}"
+    );
+    let kept = DiagnoseOptions {
+        keep_segments: true,
+        ..opts()
+    };
+    let d = diagnose(&sc, &[log], &kept).expect("judged as it is");
+    assert_ne!(d.cause, "none", "{:?}", d.candidates);
+}

@@ -367,6 +367,7 @@ pub fn leave_one_out_with_segments(
     check_logs(&cut, &prepared)?;
     let (segments, mut keep_per_log) = super::segments::detect_all(&cut, &prepared, keep_segments);
     model::settle_rows(&mut prepared, &mut keep_per_log);
+    super::segments::enough_rows_left(&prepared, &keep_per_log, &segments)?;
     let keep: Vec<bool> = keep_per_log.iter().flatten().copied().collect();
     let n: usize = prepared.iter().map(|p| p.t.len()).sum();
     let ranges: Vec<std::ops::Range<usize>> = prepared

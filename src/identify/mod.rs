@@ -479,6 +479,7 @@ pub fn diagnose_with_progress(
     let (segments_per_log, mut keep_per_log) =
         segments::detect_all(&cut_logs, &prepared, options.keep_segments);
     model::settle_rows(&mut prepared, &mut keep_per_log);
+    segments::enough_rows_left(&prepared, &keep_per_log, &segments_per_log)?;
     let keep: Vec<bool> = keep_per_log.iter().flatten().copied().collect();
     let split = make_split(&prepared, &ident, options, &keep)?;
     let drive0 = scenario.drive.clone();

@@ -987,6 +987,51 @@ pub fn describe(s: &Segment) -> String {
     )
 }
 
+/// Fewest rows of a log left to fit and score once its stretches that are not the drive
+/// are left out: the least a log may hold at all ([`super::model::prepare`]).
+pub const MIN_ROWS_LEFT: usize = 40;
+
+/// Refuse a log whose rows to fit and score (`keep_per_log`, after the exclusions of
+/// `segments_per_log`) fall under [`MIN_ROWS_LEFT`]: with nothing left, every error
+/// reads zero and the answer would be that nothing is wrong, when the log is the fault
+/// (a reading off its scale, a wrong column, a delay of seconds).
+pub fn enough_rows_left(
+    prepared: &[super::model::Prepared],
+    keep_per_log: &[Vec<bool>],
+    segments_per_log: &[Vec<Segment>],
+) -> Result<(), super::IdentifyError> {
+    for ((p, keep), segs) in prepared.iter().zip(keep_per_log).zip(segments_per_log) {
+        let left = keep.iter().filter(|k| **k).count();
+        if left >= MIN_ROWS_LEFT {
+            continue;
+        }
+        let first = segs
+            .iter()
+            .find(|s| s.action == "excluded")
+            .map(|s| {
+                let more = segs.len().saturating_sub(1);
+                let more = if more > 0 {
+                    format!(" and {more} more")
+                } else {
+                    String::new()
+                };
+                format!(
+                    " (the {} reading from {:.3} to {:.3} s: {}{more})",
+                    s.channel, s.start_s, s.excluded_to_s, s.reason
+                )
+            })
+            .unwrap_or_default();
+        return Err(super::IdentifyError::BadLog {
+            log: p.source.clone(),
+            message: format!(
+                "{left} of its {} rows are left once the stretches that are not the drive are left out{first}; at least {MIN_ROWS_LEFT} are needed. Check the log's columns and units, or pass --keep-segments to fit and score it as it is",
+                p.t.len()
+            ),
+        });
+    }
+    Ok(())
+}
+
 /// Segments of every log and the rows of each prepared log to fit and score (all of them
 /// when `keep` is set: the segments are then reported as `"kept"`).
 pub fn detect_all(

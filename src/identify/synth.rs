@@ -214,12 +214,13 @@ pub fn synthesize(
     }
     let mut meas_out = out.clone();
     if let Some(tau) = get(EffectName::EncoderDelay) {
-        // Before the first sample the axis was already moving as the motion says, so a
-        // reading from then continues the first step's slope back in time; holding the
-        // first value instead would start the log with a jump of the delay times the
-        // speed (2.4 mrad at 2 ms on the gimbal scan) that no delayed encoder makes.
+        // Before the first sample (and, for a reading that leads, after the last) the
+        // axis was moving as the motion says, so a reading from then continues the end
+        // step's slope; holding the end value instead would start the log with a jump of
+        // the delay times the speed (2.4 mrad at 2 ms on the gimbal scan) that no delayed
+        // encoder makes.
         for k in 0..n {
-            let p = ((t[k] - tau) * rate).min((n - 1) as f64);
+            let p = (t[k] - tau) * rate;
             let j = (p.max(0.0).floor() as usize).min(n - 2);
             let f = p - j as f64;
             meas_out[k] = out[j] + f * (out[j + 1] - out[j]);

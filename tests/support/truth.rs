@@ -650,10 +650,10 @@ pub fn truth_log(
             v
         }
     };
-    // Before the first instant the axis was already moving: the first step's slope
-    // continued back in time, not the first value held.
+    // Outside the record the axis was moving: the end step's slope continued, not the
+    // end value held.
     let out_at = |ts: f64| {
-        let p = (ts / dtf).min((nf - 1) as f64);
+        let p = ts / dtf;
         let j = (p.max(0.0).floor() as usize).min(nf - 2);
         let f = p - j as f64;
         th_out[j].out + f * (th_out[j + 1].out - th_out[j].out)
