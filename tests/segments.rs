@@ -642,28 +642,37 @@ fn short_records_of_the_real_logs_have_nothing_flagged() {
     }
 }
 
-/// A log whose output reading is wrong from end to end (here read 5 s late: an
-/// acquisition chain's delay in seconds where milliseconds were meant, so the first
-/// seconds run the motion on backwards at full speed) has every row flagged. With every
-/// row left out nothing is fitted, every error reads zero, and the answer was that
-/// nothing is wrong; it is refused instead, naming the log, what was flagged and
-/// `--keep-segments`, and `--keep-segments` still judges it as it is (never `none`).
+/// A log whose output reading is wrong from end to end has every row flagged: read 5 s
+/// late (an acquisition chain's delay in seconds where milliseconds were meant, so the
+/// first seconds run the motion on backwards at full speed), or jumping by 100 rad from
+/// one sample to the next (a wrong column, a unit off by a large factor; the difference
+/// over two samples, which the jerk test used alone, cancels those jumps). With every row
+/// left out nothing was fitted, every error read zero and the answer was that nothing is
+/// wrong; with the jumps kept, the noise floor read 70 rad and the answer was `none`
+/// again. It is refused instead, naming the log, what was flagged and `--keep-segments`,
+/// and `--keep-segments` still judges the late log as it is (never `none`).
 #[test]
 fn a_log_flagged_from_end_to_end_is_refused_not_called_clean() {
     let sc = scenario(false);
-    let log = truth(&sc, &[(EffectName::EncoderDelay, 5.0)], 5);
-    let err = diagnose(&sc, std::slice::from_ref(&log), &opts())
-        .map(|d| format!("cause {} at {} mrad", d.cause, d.rmse_extended_mrad))
-        .expect_err("a log with no row of the drive left");
-    let msg = err.to_string();
-    assert!(
-        msg.contains("0 of its") && msg.contains("output") && msg.contains("--keep-segments"),
-        "{msg}"
-    );
+    let late = truth(&sc, &[(EffectName::EncoderDelay, 5.0)], 5);
+    let mut jumping = truth(&sc, &[], 6);
+    for (k, v) in jumping.theta_out_rad.iter_mut().enumerate() {
+        *v += 100.0 * (k % 2) as f64;
+    }
+    for (what, log) in [("late", &late), ("jumping", &jumping)] {
+        let err = diagnose(&sc, std::slice::from_ref(log), &opts())
+            .map(|d| format!("cause {} at {} mrad", d.cause, d.rmse_extended_mrad))
+            .expect_err(what);
+        let msg = err.to_string();
+        assert!(
+            msg.contains("0 of its") && msg.contains("output") && msg.contains("--keep-segments"),
+            "{what}: {msg}"
+        );
+    }
     let kept = DiagnoseOptions {
         keep_segments: true,
         ..opts()
     };
-    let d = diagnose(&sc, &[log], &kept).expect("judged as it is");
+    let d = diagnose(&sc, &[late], &kept).expect("judged as it is");
     assert_ne!(d.cause, "none", "{:?}", d.candidates);
 }

@@ -688,10 +688,19 @@ fn output_departures(
         (x[b] - x[a]) / (t[b] - t[a]).max(1e-300)
     };
     let floor = 10.0 * q_out / (2.0 * h as f64 * dt);
+    // The step into each sample as well: a reading that jumps back and forth every sample
+    // (a wrong column, a unit off by a large factor) cancels in the difference over
+    // `2 h` samples whenever the jumps pair up across it.
+    let step = |i: usize| {
+        let j = (i + 1).min(n - 1);
+        ((xo[j] - xo[i]) / (t[j] - t[i]).max(1e-300)).abs()
+    };
+    let step_floor = 10.0 * q_out / dt;
     let fast: Vec<bool> = (0..n)
         .map(|i| {
             let driven = gain * peak_in_speed.max(speed(xi, i).abs());
             speed(xo, i).abs() > JERK_SPEED * driven + floor
+                || step(i) > JERK_SPEED * driven + step_floor
         })
         .collect();
     let flag: Vec<bool> = (0..n)
