@@ -365,9 +365,8 @@ pub fn leave_one_out_with_segments(
         .map(|l| model::prepare(l, ident.max_rate_hz))
         .collect::<Result<_, _>>()?;
     check_logs(&cut, &prepared)?;
-    let (segments, mut keep_per_log) = super::segments::detect_all(&cut, &prepared, keep_segments);
-    model::settle_rows(&mut prepared, &mut keep_per_log);
-    super::segments::enough_rows_left(&prepared, &keep_per_log, &segments)?;
+    let (segments, keep_per_log) =
+        super::segments::rows_to_fit(&cut, &mut prepared, keep_segments)?;
     let keep: Vec<bool> = keep_per_log.iter().flatten().copied().collect();
     let n: usize = prepared.iter().map(|p| p.t.len()).sum();
     let ranges: Vec<std::ops::Range<usize>> = prepared

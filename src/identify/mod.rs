@@ -476,10 +476,8 @@ pub fn diagnose_with_progress(
         .iter()
         .map(|l| model::prepare(l, ident.max_rate_hz))
         .collect::<Result<_, _>>()?;
-    let (segments_per_log, mut keep_per_log) =
-        segments::detect_all(&cut_logs, &prepared, options.keep_segments);
-    model::settle_rows(&mut prepared, &mut keep_per_log);
-    segments::enough_rows_left(&prepared, &keep_per_log, &segments_per_log)?;
+    let (segments_per_log, keep_per_log) =
+        segments::rows_to_fit(&cut_logs, &mut prepared, options.keep_segments)?;
     let keep: Vec<bool> = keep_per_log.iter().flatten().copied().collect();
     let split = make_split(&prepared, &ident, options, &keep)?;
     let drive0 = scenario.drive.clone();
@@ -508,11 +506,11 @@ pub fn diagnose_with_progress(
     // model leaves; the calibrated instrument, each model the search accepts and the
     // final model read it again ([`tighter_floor`]).
     let mut floor = noise_floor(&prepared, &base_resid, &keep, ic_fit).max(1e-12);
-    let mut min_drift = least_resolvable_drift(&prepared, floor);
     // A fit the search may build on: sizes physically possible and a drift resolvable
-    // (`min_drift`, rad/s).
-    let admissible =
-        |fit: &Fitted, min_drift: f64| plausible(fit, drive0.ratio()) && resolvable(fit, min_drift);
+    // over the noise floor `floor` (rad) as it stands.
+    let admissible = |fit: &Fitted, floor: f64| {
+        plausible(fit, drive0.ratio()) && resolvable(fit, least_resolvable_drift(&prepared, floor))
+    };
 
     // On a calibrated instrument (a scenario's `[effects]`) the search asks what is still
     // missing on top of it: its drive and effects held as calibrated, only each log's zero
@@ -560,7 +558,6 @@ pub fn diagnose_with_progress(
         // model's, says what is noise.
         let spec = spec_for(&full_drive, &search_ident, &[], false, top);
         floor = tighter_floor(floor, &prepared, spec, &fit, &split.full, &keep, ic_fit);
-        min_drift = least_resolvable_drift(&prepared, floor);
     }
 
     // Candidates.
@@ -633,7 +630,7 @@ pub fn diagnose_with_progress(
             let gain_mrad = (current - rmse) * 1e3;
             let verdict = if !physical {
                 "size outside physical bounds (stands in for something else)"
-            } else if !resolvable(fit, min_drift) {
+            } else if !resolvable(fit, least_resolvable_drift(&prepared, floor)) {
                 "drift below the noise over the record (not told from the sensor's wander)"
             } else if gain < ident.min_gain_percent {
                 "gain below threshold"
@@ -669,7 +666,7 @@ pub fn diagnose_with_progress(
                 }
             };
             let (ok, row) = judge(e.to_string(), rmse, &fit);
-            if rmse < current && admissible(&fit, min_drift) {
+            if rmse < current && admissible(&fit, floor) {
                 helpful.push((e, rmse));
             }
             scores.push(row);
@@ -758,7 +755,6 @@ pub fn diagnose_with_progress(
         if let Some(fit) = &chosen_fit {
             let spec = spec_for(&full_drive, &search_ident, &chosen, false, top);
             floor = tighter_floor(floor, &prepared, spec, fit, &split.full, &keep, ic_fit);
-            min_drift = least_resolvable_drift(&prepared, floor);
         }
         // The base calibration absorbed part of the accepted effect; free it again with
         // the effect in place so the next round does not pick up the leftover bias.
@@ -791,7 +787,7 @@ pub fn diagnose_with_progress(
         let score = |effs: &[EffectName]| {
             held_out(&full_drive, &fold_drives, effs)
                 .ok()
-                .filter(|(_, _, fit)| admissible(fit, min_drift))
+                .filter(|(_, _, fit)| admissible(fit, floor))
                 .map(|(rmse, _, _)| rmse)
         };
         indistinguishable = match score(&chosen) {

@@ -1004,7 +1004,7 @@ pub const MIN_ROWS_LEFT: usize = 40;
 /// `segments_per_log`) fall under [`MIN_ROWS_LEFT`]: with nothing left, every error
 /// reads zero and the answer would be that nothing is wrong, when the log is the fault
 /// (a reading off its scale, a wrong column, a delay of seconds).
-pub fn enough_rows_left(
+fn enough_rows_left(
     prepared: &[super::model::Prepared],
     keep_per_log: &[Vec<bool>],
     segments_per_log: &[Vec<Segment>],
@@ -1039,6 +1039,24 @@ pub fn enough_rows_left(
         });
     }
     Ok(())
+}
+
+/// Each log's segments, and one flag per row of each prepared log: fit and score it.
+pub type SegmentsAndRows = (Vec<Vec<Segment>>, Vec<Vec<bool>>);
+
+/// Segments of every log and the rows of each prepared log to fit and score, settled
+/// ([`super::model::settle_rows`]: the direction from the rows kept, the rows across a
+/// load step out); a log left with too few rows is refused ([`MIN_ROWS_LEFT`]). `keep`
+/// as in [`detect_all`].
+pub fn rows_to_fit(
+    cut: &[BenchLog],
+    prepared: &mut [super::model::Prepared],
+    keep: bool,
+) -> Result<SegmentsAndRows, super::IdentifyError> {
+    let (segments, mut keep_per_log) = detect_all(cut, prepared, keep);
+    super::model::settle_rows(prepared, &mut keep_per_log);
+    enough_rows_left(prepared, &keep_per_log, &segments)?;
+    Ok((segments, keep_per_log))
 }
 
 /// Segments of every log and the rows of each prepared log to fit and score (all of them
