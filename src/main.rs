@@ -61,9 +61,10 @@ Scenario files are TOML; every command accepts repeated --set KEY=VALUE override
 validated like the file (e.g. --set drive.preload_n=70 --set drive.routing=open).\n\
 Built-in scenarios (usable by name from any directory): eots_tracking (the default), eots_scan, \
 eots_mismatch, eots_runout, step_stare, eots_tolerance, paper_bench, paper_tension, memory_vs_memoryless, \
-paper_fig11, gimbal_ident, davinci_tool4, gimbal_stabilized; `cable-servo show NAME` prints one.\n\n\
-Exit codes: 0 success, 2 usage error, 3 input error, 4 physical failure (results kept, marked \
-incomplete), 5 output error (existing results without --force), 130/143 interrupted by \
+paper_fig11, gimbal_ident, davinci_tool4, davinci_tool4_loop, gimbal_stabilized; `cable-servo show NAME` \
+prints one.\n\n\
+Exit codes: 0 success, 2 usage error, 3 input error, 4 a requirement not met or a run the physics \
+stopped (results kept, marked incomplete), 5 output error (existing results without --force), 130/143 interrupted by \
 SIGINT/SIGTERM."
 )]
 struct Cli {
@@ -388,8 +389,10 @@ enum Command {
         /// Override a scenario key (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
-        /// Give the cable the tangent stiffness of first loading to this transmitted torque,
-        /// N m (large monotone motion), instead of the free span (small motion).
+        /// Explore another load: crossings, files and figures at the tangent stiffness of
+        /// first loading to this transmitted torque, N m, in place of the declared
+        /// operating load's. The verdict and exit code stay the design's as declared
+        /// (closed_loop.requirements.operating_load_nm sets the load it is judged at).
         #[arg(long = "load-nm", value_name = "M")]
         load_nm: Option<f64>,
         /// Results directory (default: results/<scenario name>-margins, or the next free).
@@ -403,7 +406,9 @@ enum Command {
     /// loop point and one or more amplitudes; margins, sensitivity peak and bandwidth of
     /// each amplitude beside the exact linear reference; CSV, JSON, Bode and Nyquist plots.
     /// Settings default to the scenario's [closed_loop.freqresp] section; flags override.
-    /// Exit 4 when a requirement (PM, GM, Ms) is not met or a frequency failed.
+    /// Exit 4 when the design misses a requirement or a measurement run stopped (slip,
+    /// slack, instability: results kept, marked incomplete); a frequency the measurement
+    /// could not resolve at its amplitude is listed with its reason, not failing.
     Freqresp {
         /// Closed-loop scenario file or built-in name (default: eots_tracking).
         scenario: Option<String>,
@@ -931,11 +936,6 @@ fn main() -> ExitCode {
             force,
         } => {
             let name = scenario.as_deref().unwrap_or(DEFAULT_SCENARIO);
-            let mut set = set;
-            if let Some(m) = load_nm {
-                // The same as declaring the operating load: every command then agrees.
-                set.push(format!("closed_loop.requirements.operating_load_nm={m:e}"));
-            }
             let scenario = match load(name, &set) {
                 Ok(s) => s,
                 Err(code) => return code,
@@ -956,12 +956,27 @@ fn main() -> ExitCode {
                     force,
                 )
             });
-            match run::run_margins(&scenario, &OutputOptions { dir, force }) {
+            match run::run_margins(&scenario, load_nm, &OutputOptions { dir, force }) {
                 Ok(r) => {
                     for w in &r.warnings {
                         tell!("warning: {w}");
                     }
-                    say_raw!("{}", r.verdict.range_table());
+                    match &r.explored {
+                        Some((points, problem)) => {
+                            say_raw!("{}", cable_servo::analysis::verdict::range_table(points));
+                            if let Some(problem) = problem {
+                                say!(
+                                    "no tangent at --load-nm {}: {problem}",
+                                    cable_servo::compact(load_nm.unwrap_or(0.0))
+                                );
+                            }
+                            say!(
+                                "(--load-nm explores another load; the verdict below is the design's as declared, at its operating load of {} N m)",
+                                cable_servo::compact(r.judged_load_nm)
+                            );
+                        }
+                        None => say_raw!("{}", r.verdict.range_table()),
+                    }
                     say_raw!("{}", r.verdict.table());
                     say!("results: {}", r.dir.display());
                     verdict_code(r.verdict.passes)
@@ -1088,12 +1103,15 @@ fn main() -> ExitCode {
                     if r.unresolved > 0 {
                         say!("{} measurement(s) could not be resolved at their amplitude and are left out of its estimate (listed above and in freqresp.csv with their reason; a larger amplitude resolves them)", r.unresolved);
                     }
-                    let code = verdict_exit(&scenario, Some("design verdict:"), false);
+                    say!("design verdict:");
+                    say_raw!("{}", r.verdict.table());
                     if !r.complete {
-                        tell!("frequency response INCOMPLETE: a measurement run stopped (listed in freqresp.csv with its reason)");
+                        // A stopped run is a failing case, whatever the verdict of the
+                        // design's own run.
+                        tell!("frequency response INCOMPLETE: a measurement run stopped (listed in freqresp.csv with its reason); exit 4");
                         return ExitCode::from(exit::PHYSICAL);
                     }
-                    code
+                    verdict_code(r.verdict.passes)
                 }
                 Err(e) => report(Err(e)),
             }
@@ -1563,7 +1581,10 @@ fn compare(
             );
             let scenario = match load(base, &all) {
                 Ok(s) => s,
-                Err(code) => return code,
+                Err(code) => {
+                    tell!("  (in --design {name}:{sets})");
+                    return code;
+                }
             };
             list.push(run::CompareDesign {
                 name: name.to_string(),

@@ -1062,6 +1062,8 @@ pub struct FreqRespReport {
     pub table: String,
     /// Whether every amplitude met the requirements with every frequency measured.
     pub passes: bool,
+    /// The design's verdict, judged as every command judges it.
+    pub verdict: crate::analysis::verdict::Verdict,
     /// Whether every frequency of every amplitude was measured: no run stopped (points the
     /// measurement could not resolve are named, not counted here).
     pub complete: bool,
@@ -1097,28 +1099,33 @@ pub fn run_freqresp(
         spec,
         &crate::analysis::linear::LinearLoop::new(p, &scenario.drive),
     )?;
+    // The design's verdict (which simulates the judged mode), as every command gives it.
+    let verdict = crate::analysis::verdict::evaluate(&setup)?;
     let staged = StagedDir::create(&out.dir, out.force)?;
     let dir = staged.path().to_path_buf();
     let r = crate::analysis::freqresp::measure(setup, spec, threads, progress)?;
-    report::freqresp::write_outputs(&dir, scenario, &r)?;
+    report::freqresp::write_outputs(&dir, scenario, &r, &verdict)?;
     let mut warnings = scenario.warnings();
     let lin = crate::analysis::linear::LinearLoop::new(p, &scenario.drive);
     plots(
         report::freqresp::plot(&dir, &r, &lin, p.requirements.max_ms),
         &mut warnings,
     );
-    html_report(&dir, &mut warnings, None);
-    let dir = staged.commit()?;
+    let complete = r.complete();
+    let stopped = "a measurement run stopped (each is listed in freqresp.csv with its reason)";
+    html_report(&dir, &mut warnings, (!complete).then_some(stopped));
+    let dir = if complete {
+        staged.commit()?
+    } else {
+        staged.commit_incomplete(stopped)?
+    };
     Ok(FreqRespReport {
         dir,
         table: report::freqresp::format_table(&r),
         // No verdict (base motion without a declared rejection) is no failure.
         passes: r.verdict().unwrap_or(true),
-        complete: r.amplitudes.iter().all(|a| {
-            a.points
-                .iter()
-                .all(|p| p.failure.is_none() || p.unresolved())
-        }),
+        verdict,
+        complete,
         unresolved: r
             .amplitudes
             .iter()
@@ -1134,15 +1141,35 @@ pub fn run_freqresp(
 pub struct MarginsReport {
     /// Results directory.
     pub dir: PathBuf,
-    /// The design's verdict (its crossings and requirements).
+    /// The design's verdict (its crossings and requirements), judged at the scenario's
+    /// declared operating load whatever load was explored.
     pub verdict: crate::analysis::verdict::Verdict,
+    /// With an explored load: the crossings at the free span and at that load's tangent,
+    /// and why there is no tangent when the cable cannot carry the load.
+    pub explored: Option<(
+        Vec<crate::analysis::verdict::OperatingPoint>,
+        Option<String>,
+    )>,
+    /// The operating load the verdict holds its margins at, N m (declared, or the load's
+    /// peak torque).
+    pub judged_load_nm: f64,
     /// Non-fatal problems (a plot that could not be drawn).
     pub warnings: Vec<String>,
 }
 
 /// `margins`: the exact linear reference over the operating range, the verdict, and
 /// their files (`margins.json`, `linear_model.json`, `summary.json`, figures).
-pub fn run_margins(scenario: &Scenario, out: &OutputOptions) -> Result<MarginsReport, RunError> {
+///
+/// `explore_load_nm` (N m, > 0) puts the tangent stiffness of that transmitted torque in
+/// the files, figures and [`MarginsReport::explored`] in place of the declared operating
+/// load's. It is a look at another load, not another requirement: the verdict, its exit
+/// code and `summary.json`'s verdict stay those of the design as declared, as every other
+/// command judges it.
+pub fn run_margins(
+    scenario: &Scenario,
+    explore_load_nm: Option<f64>,
+    out: &OutputOptions,
+) -> Result<MarginsReport, RunError> {
     let p = scenario.closed_loop.as_ref().ok_or_else(|| {
         RunError::Unsupported(format!(
             "{} is not a closed-loop scenario (study = \"closed_loop\"): margins need a loop",
@@ -1152,13 +1179,35 @@ pub fn run_margins(scenario: &Scenario, out: &OutputOptions) -> Result<MarginsRe
     let setup = closed_loop::ClosedLoopSource::closed_loop_setup(scenario)?;
     // The verdict (which simulates the judged mode) before a results directory exists.
     let verdict = crate::analysis::verdict::evaluate(&setup)?;
-    let models = crate::analysis::linear_model::loop_models(&setup);
+    let explored_scenario = match explore_load_nm {
+        Some(load) if !(load.is_finite() && load > 0.0) => {
+            return Err(RunError::Unsupported(format!(
+                "--load-nm {}: give a transmitted torque > 0 N m",
+                crate::readable(load)
+            )))
+        }
+        Some(load) => {
+            let mut explored = scenario.clone();
+            if let Some(c) = explored.closed_loop.as_mut() {
+                c.requirements.operating_load_nm = Some(load);
+            }
+            Some(explored)
+        }
+        None => None,
+    };
+    let shown = explored_scenario.as_ref().unwrap_or(scenario);
+    let shown_setup = closed_loop::ClosedLoopSource::closed_loop_setup(shown)?;
+    let shown_p = shown.closed_loop.as_ref().unwrap_or(p);
+    let models = crate::analysis::linear_model::loop_models(&shown_setup);
+    let explored = explore_load_nm
+        .is_some()
+        .then(|| crate::analysis::verdict::operating_range(&shown_setup));
     let staged = StagedDir::create(&out.dir, out.force)?;
     let dir = staged.path().to_path_buf();
-    report::margins::write_outputs(&dir, scenario, p, &models, &verdict)?;
+    report::margins::write_outputs(&dir, scenario, shown_p, &models, &verdict, explore_load_nm)?;
     let mut warnings = scenario.warnings();
     plots(
-        report::margins::plot(&dir, scenario, p, &models),
+        report::margins::plot(&dir, shown, shown_p, &models),
         &mut warnings,
     );
     html_report(&dir, &mut warnings, None);
@@ -1166,6 +1215,8 @@ pub fn run_margins(scenario: &Scenario, out: &OutputOptions) -> Result<MarginsRe
     Ok(MarginsReport {
         dir,
         verdict,
+        explored,
+        judged_load_nm: crate::analysis::verdict::operating_load_nm(&setup),
         warnings,
     })
 }

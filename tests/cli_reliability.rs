@@ -662,3 +662,14 @@ fn design_searches_end_and_say_what_tolerance_they_reached() {
         }
     }
 }
+
+/// The help names every built-in scenario, so a user can find each by name.
+#[test]
+fn help_lists_every_built_in_scenario() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = cable_servo(&["--help"], dir.path());
+    let text = stdout(&o).replace('\n', " ");
+    for (name, _) in cable_servo::scenario::BUILTIN {
+        assert!(text.contains(name), "{name} missing from --help: {text}");
+    }
+}

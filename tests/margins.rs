@@ -139,7 +139,8 @@ fn the_former_fast_gains_fail_with_one_sample_of_delay() {
 
 /// Gains far too high: the run stops, and the stop is named as the loop's instability
 /// (growth rate, frequency, the gains to check) rather than as the slack or slip it ends
-/// in; a stable loop's slip keeps its own name.
+/// in; a stable loop's slip keeps its own name, and so does a slip that comes before an
+/// unstable mode has grown.
 #[test]
 fn an_unstable_loop_is_named_before_the_slack_it_causes() {
     use cable_servo::closed_loop::{run_closed_loop, Completion, RunOptions, StopKind};
@@ -187,4 +188,26 @@ fn an_unstable_loop_is_named_before_the_slack_it_causes() {
         ),
         "{slips:?}"
     );
+    // A slightly unstable loop (its mode grows at about 35 1/s) on a preload too low for
+    // the load: the cable slips within 11 ms, long before that mode has grown tenfold, so
+    // the slip keeps its name and the instability is told beside it.
+    let early = run(&[
+        "drive.preload_n=3",
+        "closed_loop.controller.ki=200000",
+        "closed_loop.duration_s=1",
+        "closed_loop.metrics_start_s=0.1",
+        "closed_loop.modes=[\"memory\"]",
+    ]);
+    match early {
+        Completion::Incomplete {
+            fault,
+            kind,
+            time_s,
+        } => {
+            assert_eq!(kind, StopKind::GrossSlip, "{fault}");
+            assert!(time_s < 0.05, "{time_s} s: {fault}");
+            assert!(fault.contains("also unstable"), "{fault}");
+        }
+        Completion::Complete => panic!("a 3 N preload carried the load"),
+    }
 }

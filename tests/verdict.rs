@@ -1,7 +1,8 @@
 //! One verdict: `run`, `compare`, `margins`, `freqresp` and `design` judge a design by the
 //! same requirements and agree on every requirement's pass or fail and on the exit code,
-//! for designs that pass, that miss Ms by a little, that lack phase margin, that are
-//! unstable, and that miss the pointing target with good margins.
+//! for designs that pass, that miss Ms by a little, that lack phase margin (at the free
+//! span, or only under load), that are unstable, and that miss the pointing target with
+//! good margins. Exploring another load with `margins --load-nm` changes none of it.
 
 use std::collections::BTreeMap;
 use std::process::{Command, Output};
@@ -89,6 +90,18 @@ const DESIGNS: &[Design] = &[
         failing: Some(("stable", "free span")),
     },
     Design {
+        name: "soft_under_load",
+        sets: &["drive.preload_n=5"],
+        passes: false,
+        failing: Some(("phase_margin", "tangent")),
+    },
+    Design {
+        name: "judged_mode_declared",
+        sets: &["closed_loop.requirements.mode=\"memory\""],
+        passes: true,
+        failing: None,
+    },
+    Design {
         name: "pointing_fails",
         sets: &["closed_loop.target_mrad=0.03"],
         passes: false,
@@ -120,6 +133,12 @@ fn every_command_gives_one_verdict_per_design() {
         let mut args = vec!["margins".to_string(), "eots_tracking".into()];
         args.extend(sets(d));
         outputs.push(("margins", cable_servo(&args, tmp.path())));
+
+        // Exploring a light load shows softer-cable margins but never changes the verdict.
+        let mut args = vec!["margins".to_string(), "eots_tracking".into()];
+        args.extend(sets(d));
+        args.extend(["--load-nm".into(), "0.1".into()]);
+        outputs.push(("margins --load-nm", cable_servo(&args, tmp.path())));
 
         let mut args = vec!["compare".to_string(), "eots_tracking".into()];
         args.extend(
@@ -306,4 +325,44 @@ fn the_default_frequency_response_agrees_with_the_verdict() {
     );
     assert!(text.contains("operating point: slewing"), "{text}");
     assert!(text.contains("verdict: PASS"), "{text}");
+}
+
+/// A frequency response whose measurement run stops (an injection that saturates the
+/// amplifier) keeps what it measured, marked incomplete everywhere: the exit code, the
+/// `INCOMPLETE.txt` marker and `summary.json`, which also carries the design's verdict.
+#[test]
+fn a_stopped_measurement_is_incomplete_in_every_output() {
+    let tmp = tempfile::tempdir().unwrap();
+    let args: Vec<String> = [
+        "freqresp",
+        "eots_tracking",
+        "--set",
+        "closed_loop.duration_s=4",
+        "--frequencies",
+        "20",
+        "--amplitudes",
+        "7",
+        "--out",
+        "fr",
+    ]
+    .map(String::from)
+    .to_vec();
+    let out = cable_servo(&args, tmp.path());
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(out.status.code(), Some(4), "{text}");
+    assert!(text.contains("INCOMPLETE"), "{text}");
+    assert!(tmp.path().join("fr/INCOMPLETE.txt").exists(), "{text}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("fr/summary.json")).unwrap())
+            .unwrap();
+    assert_eq!(summary["complete"], serde_json::json!(false), "{summary}");
+    assert_eq!(
+        summary["verdict"]["passes"],
+        serde_json::json!(true),
+        "{summary}"
+    );
 }

@@ -749,6 +749,16 @@ pub struct FreqResponse {
 }
 
 impl FreqResponse {
+    /// Whether every frequency of every amplitude was measured: no run stopped. Points
+    /// the measurement could not resolve at their amplitude are named, not counted here.
+    pub fn complete(&self) -> bool {
+        self.amplitudes.iter().all(|a| {
+            a.points
+                .iter()
+                .all(|p| p.failure.is_none() || p.unresolved())
+        })
+    }
+
     /// The verdict: `None` when there is nothing to judge (base motion without a declared
     /// `requirements.min_base_rejection_db`, every frequency measured), else whether
     /// every amplitude meets its requirements.
@@ -1053,6 +1063,9 @@ impl Bench<'_> {
         p.duration_s = n as f64 * ts;
         p.metrics_start_s = 0.0;
         p.modes = vec![CompensationMode::None];
+        // A measurement run is judged by nothing: the design's judged mode (declared for
+        // the design's own runs) must not send it looking for a mode it does not run.
+        p.requirements.mode = None;
         p.controller.velocity_feedforward = 0.0;
         p.controller.acceleration_feedforward = 0.0;
         p.controller.load_feedforward = false;

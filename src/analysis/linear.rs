@@ -163,28 +163,38 @@ pub fn tangent_half_stiffness(drive: &DriveParams, load_nm: f64) -> Result<f64, 
             crate::compact(load_nm.abs() / (2.0 * drive.drum_radius_m))
         )
     };
-    while force(hi).map_err(slack)? < target {
-        hi *= 2.0;
-        doublings += 1;
-        if doublings > 200 {
-            return Err(format!(
-                "no span displacement carries {} N m",
-                crate::number(load_nm)
-            ));
+    // Bracket the displacement between one that carries less than the load and one that
+    // carries it or leaves a span slack: a doubling can step past the slack point of a
+    // load the drive still carries just short of it.
+    let mut lo = 0.0;
+    loop {
+        match force(hi) {
+            Ok(f) if f < target => {
+                lo = hi;
+                hi *= 2.0;
+                doublings += 1;
+                if doublings > 200 {
+                    return Err(format!(
+                        "no span displacement carries {} N m",
+                        crate::number(load_nm)
+                    ));
+                }
+            }
+            _ => break,
         }
     }
-    let mut lo = 0.0;
     for _ in 0..200 {
         let mid = 0.5 * (lo + hi);
         if mid <= lo || mid >= hi {
             break;
         }
-        if force(mid)? < target {
-            lo = mid;
-        } else {
-            hi = mid;
+        match force(mid) {
+            Ok(f) if f < target => lo = mid,
+            _ => hi = mid,
         }
     }
+    // Bisection closes on the load, or on the slack point when the drive cannot carry it.
+    force(hi).map_err(slack)?;
     let d = hi;
     let mut committed = cable.clone();
     committed.commit(sign * d).map_err(|e| {

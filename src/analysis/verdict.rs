@@ -117,24 +117,7 @@ impl Verdict {
 
     /// Every crossing at each stiffness of the operating range, for the console.
     pub fn range_table(&self) -> String {
-        let mut out = String::new();
-        for point in &self.operating_range {
-            out.push_str(&format!(
-                "{} (each cable half {} N/m):\n",
-                point.condition,
-                crate::significant(point.half_stiffness_n_per_m, 4)
-            ));
-            for line in point.margins.crossing_lines() {
-                out.push_str(&format!("  {line}\n"));
-            }
-            if let Some(bw) = point.margins.bandwidth_hz {
-                out.push_str(&format!(
-                    "  bandwidth (-3 dB of T) {} Hz\n",
-                    crate::significant(bw, 4)
-                ));
-            }
-        }
-        out
+        range_table(&self.operating_range)
     }
 
     /// The verdict table for the console: one row per requirement, then the headline.
@@ -145,11 +128,14 @@ impl Verdict {
         );
         for c in &self.checks {
             let value = |v: Option<f64>| v.map_or_else(|| "-".to_string(), fmt_value);
+            let measured = c
+                .measured
+                .map_or_else(|| "-".to_string(), |v| fmt_measured(v, c.limit));
             out.push_str(&format!(
                 "{:<18} {:<22} {:>12} {:>12} {:>10}  {:<4}  {}\n",
                 c.requirement,
                 c.condition,
-                value(c.measured),
+                measured,
                 format!("{} {}", c.relation, fmt_value(c.limit)),
                 value(c.margin),
                 if c.passes { "ok" } else { "FAIL" },
@@ -168,8 +154,56 @@ impl Verdict {
     }
 }
 
+/// Every crossing at each of `points` (stiffnesses of an operating range), for the console.
+pub fn range_table(points: &[OperatingPoint]) -> String {
+    let mut out = String::new();
+    for point in points {
+        out.push_str(&format!(
+            "{} (each cable half {} N/m):\n",
+            point.condition,
+            crate::significant(point.half_stiffness_n_per_m, 4)
+        ));
+        for line in point.margins.crossing_lines() {
+            out.push_str(&format!("  {line}\n"));
+        }
+        if let Some(bw) = point.margins.bandwidth_hz {
+            out.push_str(&format!(
+                "  bandwidth (-3 dB of T) {} Hz\n",
+                crate::significant(bw, 4)
+            ));
+        }
+    }
+    out
+}
+
 fn fmt_value(v: f64) -> String {
     crate::compact(v)
+}
+
+/// A measured value beside its limit, with the digits that tell them apart: a pole at
+/// 0.99995 against `< 1` must not read `1 < 1 ok`.
+fn fmt_measured(v: f64, limit: f64) -> String {
+    let short = fmt_value(v);
+    if v == limit || short != fmt_value(limit) {
+        return short;
+    }
+    (5..=17)
+        .find(|&digits| {
+            crate::significant(v, digits)
+                .parse::<f64>()
+                .is_ok_and(|shown| shown != limit)
+        })
+        .map_or_else(
+            || crate::number(v),
+            |digits| {
+                let text = crate::significant(v, digits);
+                if text.contains('.') && !text.contains('e') {
+                    text.trim_end_matches('0').to_string()
+                } else {
+                    text
+                }
+            },
+        )
 }
 
 impl Check {
@@ -183,9 +217,17 @@ impl Check {
                 format!("{} {}", fmt_value(v), self.unit)
             }
         };
-        let measured = self
-            .measured
-            .map_or_else(|| "no value".to_string(), with_unit);
+        let measured = self.measured.map_or_else(
+            || "no value".to_string(),
+            |v| {
+                let text = fmt_measured(v, self.limit);
+                if self.unit.is_empty() {
+                    text
+                } else {
+                    format!("{text} {}", self.unit)
+                }
+            },
+        );
         let mut s = format!(
             "{} ({}): {measured}, required {} {}",
             self.requirement.replace('_', " "),
@@ -628,4 +670,22 @@ pub fn evaluate(setup: &ClosedLoopSetup<'_>) -> Result<Verdict, ClosedLoopError>
 pub fn judged_result<'a>(p: &ClosedLoopParams, modes: &'a [ModeResult]) -> Option<&'a ModeResult> {
     let mode = p.judged_mode();
     modes.iter().find(|m| m.mode == mode)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::fmt_measured;
+
+    #[test]
+    fn a_measured_value_never_reads_as_its_limit() {
+        assert_eq!(fmt_measured(0.99995, 1.0), "0.99995");
+        assert_eq!(fmt_measured(0.9999999, 1.0), "0.9999999");
+        assert_eq!(fmt_measured(35.0004, 35.0), "35.0004");
+        assert_eq!(fmt_measured(0.9975, 1.0), "0.9975");
+        assert_eq!(fmt_measured(43.73, 35.0), "43.73");
+        assert_eq!(fmt_measured(1.0, 1.0), "1");
+        for v in [0.999_999_999_999_9, 1.000_000_000_000_1, 2.0 - 1e-15] {
+            assert_ne!(fmt_measured(v, 1.0), "1", "{v}");
+        }
+    }
 }

@@ -860,7 +860,7 @@ impl ClosedLoopParams {
         if self.duration_s > 1e5 {
             return Err((
                 key("duration_s"),
-                format!("{} s is longer than 1e5 s", self.duration_s),
+                format!("{} s is longer than 1e5 s", crate::number(self.duration_s)),
             ));
         }
         nonneg("metrics_start_s", self.metrics_start_s)?;
@@ -869,7 +869,8 @@ impl ClosedLoopParams {
                 key("metrics_start_s"),
                 format!(
                     "{} must be below duration_s = {} so the metrics window is not empty",
-                    self.metrics_start_s, self.duration_s
+                    crate::number(self.metrics_start_s),
+                    crate::number(self.duration_s)
                 ),
             ));
         }
@@ -903,13 +904,31 @@ impl ClosedLoopParams {
             }
         }
         check_reference(&self.reference).map_err(|m| (key("reference"), m))?;
+        // A reference the loop samples below twice its fastest repetition is aliased: the
+        // run would track some other signal, or diverge and blame the gains.
+        let nyquist = 0.5 * self.controller.sample_rate_hz;
+        let fastest = self.reference.fastest_frequency_hz();
+        if self.controller.sample_rate_hz.is_finite() && fastest >= nyquist {
+            return Err((
+                key("reference"),
+                format!(
+                    "it repeats at up to {} Hz, at or above the Nyquist frequency {} Hz of controller.sample_rate_hz = {} Hz: give a slower reference or a faster control rate",
+                    crate::number(fastest),
+                    crate::number(nyquist),
+                    crate::number(self.controller.sample_rate_hz)
+                ),
+            ));
+        }
         if !(self.cable_damping_ratio.is_finite()
             && self.cable_damping_ratio >= 0.0
             && self.cable_damping_ratio < 1.0)
         {
             return Err((
                 key("cable_damping_ratio"),
-                format!("{} must be in [0, 1)", self.cable_damping_ratio),
+                format!(
+                    "{} must be in [0, 1)",
+                    crate::number(self.cable_damping_ratio)
+                ),
             ));
         }
         if !(1..=1000).contains(&self.rk4_substeps) {

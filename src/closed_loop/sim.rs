@@ -778,7 +778,14 @@ fn gains_to_check(c: &super::params::ControllerParams) -> String {
     out
 }
 
-/// A stop, named as the loop's instability when the exact linear reference is unstable.
+/// Growth of an unstable mode since the run began (tenfold, 20 dB) from which a slack
+/// span or a slip is taken for its doing rather than the drive's own.
+const GROWN_TO_STOP: f64 = 10.0;
+
+/// A stop, named as the loop's instability when the exact linear reference is unstable,
+/// unless it is a slack span or a slip before the growing mode has grown
+/// [`GROWN_TO_STOP`] times: a preload too low for the load slips in a stable loop too, so
+/// such a stop keeps its name, with the instability and its growth so far told beside it.
 fn stop(
     fault: String,
     time_s: f64,
@@ -787,6 +794,23 @@ fn stop(
     controller: &super::params::ControllerParams,
 ) -> Completion {
     match instability {
+        Some(i)
+            if matches!(kind, StopKind::GrossSlip | StopKind::Slack)
+                && (i.growth_per_s * time_s).exp() < GROWN_TO_STOP =>
+        {
+            Completion::Incomplete {
+                fault: format!(
+                    "{fault}; the loop is also unstable (on its exact linear reference the largest closed-loop pole has |z| = {:.5}: a mode growing at {:.1} 1/s at {:.1} Hz, only {} times its start by then); {}",
+                    i.pole_magnitude,
+                    i.growth_per_s,
+                    i.frequency_hz,
+                    crate::compact((i.growth_per_s * time_s).exp()),
+                    gains_to_check(controller)
+                ),
+                time_s,
+                kind,
+            }
+        }
         Some(i) => Completion::Incomplete {
             fault: format!(
                 "the loop is unstable (on its exact linear reference the largest closed-loop pole has |z| = {:.5}: a mode growing at {:.1} 1/s at {:.1} Hz), so it ended in: {fault}; {}",

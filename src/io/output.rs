@@ -19,12 +19,14 @@ pub const INCOMPLETE_FILE: &str = "INCOMPLETE.txt";
 pub enum OutputError {
     /// The final results directory already exists and `force` was not given.
     #[error(
-        "refusing to overwrite existing results directory {}; pass --force to replace it or --out to choose another",
+        "refusing to overwrite {what} {}; pass --force to replace it or --out to choose another",
         path.display()
     )]
     Exists {
         /// The existing results path.
         path: PathBuf,
+        /// What is there: `existing results directory`, `existing regular file`, ...
+        what: &'static str,
     },
     /// `--force` was given but the path holds something this program did not write.
     #[error(
@@ -48,6 +50,16 @@ pub enum OutputError {
         /// Underlying I/O error.
         source: io::Error,
     },
+}
+
+/// What stands at an existing `path`, for the refusal to overwrite it (a plain file given
+/// as `--out` is not a results directory).
+fn existing(path: &Path) -> &'static str {
+    match fs::symlink_metadata(path) {
+        Ok(m) if m.is_dir() => "existing results directory",
+        Ok(m) if m.is_file() => "existing regular file",
+        _ => "existing path",
+    }
 }
 
 fn io_err(path: &Path) -> impl FnOnce(io::Error) -> OutputError + '_ {
@@ -145,6 +157,7 @@ impl StagedDir {
             if !force {
                 return Err(OutputError::Exists {
                     path: final_path.to_path_buf(),
+                    what: existing(final_path),
                 });
             }
             check_ours(final_path)?;
@@ -203,6 +216,7 @@ impl StagedDir {
             if !self.force {
                 return Err(OutputError::Exists {
                     path: self.final_path.clone(),
+                    what: existing(&self.final_path),
                 });
             }
             check_ours(&self.final_path)?;

@@ -98,7 +98,13 @@ fn write_rows(path: &Path, rows: &[Vec<String>]) -> Result<(), ReportError> {
 
 /// Writes `freqresp.csv` (every amplitude), `amplitude_<k>.csv` and `.json` per amplitude
 /// (k from 1, in the order given) and `summary.json`.
-pub fn write_outputs(dir: &Path, scenario: &Scenario, r: &FreqResponse) -> Result<(), ReportError> {
+/// `verdict` is the design's, written beside the measurement as every command writes it.
+pub fn write_outputs(
+    dir: &Path,
+    scenario: &Scenario,
+    r: &FreqResponse,
+    verdict: &crate::analysis::verdict::Verdict,
+) -> Result<(), ReportError> {
     let mut all = Vec::new();
     for (k, a) in r.amplitudes.iter().enumerate() {
         let rows: Vec<Vec<String>> = a.points.iter().map(|p| row(r.point, a, p)).collect();
@@ -131,15 +137,21 @@ pub fn write_outputs(dir: &Path, scenario: &Scenario, r: &FreqResponse) -> Resul
             })
         })
         .collect();
+    let summary = dir.join("summary.json");
+    let encoded_verdict = serde_json::to_value(verdict).map_err(|e| ReportError::Encode {
+        path: summary.clone(),
+        message: e.to_string(),
+    })?;
     write_summary(
-        &dir.join("summary.json"),
+        &summary,
         scenario,
-        true,
+        r.complete(),
         &serde_json::json!({
+            "passes": verdict.passes,
+            "verdict": encoded_verdict,
             "freqresp": {
                 "point": r.point,
                 "transfer": r.transfer,
-                "passes": r.verdict(),
                 "operating_point": r.operating.operating_point,
                 "operating_point_reason": r.operating.reason,
                 "slew_rate_automatic": r.operating.slew_rate_automatic,

@@ -311,6 +311,12 @@ fn describe(
             ),
             rows,
         });
+        if record["freqresp"].is_object() {
+            // A frequency response carries the design's verdict beside what it measured:
+            // the page's outcome is the verdict, as the command's exit code is.
+            page.title = format!("Frequency response: {name}");
+            describe_freqresp(record, page, false);
+        }
     } else if let Some(designs) = record["designs"].as_array() {
         describe_compare(designs, record, page);
     } else if record["cases_total"].is_number() {
@@ -318,7 +324,7 @@ fn describe(
         describe_sweep(dir, record, page)?;
     } else if record["freqresp"].is_object() {
         page.title = format!("Frequency response: {name}");
-        describe_freqresp(record, page);
+        describe_freqresp(record, page, true);
     } else if record["tune"].is_object() {
         describe_tune(dir, record, page);
     } else if record["least_rate"].is_object() {
@@ -617,7 +623,9 @@ fn margin_rows(margins: &Value, requirements: &Value, condition: &str, rows: &mu
     }
 }
 
-fn describe_freqresp(record: &Value, page: &mut Page) {
+/// The measured margins per amplitude; with `judged`, the page's outcome from them (a
+/// record without the design's verdict).
+fn describe_freqresp(record: &Value, page: &mut Page, judged: bool) {
     let f = &record["freqresp"];
     let req = &record["scenario"]["closed_loop"]["requirements"];
     page.subtitle.push(format!(
@@ -630,7 +638,9 @@ fn describe_freqresp(record: &Value, page: &mut Page) {
     for a in f["amplitudes"].as_array().into_iter().flatten() {
         let cond = format!("amplitude {} {}", text(&a["amplitude"]), text(&a["unit"]));
         margin_rows(&a["margins"], req, &cond, &mut rows);
-        for s in a["shortfalls"].as_array().into_iter().flatten() {
+        // Beside the design's verdict the shortfalls stay in the table, not among the
+        // verdict's reasons.
+        for s in a["shortfalls"].as_array().into_iter().flatten().filter(|_| judged) {
             page.reasons.push(format!("{cond}: {}", text(s)));
         }
     }
@@ -640,11 +650,13 @@ fn describe_freqresp(record: &Value, page: &mut Page) {
         "exact linear reference",
         &mut rows,
     );
-    page.outcome = match f["passes"].as_bool() {
-        Some(true) => Outcome::Pass("every amplitude meets the requirements".into()),
-        Some(false) => Outcome::NotMet("an amplitude misses a requirement".into()),
-        None => Outcome::NotJudged,
-    };
+    if judged {
+        page.outcome = match f["passes"].as_bool() {
+            Some(true) => Outcome::Pass("every amplitude meets the requirements".into()),
+            Some(false) => Outcome::NotMet("an amplitude misses a requirement".into()),
+            None => Outcome::NotJudged,
+        };
+    }
     page.tables.push(Table {
         key: "freqresp".into(),
         heading: "Measured margins per amplitude, and the exact linear reference".into(),

@@ -93,6 +93,7 @@ pub fn write_outputs(
     p: &ClosedLoopParams,
     models: &LoopModels,
     verdict: &Verdict,
+    explored_load_nm: Option<f64>,
 ) -> Result<(), ReportError> {
     let ctl = &p.controller;
     let req = &p.requirements;
@@ -113,6 +114,7 @@ pub fn write_outputs(
         "computation_delay_samples": ctl.computation_delay_samples,
         "requirements": requirements,
         "operating_load_problem": models.problem,
+        "explored_load_nm": explored_load_nm,
         "operating_points": points,
     });
     write_json(&path, &margins)?;

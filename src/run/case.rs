@@ -54,7 +54,43 @@ pub fn case_scenario(
             message,
         })?;
     }
-    Scenario::from_table(table, &format!("sweep case {}", case.index), default_name)
+    let values = case
+        .assignments
+        .iter()
+        .map(|(key, _, value)| format!("{key}={}", render_value(value)))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let source = format!("the case's values {values}");
+    match Scenario::from_table(table, &source, default_name) {
+        Err(ScenarioError::Invalid { key, message, .. }) if key == "scenario" => {
+            // A value of the wrong type is reported without its key: the first assignment
+            // that breaks the scenario on its own names it.
+            let culprit = (1..=case.assignments.len()).find(|&n| {
+                let mut partial = base.clone();
+                partial.remove("sweep");
+                case.assignments[..n].iter().all(|(key, _, value)| {
+                    let path: Vec<String> = key.split('.').map(str::to_string).collect();
+                    set_path(&mut partial, &path, value.clone()).is_ok()
+                }) && Scenario::from_table(partial, &source, default_name).is_err()
+            });
+            Err(match culprit {
+                Some(n) => {
+                    let (key, _, _) = &case.assignments[n - 1];
+                    ScenarioError::Invalid {
+                        source_name: "the case's values".into(),
+                        key: key.clone(),
+                        message,
+                    }
+                }
+                None => ScenarioError::Invalid {
+                    source_name: source,
+                    key,
+                    message,
+                },
+            })
+        }
+        other => other,
+    }
 }
 
 /// Resolve, run and (when asked) write the files of one case.
