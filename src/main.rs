@@ -118,9 +118,11 @@ enum Design {
         /// Control rate to tune at, Hz (default: the scenario's).
         #[arg(long, value_name = "HZ")]
         rate: Option<f64>,
-        /// Compensation mode judged: none, memoryless or memory.
-        #[arg(long, default_value = "memory")]
-        mode: String,
+        /// Compensation mode judged: none, memoryless or memory (default: the scenario's
+        /// judged mode, closed_loop.requirements.mode or its last listed mode; a --mode
+        /// other than a declared one is refused).
+        #[arg(long)]
+        mode: Option<String>,
         /// Load feedforward tried: off, on or both (the pick is the better).
         #[arg(long, default_value = "both", value_name = "off|on|both")]
         feedforward: String,
@@ -148,9 +150,11 @@ enum Design {
     LeastRate {
         /// Closed-loop scenario file or built-in name (default: eots_tracking).
         scenario: Option<String>,
-        /// Compensation mode judged: none, memoryless or memory.
-        #[arg(long, default_value = "memory")]
-        mode: String,
+        /// Compensation mode judged: none, memoryless or memory (default: the scenario's
+        /// judged mode, closed_loop.requirements.mode or its last listed mode; a --mode
+        /// other than a declared one is refused).
+        #[arg(long)]
+        mode: Option<String>,
         /// Load feedforward tried at each rate: off, on or both.
         #[arg(long, default_value = "off", value_name = "off|on|both")]
         feedforward: String,
@@ -653,7 +657,7 @@ fn main() -> ExitCode {
         } => design_tune(
             scenario,
             rate,
-            (&mode, &feedforward, &filters),
+            (mode.as_deref(), &feedforward, &filters),
             quick,
             out,
             force,
@@ -675,7 +679,7 @@ fn main() -> ExitCode {
                 },
         } => design_least_rate(
             scenario,
-            &mode,
+            mode.as_deref(),
             &feedforward,
             (min_hz, max_hz, tol_hz),
             quick,
@@ -1188,11 +1192,11 @@ fn html_report(dir: &std::path::Path) {
 
 /// Mode and load-feedforward choice of a tune from their command-line words.
 fn tune_choices(
-    mode: &str,
+    mode: Option<&str>,
     feedforward: &str,
 ) -> Result<
     (
-        cable_servo::closed_loop::CompensationMode,
+        Option<cable_servo::closed_loop::CompensationMode>,
         cable_servo::design::tune::Feedforward,
     ),
     String,
@@ -1200,10 +1204,11 @@ fn tune_choices(
     use cable_servo::closed_loop::CompensationMode;
     use cable_servo::design::tune::Feedforward;
     let mode = match mode {
-        "none" => CompensationMode::None,
-        "memoryless" => CompensationMode::Memoryless,
-        "memory" => CompensationMode::Memory,
-        other => return Err(format!("--mode {other}: use none, memoryless or memory")),
+        None => None,
+        Some("none") => Some(CompensationMode::None),
+        Some("memoryless") => Some(CompensationMode::Memoryless),
+        Some("memory") => Some(CompensationMode::Memory),
+        Some(other) => return Err(format!("--mode {other}: use none, memoryless or memory")),
     };
     let ff = match feedforward {
         "off" => Feedforward::Without,
@@ -1249,7 +1254,7 @@ fn tune_bar() -> indicatif::ProgressBar {
 fn design_tune(
     scenario: Option<String>,
     rate: Option<f64>,
-    (mode, feedforward, filters): (&str, &str, &str),
+    (mode, feedforward, filters): (Option<&str>, &str, &str),
     quick: bool,
     out: Option<PathBuf>,
     force: bool,
@@ -1309,17 +1314,37 @@ fn design_tune(
 fn tune_setup(
     scenario: Option<String>,
     rate_hz: Option<f64>,
-    mode: &str,
+    mode: Option<&str>,
     feedforward: &str,
     quick: bool,
     set: &[String],
 ) -> Result<(Scenario, cable_servo::design::tune::TuneOptions), ExitCode> {
     use cable_servo::design::tune::{SearchSize, TuneOptions};
-    let (mode, feedforward) = tune_choices(mode, feedforward).map_err(|msg| {
+    let (asked, feedforward) = tune_choices(mode, feedforward).map_err(|msg| {
         tell!("error: {msg}");
         ExitCode::from(exit::USAGE)
     })?;
     let scenario = load(scenario.as_deref().unwrap_or("eots_tracking"), set)?;
+    // The tuned design is judged in the mode its requirements declare, as every command
+    // judges it: a --mode that differs would tune, and write out, another requirement.
+    let judged = scenario.closed_loop.as_ref().map(|c| c.judged_mode());
+    let declared = scenario
+        .closed_loop
+        .as_ref()
+        .and_then(|c| c.requirements.mode);
+    let mode = match (asked, declared) {
+        (Some(a), Some(d)) if a != d => {
+            tell!(
+                "error: --mode {}: the scenario declares closed_loop.requirements.mode = \"{}\"; drop --mode, or declare the mode to judge (--set closed_loop.requirements.mode={})",
+                a.name(),
+                d.name(),
+                a.name()
+            );
+            return Err(ExitCode::from(exit::USAGE));
+        }
+        (Some(a), _) => a,
+        (None, _) => judged.unwrap_or(cable_servo::closed_loop::CompensationMode::Memory),
+    };
     let search = if quick {
         SearchSize::reduced()
     } else {
@@ -1342,7 +1367,7 @@ fn tune_setup(
 #[allow(clippy::too_many_arguments)]
 fn design_least_rate(
     scenario: Option<String>,
-    mode: &str,
+    mode: Option<&str>,
     feedforward: &str,
     (min_hz, max_hz, tol_hz): (f64, f64, f64),
     quick: bool,

@@ -1271,6 +1271,16 @@ pub fn run_compare(
             )));
         };
         if let Some(m) = mode {
+            // A declared judged mode is the design's requirement: judging another would
+            // give this design a verdict no other command gives it.
+            if let Some(declared) = p.requirements.mode.filter(|&d| d != m) {
+                return Err(RunError::Unsupported(format!(
+                    "design {:?} declares closed_loop.requirements.mode = {:?}: --mode {} would judge it by another requirement; drop --mode, or declare the mode to judge",
+                    d.name,
+                    declared.name(),
+                    m.name()
+                )));
+            }
             if !p.modes.contains(&m) {
                 return Err(RunError::Unsupported(format!(
                     "design {:?} does not list mode {:?} in closed_loop.modes",

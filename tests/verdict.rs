@@ -366,3 +366,42 @@ fn a_stopped_measurement_is_incomplete_in_every_output() {
         "{summary}"
     );
 }
+
+/// A design that declares the mode it is judged in is tuned and compared in that mode: a
+/// `--mode` that differs is refused rather than judged by another requirement.
+#[test]
+fn a_declared_judged_mode_is_the_one_tune_and_compare_judge() {
+    let tmp = tempfile::tempdir().unwrap();
+    let declared = [
+        "--set",
+        "closed_loop.duration_s=4",
+        "--set",
+        "closed_loop.requirements.mode=\"memoryless\"",
+    ];
+    let run = |args: &[&str]| {
+        let args: Vec<String> = args.iter().map(|s| s.to_string()).collect();
+        let out = cable_servo(&args, tmp.path());
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (out.status.code(), text)
+    };
+    let mut tune = vec!["design", "tune", "--quick", "--feedforward", "off"];
+    tune.extend(declared);
+    let (_, text) = run(&[tune.as_slice(), &["--out", "tuned"]].concat());
+    assert!(text.contains("(memoryless mode)"), "{text}");
+    let written = std::fs::read_to_string(tmp.path().join("tuned/tuned.toml")).unwrap();
+    assert!(written.contains("mode = \"memoryless\""), "{written}");
+    let (code, text) = run(&[tune.as_slice(), &["--mode", "memory", "--out", "t2"]].concat());
+    assert_eq!(code, Some(2), "{text}");
+    assert!(text.contains("closed_loop.requirements.mode"), "{text}");
+    assert!(!tmp.path().join("t2").exists());
+    let mut compare = vec!["compare", "eots_tracking", "--mode", "none", "--out", "c"];
+    compare.extend(declared);
+    let (code, text) = run(&compare);
+    assert_eq!(code, Some(3), "{text}");
+    assert!(text.contains("closed_loop.requirements.mode"), "{text}");
+    assert!(!tmp.path().join("c").exists());
+}
