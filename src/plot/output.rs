@@ -62,7 +62,10 @@ pub(super) fn remove_stale(tmp: &Path) {
     }
 }
 
-pub(super) fn save_figure<F: Figure>(fig: &F, stem: &Path) -> Result<Vec<PathBuf>, PlotError> {
+pub(super) fn save_figure<F: Figure + Sync>(
+    fig: &F,
+    stem: &Path,
+) -> Result<Vec<PathBuf>, PlotError> {
     if stem.file_name().is_none() {
         return Err(PlotError::InvalidInput(format!(
             "output stem {} has no file name",
@@ -80,8 +83,11 @@ pub(super) fn save_figure<F: Figure>(fig: &F, stem: &Path) -> Result<Vec<PathBuf
     }
     let png = with_suffix(stem, ".png");
     let svg = with_suffix(stem, ".svg");
-    write_png(fig, &png)?;
-    write_svg(fig, &svg)?;
+    // The two renderings share nothing but the figure: side by side they halve the time
+    // of the slowest figure, which is what a report waits for.
+    let (drawn_png, drawn_svg) = rayon::join(|| write_png(fig, &png), || write_svg(fig, &svg));
+    drawn_png?;
+    drawn_svg?;
     Ok(vec![png, svg])
 }
 

@@ -640,7 +640,12 @@ fn describe_freqresp(record: &Value, page: &mut Page, judged: bool) {
         margin_rows(&a["margins"], req, &cond, &mut rows);
         // Beside the design's verdict the shortfalls stay in the table, not among the
         // verdict's reasons.
-        for s in a["shortfalls"].as_array().into_iter().flatten().filter(|_| judged) {
+        for s in a["shortfalls"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter(|_| judged)
+        {
             page.reasons.push(format!("{cond}: {}", text(s)));
         }
     }
@@ -803,23 +808,36 @@ fn collect_figures(dir: &Path, warnings: &mut Vec<String>) -> Vec<Figure> {
         ));
         paths.truncate(MAX_FIGURES);
     }
+    use rayon::prelude::*;
+    // Figures are read and prepared side by side (the largest are megabytes), then taken
+    // in their order.
+    let prepared: Vec<Result<Figure, String>> = paths
+        .par_iter()
+        .enumerate()
+        .map(|(i, path)| {
+            let name = path
+                .strip_prefix(dir)
+                .unwrap_or(path)
+                .components()
+                .map(|c| c.as_os_str().to_string_lossy().into_owned())
+                .collect::<Vec<_>>()
+                .join("/");
+            match std::fs::read_to_string(path) {
+                Ok(raw) => match inline_svg(&raw, &format!("fig{i}-")) {
+                    Some(svg) => Ok(Figure { name, svg }),
+                    None => Err(format!(
+                        "figure {name} is left out of this page: it is not a plain SVG drawing (no <svg> element, or it refers to something outside itself)"
+                    )),
+                },
+                Err(e) => Err(format!("figure {name} could not be read: {e}")),
+            }
+        })
+        .collect();
     let mut figures = Vec::new();
-    for (i, path) in paths.iter().enumerate() {
-        let name = path
-            .strip_prefix(dir)
-            .unwrap_or(path)
-            .components()
-            .map(|c| c.as_os_str().to_string_lossy().into_owned())
-            .collect::<Vec<_>>()
-            .join("/");
-        match std::fs::read_to_string(path) {
-            Ok(raw) => match inline_svg(&raw, &format!("fig{i}-")) {
-                Some(svg) => figures.push(Figure { name, svg }),
-                None => warnings.push(format!(
-                    "figure {name} is left out of this page: it is not a plain SVG drawing (no <svg> element, or it refers to something outside itself)"
-                )),
-            },
-            Err(e) => warnings.push(format!("figure {name} could not be read: {e}")),
+    for figure in prepared {
+        match figure {
+            Ok(f) => figures.push(f),
+            Err(w) => warnings.push(w),
         }
     }
     figures
