@@ -1012,3 +1012,23 @@ fn an_effect_whose_size_is_not_told_from_zero_is_not_found() {
         d.causes
     );
 }
+
+/// A log whose input and output never move (the load cell still reading) is refused by
+/// name, not judged: before, it got a verdict over a noise floor of 0.0000 mrad.
+#[test]
+fn a_log_without_motion_is_refused() {
+    use cable_servo::identify::{synthesize, SynthOptions};
+    let sc = Scenario::load("gimbal_ident", &[]).unwrap();
+    let mut log = synthesize(&sc, &[], 3, &SynthOptions::default()).unwrap();
+    log.source = "nomotion.csv".into();
+    log.theta_in_rad.iter_mut().for_each(|v| *v = 0.0);
+    log.theta_out_rad.iter_mut().for_each(|v| *v = 0.0);
+    let err = diagnose(&sc, &[log], &opts())
+        .map(|d| format!("cause {} over a floor of {}", d.cause, d.noise_floor_mrad))
+        .expect_err("a log without motion");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("nomotion.csv") && msg.contains("does not move"),
+        "{msg}"
+    );
+}

@@ -479,6 +479,9 @@ pub fn diagnose_with_progress(
         .iter()
         .map(|l| model::prepare(l, ident.max_rate_hz))
         .collect::<Result<_, _>>()?;
+    for p in &prepared {
+        still_input(p)?;
+    }
     let (segments_per_log, keep_per_log) =
         segments::rows_to_fit(&cut_logs, &mut prepared, options.keep_segments)?;
     let keep: Vec<bool> = keep_per_log.iter().flatten().copied().collect();
@@ -1369,6 +1372,35 @@ fn fitted_ratio(drive: &DriveParams, f: &Fitted) -> f64 {
         .iter()
         .position(|p| *p == LinParam::InverseRatio)
         .map_or(ic, |i| 1.0 / (1.0 / ic + f.coef[i]))
+}
+
+/// Refuses a log whose input does not move: with nothing driven, every model replays the
+/// same still output, its residual is the encoder zero alone, and a noise floor of zero
+/// judged the fits (a verdict with a floor of 0.0000 mrad, exit 0).
+fn still_input(p: &Prepared) -> Result<(), IdentifyError> {
+    let (lo, hi) = p
+        .th_in
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    let span = if hi >= lo { hi - lo } else { 0.0 };
+    // A drive held still reads at most a step or two of encoder jitter.
+    if span > 2.0 * p.q_in.max(1e-9) {
+        return Ok(());
+    }
+    Err(IdentifyError::BadLog {
+        log: p.source.clone(),
+        message: format!(
+            "the input angle (theta_in_rad) does not move in this log (it spans {} rad{}): a diagnosis needs the drive turned through its stroke, with at least one reversal to see the friction memory",
+            crate::compact(span),
+            if p.q_in > 0.0 {
+                format!(", {} encoder steps", crate::compact(span / p.q_in))
+            } else {
+                String::new()
+            }
+        ),
+    })
 }
 
 /// Standard deviations by which an effect's fitted size must stand off zero to be found:
