@@ -944,7 +944,7 @@ pub fn run_diagnosis_with_progress(
     }
     let logs: Vec<crate::measurement::BenchLog> = paths
         .iter()
-        .map(|p| crate::io::benchlog::read_bench_log(p))
+        .map(|p| crate::io::benchlog::read_drive_log(p))
         .collect::<Result<_, _>>()?;
     let diagnosis = crate::identify::diagnose_with_progress(scenario, &logs, options, progress)?;
     let staged = StagedDir::create(&out.dir, out.force)?;
@@ -1009,7 +1009,7 @@ pub fn run_leave_one_out_with_progress(
     };
     let logs: Vec<crate::identify::BenchLog> = paths
         .iter()
-        .map(|p| crate::io::benchlog::read_bench_log(p))
+        .map(|p| crate::io::benchlog::read_drive_log(p))
         .collect::<Result<_, _>>()?;
     let table = crate::identify::loo::leave_one_out_with_segments(
         &scenario.drive,

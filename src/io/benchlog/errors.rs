@@ -17,6 +17,10 @@ pub enum ValueProblem {
     Infinite,
     /// The text is a number too large for an `f64` (e.g. `1e999`).
     OutOfRange,
+    /// A finite number beyond what the column can physically hold
+    /// ([`super::MAX_MAGNITUDE`]: a load of 1e308 N m is a broken logger, and the replay
+    /// would carry it to infinity).
+    BeyondColumn,
 }
 
 /// Errors from reading or writing a bench log.
@@ -306,6 +310,11 @@ pub(super) fn describe_value(reason: ValueProblem, text: &str) -> String {
         ValueProblem::OutOfRange => format!(
             "value {} is out of range for a 64-bit float (overflows to infinity)",
             show(text)
+        ),
+        ValueProblem::BeyondColumn => format!(
+            "value {} is out of range: angles (rad) and loads (N m) are allowed up to {} in magnitude",
+            show(text),
+            crate::number(super::MAX_MAGNITUDE)
         ),
     }
 }
