@@ -286,8 +286,13 @@ pub fn synthesize(
     let mut log = BenchLog {
         source: format!("synthetic(seed={seed})"),
         comments: vec![format!(
-            "synthetic log: scenario {}, effects {:?}, seed {seed}",
-            scenario.name, effects
+            "synthetic log: scenario {}, effects [{}], seed {seed}",
+            scenario.name,
+            effects
+                .iter()
+                .map(|(e, v)| format!("{e}={}", crate::number(*v)))
+                .collect::<Vec<_>>()
+                .join(", ")
         )],
         ..BenchLog::default()
     };

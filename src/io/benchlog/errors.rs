@@ -190,6 +190,17 @@ pub enum LogError {
         /// Column, when the bytes are inside a data field.
         column: Option<String>,
     },
+    /// Control bytes (NUL and the like) in the header: the file is not text at all.
+    #[error(
+        "{path}: line {line}: the header holds control bytes (such as NUL): this is not a text CSV file (a binary file?); a bench log is UTF-8 text whose header names the columns {}",
+        REQUIRED_COLUMNS.join(",")
+    )]
+    NotText {
+        /// File path or stream name.
+        path: String,
+        /// Line of the header row.
+        line: u64,
+    },
     /// Any other CSV-level problem reported by the `csv` crate.
     #[error("{path}{}: malformed CSV: {message}", line.map(|l| format!(": line {l}")).unwrap_or_default())]
     Csv {
@@ -228,7 +239,8 @@ impl LogError {
             | LogError::NonIncreasingTime { line, .. }
             | LogError::Ragged { line, .. }
             | LogError::CommentAfterHeader { line, .. }
-            | LogError::Encoding { line, .. } => Some(*line),
+            | LogError::Encoding { line, .. }
+            | LogError::NotText { line, .. } => Some(*line),
         }
     }
 
@@ -247,6 +259,7 @@ impl LogError {
             | LogError::Ragged { path, .. }
             | LogError::CommentAfterHeader { path, .. }
             | LogError::Encoding { path, .. }
+            | LogError::NotText { path, .. }
             | LogError::Csv { path, .. }
             | LogError::Invalid { path, .. } => path,
         }

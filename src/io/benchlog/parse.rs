@@ -287,6 +287,12 @@ impl<R: Read> Parser<R> {
                     column: None,
                 });
             };
+            if text.chars().any(|c| c.is_control() && c != '\t') {
+                return Err(LogError::NotText {
+                    path: parser.name.clone(),
+                    line,
+                });
+            }
             let column = trim_ascii_ws(text);
             if column.is_empty() {
                 return Err(LogError::EmptyColumnName {

@@ -73,6 +73,12 @@ fn error_messages() {
     assert!(e.contains("infinite value \"-inf\""), "{e}");
     let e = err(format!("{h}0,1,1e999,3\n").as_bytes());
     assert!(e.contains("out of range"), "{e}");
+    let e = err(b"\0\x01\x02garbage\n1,2\n");
+    assert!(
+        e.contains("not a text CSV") && !e.contains("\\u{") && !e.contains("\\0"),
+        "{e}"
+    );
+
     let e = err(format!("{h}0,1,2,3\n0,1,2,3\n").as_bytes());
     assert!(
         e.contains("line 3") && e.contains("equals") && e.contains("(line 2)"),
