@@ -962,7 +962,8 @@ pub fn run_diagnosis_with_progress(
 }
 
 /// Joint calibration over several logs and leave-one-log-out validation of the extension
-/// `effects` (empty: the scenario's `[identify] candidates`), written as
+/// `effects` (empty: the scenario's `[identify] candidates`, the whole library when that
+/// list is empty), written as
 /// `leave_one_out.json` and `leave_one_out.txt` into a staged results directory.
 pub fn run_leave_one_out(
     scenario: &Scenario,
@@ -1003,7 +1004,15 @@ pub fn run_leave_one_out_with_progress(
 ) -> Result<RunReport, RunError> {
     let ident = scenario.identify.clone().unwrap_or_default();
     let effects: Vec<crate::identify::EffectName> = if effects.is_empty() {
-        ident.candidates.clone()
+        // As the single diagnosis's search: a free ratio and an output scale error are the
+        // same column.
+        ident
+            .searched()
+            .into_iter()
+            .filter(|e| {
+                !(ident.is_unknown("ratio") && *e == crate::identify::EffectName::EncoderScaleError)
+            })
+            .collect()
     } else {
         effects.to_vec()
     };

@@ -54,13 +54,13 @@ fn make_split(
     if !opts.holdout_logs.is_empty() {
         if let Some(bad) = opts.holdout_logs.iter().find(|i| **i >= logs.len()) {
             return Err(IdentifyError::Config {
-                key: "holdout_logs".into(),
+                key: "--holdout".into(),
                 message: format!("log index {bad} does not exist ({} logs given)", logs.len()),
             });
         }
         if opts.holdout_logs.len() >= logs.len() {
             return Err(IdentifyError::Config {
-                key: "holdout_logs".into(),
+                key: "--holdout".into(),
                 message: "every log is held out; keep at least one for calibration".into(),
             });
         }
@@ -571,13 +571,7 @@ pub fn diagnose_with_progress(
     let mut pool: Vec<EffectName> = options
         .candidates
         .clone()
-        .unwrap_or_else(|| {
-            if ident.candidates.is_empty() {
-                EffectName::ALL.to_vec()
-            } else {
-                ident.candidates.clone()
-            }
-        })
+        .unwrap_or_else(|| ident.searched())
         .into_iter()
         // A free ratio and an output scale error are the same column.
         .filter(|e| !(ratio_free && *e == EffectName::EncoderScaleError))
