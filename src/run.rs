@@ -1047,6 +1047,21 @@ pub fn run_leave_one_out_with_progress(
         let mut s = scenario.clone();
         s.drive = table.drive.clone();
         s.effects = Some(table.effects_params.clone());
+        crate::report::diagnosis::calibrated_identity(
+            &mut s,
+            &format!(
+                "calibrated jointly on {} logs ({}); leave-one-log-out: extended beats base on {}/{}",
+                table.rows.len(),
+                paths
+                    .iter()
+                    .filter_map(|p| p.file_name())
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                table.wins_over_base,
+                table.rows.len()
+            ),
+        );
         let model =
             toml::to_string(&s).map_err(|e| ReportError::io(path, std::io::Error::other(e)))?;
         let header = format!(
