@@ -812,7 +812,9 @@ pub fn loo_text(t: &LooTable) -> String {
 /// instead of a `+-` that would read as an estimate.
 fn shared_row(p: &ParamEstimate) -> String {
     let head = format!("{:<34} {:>13.5e}", p.name, p.value);
-    if p.std == 0.0 {
+    // Exactly zero is a term its bound holds (a weight kept non-negative): the fit does
+    // not need it, which is no failure to pin it.
+    if p.std == 0.0 || p.value == 0.0 {
         format!("{head}    {}; held on its bound, not fitted freely", p.unit)
     } else if !p.std.is_finite() || p.std > p.value.abs() {
         format!(
@@ -885,11 +887,13 @@ mod tests {
         let loose = shared_row(&p(3.98754e-2, 4.05e-2));
         assert!(!loose.contains("+-"), "{loose}");
         assert!(loose.contains("not identifiable"), "{loose}");
-        let held = shared_row(&p(0.0, 0.0));
-        assert!(
-            !held.contains("+-") && held.contains("held on its bound"),
-            "{held}"
-        );
+        for std in [0.0, 4.2e-2] {
+            let held = shared_row(&p(0.0, std));
+            assert!(
+                !held.contains("+-") && held.contains("held on its bound"),
+                "{held}"
+            );
+        }
         assert!(shared_row(&p(3.98754e-2, 4.05e-3)).contains("+-"));
     }
 }

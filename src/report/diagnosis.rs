@@ -299,9 +299,9 @@ pub fn summary_text(d: &Diagnosis) -> String {
                     p.name, p.value, p.unit, n.reason
                 );
             }
-            // No spread at all is a value the fit held (a weight kept at zero by its
-            // bound), not one it pinned exactly.
-            None if p.std == 0.0 => {
+            // No spread at all, or exactly zero, is a value the fit held (a weight kept at
+            // zero by its bound), not one it pinned exactly.
+            None if p.std == 0.0 || p.value == 0.0 => {
                 let _ = writeln!(
                     s,
                     "  {:<28} {:>14.6e}    {}; held on its bound, not fitted freely",
