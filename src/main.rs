@@ -321,7 +321,8 @@ enum Command {
         #[arg(long = "keep-segments")]
         keep_segments: bool,
         /// Effect of the extension scored by --leave-one-out (repeatable; default: the
-        /// scenario's [identify] candidates). Only with --leave-one-out; a single diagnosis
+        /// scenario's [identify] candidates, the whole library when that list is empty, as
+        /// for a single diagnosis). Only with --leave-one-out; a single diagnosis
         /// searches the scenario's [identify] candidates, e.g. --set
         /// 'identify.candidates=["load_compliance"]'.
         #[arg(long = "extension", value_name = "EFFECT")]
@@ -786,6 +787,36 @@ fn main() -> ExitCode {
                         .map(|e| format!("\"{e}\""))
                         .collect::<Vec<_>>()
                         .join(", ")
+                );
+                return ExitCode::from(exit::USAGE);
+            }
+            // --leave-one-out holds every log out in turn; a fixed hold-out would be ignored.
+            if leave_one_out && !holdout.is_empty() {
+                tell!(
+                    "error: --holdout holds fixed logs out of a single diagnosis and is not used with --leave-one-out, which holds out every log in turn; drop --holdout, or drop --leave-one-out to score the extension on log(s) {}",
+                    holdout
+                        .iter()
+                        .map(|k| k.to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+                return ExitCode::from(exit::USAGE);
+            }
+            if let Some(k) = holdout.iter().find(|k| **k >= data.len()) {
+                tell!(
+                    "error: --holdout {k}: there {} {} --data log(s), indexed 0 to {} in --data order; name a log that is given, and keep at least one for calibration",
+                    if data.len() == 1 { "is" } else { "are" },
+                    data.len(),
+                    data.len().saturating_sub(1)
+                );
+                return ExitCode::from(exit::USAGE);
+            }
+            let mut held: Vec<usize> = holdout.clone();
+            held.sort_unstable();
+            held.dedup();
+            if !held.is_empty() && held.len() >= data.len() {
+                tell!(
+                    "error: --holdout holds out every --data log; keep at least one for calibration"
                 );
                 return ExitCode::from(exit::USAGE);
             }

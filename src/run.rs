@@ -944,7 +944,7 @@ pub fn run_diagnosis_with_progress(
     }
     let logs: Vec<crate::measurement::BenchLog> = paths
         .iter()
-        .map(|p| crate::io::benchlog::read_bench_log(p))
+        .map(|p| crate::io::benchlog::read_drive_log(p))
         .collect::<Result<_, _>>()?;
     let diagnosis = crate::identify::diagnose_with_progress(scenario, &logs, options, progress)?;
     let staged = StagedDir::create(&out.dir, out.force)?;
@@ -962,7 +962,8 @@ pub fn run_diagnosis_with_progress(
 }
 
 /// Joint calibration over several logs and leave-one-log-out validation of the extension
-/// `effects` (empty: the scenario's `[identify] candidates`), written as
+/// `effects` (empty: the scenario's `[identify] candidates`, the whole library when that
+/// list is empty), written as
 /// `leave_one_out.json` and `leave_one_out.txt` into a staged results directory.
 pub fn run_leave_one_out(
     scenario: &Scenario,
@@ -1003,13 +1004,21 @@ pub fn run_leave_one_out_with_progress(
 ) -> Result<RunReport, RunError> {
     let ident = scenario.identify.clone().unwrap_or_default();
     let effects: Vec<crate::identify::EffectName> = if effects.is_empty() {
-        ident.candidates.clone()
+        // As the single diagnosis's search: a free ratio and an output scale error are the
+        // same column.
+        ident
+            .searched()
+            .into_iter()
+            .filter(|e| {
+                !(ident.is_unknown("ratio") && *e == crate::identify::EffectName::EncoderScaleError)
+            })
+            .collect()
     } else {
         effects.to_vec()
     };
     let logs: Vec<crate::identify::BenchLog> = paths
         .iter()
-        .map(|p| crate::io::benchlog::read_bench_log(p))
+        .map(|p| crate::io::benchlog::read_drive_log(p))
         .collect::<Result<_, _>>()?;
     let table = crate::identify::loo::leave_one_out_with_segments(
         &scenario.drive,
@@ -1038,6 +1047,21 @@ pub fn run_leave_one_out_with_progress(
         let mut s = scenario.clone();
         s.drive = table.drive.clone();
         s.effects = Some(table.effects_params.clone());
+        crate::report::diagnosis::calibrated_identity(
+            &mut s,
+            &format!(
+                "calibrated jointly on {} logs ({}); leave-one-log-out: extended beats base on {}/{}",
+                table.rows.len(),
+                paths
+                    .iter()
+                    .filter_map(|p| p.file_name())
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                table.wins_over_base,
+                table.rows.len()
+            ),
+        );
         let model =
             toml::to_string(&s).map_err(|e| ReportError::io(path, std::io::Error::other(e)))?;
         let header = format!(

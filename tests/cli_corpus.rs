@@ -359,12 +359,43 @@ fn usage_errors_exit_2() {
             "--extension",
             "load_compliance",
         ][..],
+        // --leave-one-out holds every log out in turn: a fixed hold-out would be ignored.
+        &[
+            "diagnose",
+            "--scenario",
+            "gimbal_ident",
+            "--data",
+            "a.csv",
+            "--data",
+            "b.csv",
+            "--leave-one-out",
+            "--holdout",
+            "1",
+        ][..],
+        // A log index that is not given.
+        &[
+            "diagnose",
+            "--scenario",
+            "gimbal_ident",
+            "--data",
+            "a.csv",
+            "--data",
+            "b.csv",
+            "--holdout",
+            "2",
+        ][..],
     ] {
         let out = run(args, tmp.path());
         let err = stderr(&out);
         assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
         assert!(!err.contains("panicked"), "{args:?}: {err}");
         assert!(entries(tmp.path()).is_empty(), "{args:?}");
+        if args.contains(&"--holdout") {
+            assert!(
+                err.contains("--holdout") && !err.contains("holdout_logs"),
+                "{err}"
+            );
+        }
         if args.contains(&"--extension") {
             assert!(
                 err.contains("identify.candidates=[\"load_compliance\"]"),

@@ -276,7 +276,8 @@ pub struct IdentifyParams {
     /// Unit: noise floors.
     #[serde(default = "default_none_within_floor")]
     pub none_within_floor: f64,
-    /// Effects searched; empty means the whole library.
+    /// Effects searched, and the extension `--leave-one-out` scores unless `--extension`
+    /// names one; empty means the whole library for both.
     #[serde(default)]
     pub candidates: Vec<EffectName>,
     /// Most effects named at once (greedy forward selection).
@@ -458,6 +459,36 @@ impl IdentifyParams {
     pub fn is_unknown(&self, key: &str) -> bool {
         self.unknown.iter().any(|u| u == key)
     }
+
+    /// The effects `candidates` names: the list itself, or the whole library
+    /// ([`EffectName::ALL`]) when it is empty, for a single diagnosis's search and for the
+    /// extension `--leave-one-out` scores alike (an empty list had meant no effect at all
+    /// there, the base model alone scored as the extension).
+    pub fn searched(&self) -> Vec<EffectName> {
+        if self.candidates.is_empty() {
+            EffectName::ALL.to_vec()
+        } else {
+            self.candidates.clone()
+        }
+    }
 }
 
 pub use crate::physics::effects::EffectsParams;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_empty_candidate_list_is_the_whole_library() {
+        assert_eq!(
+            IdentifyParams::default().searched(),
+            EffectName::ALL.to_vec()
+        );
+        let named = IdentifyParams {
+            candidates: vec![EffectName::LoadCompliance],
+            ..IdentifyParams::default()
+        };
+        assert_eq!(named.searched(), vec![EffectName::LoadCompliance]);
+    }
+}

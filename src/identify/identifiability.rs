@@ -82,6 +82,14 @@ pub fn analyse(j: &DMatrix<f64>, s2: f64) -> Analysis {
     Analysis { cov, unseen }
 }
 
+/// Whether a parameter's value may well be zero without saying anything of how well it is
+/// pinned: an encoder zero, a runout's phase, a log's own part of a calibrated term. Its
+/// uncertainty against its value is no test (an encoder zero of 8e-8 rad pinned to 1e-7
+/// is pinned); the correlation and unseen-direction rules still judge it.
+pub fn zero_is_natural(name: &str) -> bool {
+    name.starts_with("encoder_zero[") || name.ends_with("_phase") || name.contains("_per_log[")
+}
+
 /// A reported parameter the data does not pin, and why.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct NotIdentifiable {
@@ -121,7 +129,7 @@ pub fn not_identifiable(
                     partners.join(", ")
                 )
             }
-        } else if !p.std.is_finite() || p.std > p.value.abs() {
+        } else if !p.std.is_finite() || (p.std > p.value.abs() && !zero_is_natural(&p.name)) {
             format!(
                 "its uncertainty ({}) exceeds its value",
                 crate::compact(p.std)
@@ -223,6 +231,7 @@ mod tests {
             estimate("c", 1.0, a.cov[(2, 2)].sqrt()),
             estimate("derived", 1e-3, 2e-3),
             estimate("zero_on_bound", 0.0, 0.2),
+            estimate("encoder_zero[0]", 8e-8, 1.1e-7),
         ];
         let raw = [("a".into(), 0), ("b".into(), 1), ("c".into(), 2)];
         let said = not_identifiable(&params, &a, &raw);

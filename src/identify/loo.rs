@@ -790,11 +790,7 @@ pub fn loo_text(t: &LooTable) -> String {
         "\nShared parameters, joint calibration on every log (value +- 1 sigma):"
     );
     for p in &t.shared {
-        let _ = writeln!(
-            s,
-            "  {:<34} {:>13.5e} +- {:<10.2e} {}",
-            p.name, p.value, p.std, p.unit
-        );
+        let _ = writeln!(s, "  {}", shared_row(p));
     }
     for n in &t.not_pinned {
         let _ = writeln!(s, "  NOT PINNED: {n}");
@@ -811,9 +807,29 @@ pub fn loo_text(t: &LooTable) -> String {
     s
 }
 
+/// One row of the shared-parameter table: the value with its 1-sigma where the logs pin
+/// it; where its uncertainty exceeds it, or it was held on its bound, that in words
+/// instead of a `+-` that would read as an estimate.
+fn shared_row(p: &ParamEstimate) -> String {
+    let head = format!("{:<34} {:>13.5e}", p.name, p.value);
+    // Exactly zero is a term its bound holds (a weight kept non-negative): the fit does
+    // not need it, which is no failure to pin it.
+    if p.std == 0.0 || p.value == 0.0 {
+        format!("{head}    {}; held on its bound, not fitted freely", p.unit)
+    } else if !p.std.is_finite() || p.std > p.value.abs() {
+        format!(
+            "{head}    {}; not identifiable: its uncertainty ({}) exceeds its value",
+            p.unit,
+            crate::compact(p.std)
+        )
+    } else {
+        format!("{head} +- {:<10.2e} {}", p.std, p.unit)
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::binned_structure;
+    use super::{binned_structure, shared_row, ParamEstimate};
 
     #[test]
     fn binned_structure_sees_a_function_of_the_signal_and_not_noise() {
@@ -858,5 +874,26 @@ mod tests {
         );
         let s = super::signatures(&noise, &signals, floor);
         assert!(s.iter().all(|g| g.ratio_to_floor < 0.5), "{s:?}");
+    }
+
+    #[test]
+    fn a_shared_value_its_uncertainty_exceeds_reads_as_not_identifiable() {
+        let p = |value: f64, std: f64| ParamEstimate {
+            name: "friction_memory_weight[r=0.0042 rad]".into(),
+            value,
+            std,
+            unit: "rad/rad".into(),
+        };
+        let loose = shared_row(&p(3.98754e-2, 4.05e-2));
+        assert!(!loose.contains("+-"), "{loose}");
+        assert!(loose.contains("not identifiable"), "{loose}");
+        for std in [0.0, 4.2e-2] {
+            let held = shared_row(&p(0.0, std));
+            assert!(
+                !held.contains("+-") && held.contains("held on its bound"),
+                "{held}"
+            );
+        }
+        assert!(shared_row(&p(3.98754e-2, 4.05e-3)).contains("+-"));
     }
 }

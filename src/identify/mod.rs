@@ -54,13 +54,13 @@ fn make_split(
     if !opts.holdout_logs.is_empty() {
         if let Some(bad) = opts.holdout_logs.iter().find(|i| **i >= logs.len()) {
             return Err(IdentifyError::Config {
-                key: "holdout_logs".into(),
+                key: "--holdout".into(),
                 message: format!("log index {bad} does not exist ({} logs given)", logs.len()),
             });
         }
         if opts.holdout_logs.len() >= logs.len() {
             return Err(IdentifyError::Config {
-                key: "holdout_logs".into(),
+                key: "--holdout".into(),
                 message: "every log is held out; keep at least one for calibration".into(),
             });
         }
@@ -249,6 +249,9 @@ pub(crate) fn recenter_unfitted(logs: &[Prepared], resid: &mut [f64], fit: &[boo
 
 /// Held-out RMSE, held-out count and the fit on the final mask.
 type CvResult = Result<(f64, usize, Fitted), IdentifyError>;
+/// A candidate's held-out score with why its size is not found, when it is not
+/// ([`size_not_found`]).
+type SizedResult = Result<(Option<String>, (f64, usize, Fitted)), IdentifyError>;
 
 /// How many of the candidates that improve on the current model, best first, are paired
 /// when none passes the gate alone (up to fifteen pairs).
@@ -476,6 +479,9 @@ pub fn diagnose_with_progress(
         .iter()
         .map(|l| model::prepare(l, ident.max_rate_hz))
         .collect::<Result<_, _>>()?;
+    for p in &prepared {
+        still_input(p)?;
+    }
     let (segments_per_log, keep_per_log) =
         segments::rows_to_fit(&cut_logs, &mut prepared, options.keep_segments)?;
     let keep: Vec<bool> = keep_per_log.iter().flatten().copied().collect();
@@ -565,13 +571,7 @@ pub fn diagnose_with_progress(
     let mut pool: Vec<EffectName> = options
         .candidates
         .clone()
-        .unwrap_or_else(|| {
-            if ident.candidates.is_empty() {
-                EffectName::ALL.to_vec()
-            } else {
-                ident.candidates.clone()
-            }
-        })
+        .unwrap_or_else(|| ident.searched())
         .into_iter()
         // A free ratio and an output scale error are the same column.
         .filter(|e| !(ratio_free && *e == EffectName::EncoderScaleError))
@@ -609,18 +609,27 @@ pub fn diagnose_with_progress(
         use rayon::prelude::*;
         // Held-out score of the chosen effects and more, on this round's calibration.
         let score_with = |effs: &[EffectName]| held_out(&full_drive, &fold_drives, effs);
-        let results: Vec<(EffectName, CvResult)> = pool
+        // Whether the sizes of `new` among `effs` stand off zero on the full fit.
+        let size_of = |effs: &[EffectName], fit: &Fitted, new: &[EffectName]| {
+            let spec = spec_for(&full_drive, &search_ident, effs, false, top);
+            size_not_found(&prepared, spec, fit, &split.full, new)
+        };
+        let results: Vec<(EffectName, SizedResult)> = pool
             .par_iter()
             .map(|e| {
                 let mut effs = chosen.clone();
                 effs.push(*e);
                 let r = score_with(&effs);
                 judged.tick();
-                (*e, r)
+                (*e, r.map(|r| (size_of(&effs, &r.2, &[*e]), r)))
             })
             .collect();
         // Whether a candidate qualifies, and its row in the candidate table.
-        let judge = |name: String, rmse: f64, fit: &Fitted| -> (bool, CandidateScore) {
+        let judge = |name: String,
+                     rmse: f64,
+                     fit: &Fitted,
+                     not_sized: Option<String>|
+         -> (bool, CandidateScore) {
             let gain = 100.0 * (1.0 - rmse / current);
             let excess = (current * current - floor * floor).max(1e-30);
             let explained = (current * current - rmse * rmse) / excess;
@@ -629,17 +638,20 @@ pub fn diagnose_with_progress(
             let physical = plausible(fit, drive0.ratio());
             let gain_mrad = (current - rmse) * 1e3;
             let verdict = if !physical {
-                "size outside physical bounds (stands in for something else)"
+                "size outside physical bounds (stands in for something else)".to_string()
             } else if !resolvable(fit, least_resolvable_drift(&prepared, floor)) {
                 "drift below the noise over the record (not told from the sensor's wander)"
+                    .to_string()
             } else if gain < ident.min_gain_percent {
-                "gain below threshold"
+                "gain below threshold".to_string()
             } else if gain_mrad < ident.min_gain_mrad {
-                "gain below identify.min_gain_mrad"
+                "gain below identify.min_gain_mrad".to_string()
             } else if explained < ident.min_explained_fraction {
-                "explains too little of the structure"
+                "explains too little of the structure".to_string()
+            } else if let Some(why) = not_sized {
+                format!("size: {why}")
             } else {
-                "qualifies"
+                "qualifies".to_string()
             };
             let row = CandidateScore {
                 name,
@@ -649,7 +661,7 @@ pub fn diagnose_with_progress(
                 score,
                 accepted: false,
                 round,
-                verdict: verdict.to_string(),
+                verdict: verdict.clone(),
             };
             (verdict == "qualifies", row)
         };
@@ -658,15 +670,16 @@ pub fn diagnose_with_progress(
         // Candidates that improve on the current model, for the joint search of pairs.
         let mut helpful: Vec<(EffectName, f64)> = Vec::new();
         for (e, r) in results {
-            let (rmse, fit) = match r {
-                Ok((rmse, _, fit)) => (rmse, fit),
+            let (rmse, fit, not_sized) = match r {
+                Ok((not_sized, (rmse, _, fit))) => (rmse, fit, not_sized),
                 Err(err) => {
                     scores.push(failed_score(e.to_string(), round, &err));
                     continue;
                 }
             };
-            let (ok, row) = judge(e.to_string(), rmse, &fit);
-            if rmse < current && admissible(&fit, floor) {
+            let significant = not_sized.is_none();
+            let (ok, row) = judge(e.to_string(), rmse, &fit, not_sized);
+            if rmse < current && admissible(&fit, floor) && significant {
                 helpful.push((e, rmse));
             }
             scores.push(row);
@@ -698,27 +711,27 @@ pub fn diagnose_with_progress(
                 .flat_map(|i| (i + 1..helpful.len()).map(move |j| (i, j)))
                 .map(|(i, j)| (helpful[i].0, helpful[j].0))
                 .collect();
-            let results: Vec<((EffectName, EffectName), CvResult)> = pairs
+            let results: Vec<((EffectName, EffectName), SizedResult)> = pairs
                 .par_iter()
                 .map(|(a, b)| {
                     let mut effs = chosen.clone();
                     effs.extend([*a, *b]);
                     let r = score_with(&effs);
-                    ((*a, *b), r)
+                    ((*a, *b), r.map(|r| (size_of(&effs, &r.2, &[*a, *b]), r)))
                 })
                 .collect();
             let pairs_from = scores.len();
             let mut best_pair: Option<(usize, f64, (EffectName, EffectName), Fitted)> = None;
             for ((a, b), r) in results {
                 let name = format!("{a} + {b}");
-                let (rmse, fit) = match r {
-                    Ok((rmse, _, fit)) => (rmse, fit),
+                let (rmse, fit, not_sized) = match r {
+                    Ok((not_sized, (rmse, _, fit))) => (rmse, fit, not_sized),
                     Err(err) => {
                         scores.push(failed_score(name, round, &err));
                         continue;
                     }
                 };
-                let (ok, row) = judge(name, rmse, &fit);
+                let (ok, row) = judge(name, rmse, &fit, not_sized);
                 scores.push(row);
                 if ok && best_pair.as_ref().is_none_or(|p| rmse < p.1) {
                     best_pair = Some((scores.len() - 1, rmse, (a, b), fit));
@@ -1353,4 +1366,101 @@ fn fitted_ratio(drive: &DriveParams, f: &Fitted) -> f64 {
         .iter()
         .position(|p| *p == LinParam::InverseRatio)
         .map_or(ic, |i| 1.0 / (1.0 / ic + f.coef[i]))
+}
+
+/// Refuses a log whose input does not move: with nothing driven, every model replays the
+/// same still output, its residual is the encoder zero alone, and a noise floor of zero
+/// judged the fits (a verdict with a floor of 0.0000 mrad, exit 0).
+fn still_input(p: &Prepared) -> Result<(), IdentifyError> {
+    let (lo, hi) = p
+        .th_in
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    let span = if hi >= lo { hi - lo } else { 0.0 };
+    // A drive held still reads at most a step or two of encoder jitter.
+    if span > 2.0 * p.q_in.max(1e-9) {
+        return Ok(());
+    }
+    Err(IdentifyError::BadLog {
+        log: p.source.clone(),
+        message: format!(
+            "the input angle (theta_in_rad) does not move in this log (it spans {} rad{}): a diagnosis needs the drive turned through its stroke, with at least one reversal to see the friction memory",
+            crate::compact(span),
+            if p.q_in > 0.0 {
+                format!(", {} encoder steps", crate::compact(span / p.q_in))
+            } else {
+                String::new()
+            }
+        ),
+    })
+}
+
+/// Standard deviations by which an effect's fitted size must stand off zero to be found:
+/// under two, its size is not told from zero (a clean 2 s gimbal log fitted a drum runout
+/// of 8.1e-5 +- 6.4e-5, and a 5 % held-out gain named it).
+pub const MIN_SIZE_SIGMAS: f64 = 2.0;
+
+/// Why the effects `new` of a fit are not found, when one is not: a size within
+/// [`MIN_SIZE_SIGMAS`] of zero or along a direction the logs do not see, or a size fitted
+/// onto the bound that means none of the effect (a cable transport over the least travel
+/// allowed, a bearing friction or preload relaxation of zero), where the logs push it to
+/// less than the model can hold. `None`: every new effect stands off zero. The sizes are
+/// read as the report reads them ([`estimates::parameters`]), on the fit `fit` of the
+/// model `spec` over the rows `mask`.
+fn size_not_found(
+    logs: &[Prepared],
+    spec: Spec,
+    fit: &Fitted,
+    mask: &[bool],
+    new: &[EffectName],
+) -> Option<String> {
+    let drive = spec.drive.clone();
+    let mut ev = Evaluator::new(spec, logs);
+    let nl = ev.nonlinear();
+    for e in new {
+        let at_none = nl
+            .iter()
+            .zip(&fit.x)
+            .find(|(n, _)| n.0 == NlParam::Effect(*e) && !model::is_linear(*e))
+            .filter(|(n, v)| (**v - n.1).abs() <= 1e-6 * (n.2 - n.1))
+            .map(|(n, _)| n.1);
+        if let Some(lo) = at_none {
+            return Some(format!(
+                "{e} fitted onto its lower bound {} (none of it): not found",
+                crate::compact(lo)
+            ));
+        }
+    }
+    let analysis = ev.identifiability(fit, mask).ok()?;
+    let (mut params, _, mut eff) = estimates::parameters(&drive, &drive, &nl, fit, &analysis.cov);
+    let (stroke, thresholds) = ev.stroke_and_thresholds();
+    extra_effects::parameters(
+        fit,
+        nl.len(),
+        &analysis.cov,
+        &extra_effects::Basis {
+            stroke,
+            thresholds: &thresholds,
+            mean_load_factor: extra_effects::mean_load_factor(
+                logs.iter().map(|l| l.torque.as_slice()),
+                model::memory_load_exponent(&nl, &fit.x),
+            ),
+        },
+        &mut params,
+        &mut eff,
+    );
+    new.iter().find_map(|e| {
+        let p = params.iter().find(|p| p.name == e.as_str())?;
+        let seen = p.std > 0.0 && p.std.is_finite();
+        (!seen || p.value.abs() < MIN_SIZE_SIGMAS * p.std).then(|| {
+            format!(
+                "{e} of {} +- {} not told from zero (under {} sigma)",
+                crate::compact(p.value),
+                crate::compact(p.std),
+                crate::compact(MIN_SIZE_SIGMAS)
+            )
+        })
+    })
 }

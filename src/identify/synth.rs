@@ -121,10 +121,24 @@ pub fn synthesize(
         })
         .collect();
     let torque: Vec<f64> = (0..n).map(|k| -load[k] + mb * dir[k]).collect();
-    let fail = |(i, m): (usize, String)| IdentifyError::Replay {
-        log: "synthetic".into(),
-        t_s: t.get(i).copied().unwrap_or(0.0),
-        message: m,
+    // There is no logged load to check here: what the drive cannot carry is the scenario's
+    // load with the hidden effects, so the message names them.
+    let hidden: Vec<String> = effects
+        .iter()
+        .map(|(e, v)| format!("--effect {e}={}", crate::number(*v)))
+        .collect();
+    let fail = |(i, m): (usize, String)| {
+        IdentifyError::Config {
+        key: if hidden.is_empty() {
+            format!("{} [load]", scenario.name)
+        } else {
+            hidden.join(" ")
+        },
+        message: format!(
+            "the synthetic log cannot be made: the drive's replay fails at t = {} s: {m}; hide a smaller bearing_friction or preload_relaxation, or raise drive.preload_n in the scenario",
+            crate::compact(t.get(i).copied().unwrap_or(0.0))
+        ),
+    }
     };
     let rel = get(EffectName::PreloadRelaxation).unwrap_or(0.0);
     let mut e = relaxing_replay(drive, &torque, &t, dur, rel).map_err(fail)?;
@@ -178,6 +192,21 @@ pub fn synthesize(
         let f = rng.gen_range(0.2..0.8);
         let cols = super::extra_effects::memory_columns(&th_in, &[r[i], r[j]]);
         let (wi, wj) = (v * f / r[i], v * (1.0 - f) / r[j]);
+        let fx = crate::physics::EffectsParams {
+            friction_memory_thresholds_rad: Some(vec![r[i], r[j]]),
+            friction_memory_weights: Some(vec![wi, wj]),
+            ..Default::default()
+        };
+        if let Err((key, m)) = fx.validate() {
+            return Err(IdentifyError::Config {
+                key: format!("--effect {}={}", EffectName::DistributedFrictionMemory, crate::number(v)),
+                message: format!(
+                    "over this stroke the lag needs contact weights {} and {} rad/rad, outside the [effects] {key} limit: {m}",
+                    crate::compact(wi),
+                    crate::compact(wj)
+                ),
+            });
+        }
         for k in 0..n {
             out[k] += wi * cols[0][k] + wj * cols[1][k];
         }
@@ -257,8 +286,13 @@ pub fn synthesize(
     let mut log = BenchLog {
         source: format!("synthetic(seed={seed})"),
         comments: vec![format!(
-            "synthetic log: scenario {}, effects {:?}, seed {seed}",
-            scenario.name, effects
+            "synthetic log: scenario {}, effects [{}], seed {seed}",
+            scenario.name,
+            effects
+                .iter()
+                .map(|(e, v)| format!("{e}={}", crate::number(*v)))
+                .collect::<Vec<_>>()
+                .join(", ")
         )],
         ..BenchLog::default()
     };
@@ -295,7 +329,82 @@ pub fn parse_effect_arg(arg: &str) -> Result<(EffectName, f64), IdentifyError> {
     if !v.is_finite() {
         return Err(bad("the value must be finite".into()));
     }
+    within_effects_limits(e, v).map_err(bad)?;
     Ok((e, v))
+}
+
+/// Whether a hidden effect of size `v` stays within what a scenario's `[effects]` section
+/// accepts for it (`EffectsParams::validate`, the limits docs/keys.md lists), so a
+/// synthetic log holds nothing a scenario could not: a compliance of 1e300 wrote numbers
+/// of three hundred digits, an encoder delay of 10 s a log of nothing but the delay.
+fn within_effects_limits(e: EffectName, v: f64) -> Result<(), String> {
+    use crate::physics::EffectsParams;
+    let mut fx = EffectsParams::default();
+    let key = match e {
+        EffectName::InputPulleyRunout => {
+            fx.input_pulley_runout = Some(v);
+            "input_pulley_runout"
+        }
+        EffectName::OutputDrumRunout => {
+            fx.output_drum_runout = Some(v);
+            "output_drum_runout"
+        }
+        EffectName::EncoderDelay => {
+            fx.encoder_delay_s = Some(v);
+            "encoder_delay_s"
+        }
+        EffectName::EncoderScaleError => {
+            fx.encoder_scale_error = Some(v);
+            "encoder_scale_error"
+        }
+        EffectName::PreloadRelaxation => {
+            fx.preload_relaxation_per_s = Some(v);
+            "preload_relaxation_per_s"
+        }
+        EffectName::BearingFriction => {
+            fx.bearing_friction_nm = Some(v);
+            "bearing_friction_nm"
+        }
+        EffectName::CableTransport => {
+            fx.cable_transport_rad = Some(v);
+            "cable_transport_rad"
+        }
+        EffectName::ThermalDrift => {
+            fx.thermal_drift_rad_per_s = Some(v);
+            "thermal_drift_rad_per_s"
+        }
+        EffectName::LoadCompliance => {
+            fx.load_compliance_rad_per_nm = Some(v);
+            "load_compliance_rad_per_nm"
+        }
+        // The shape is drawn as P_2 and P_3 terms of up to sqrt 7 times its RMS, each
+        // held to the [effects] limit of 1 rad.
+        EffectName::AngleDependentRatio => {
+            let most = 1.0 / 7f64.sqrt();
+            return if (0.0..=most).contains(&v) {
+                Ok(())
+            } else {
+                Err(format!(
+                    "{e} {} (RMS of the ratio shape, rad) must be in [0, {}], where its Legendre coefficients stay within the [effects] limit of 1 rad",
+                    crate::number(v),
+                    crate::compact(most)
+                ))
+            };
+        }
+        // Contact weights are checked against [effects] where the stroke gives them.
+        EffectName::DistributedFrictionMemory => {
+            return if v >= 0.0 {
+                Ok(())
+            } else {
+                Err(format!(
+                    "{e} {} (lag after a long travel, rad) must be 0 or more",
+                    crate::number(v)
+                ))
+            };
+        }
+    };
+    fx.validate()
+        .map_err(|(_, m)| format!("{e} {m}, the range of [effects] {key} (docs/keys.md)"))
 }
 
 #[cfg(test)]
@@ -310,5 +419,39 @@ mod tests {
         assert!(err.contains("encoder_delay"), "{err}");
         assert!(parse_effect_arg("thermal_drift=abc").is_err());
         assert!(parse_effect_arg("thermal_drift").is_err());
+    }
+
+    #[test]
+    fn effect_sizes_outside_the_effects_limits_are_refused() {
+        for arg in [
+            "load_compliance=1e300",
+            "input_pulley_runout=5",
+            "input_pulley_runout=-0.003",
+            "encoder_delay=10",
+            "thermal_drift=1e10",
+            "angle_dependent_ratio=0.5",
+            "distributed_friction_memory=-1e-4",
+        ] {
+            let err = parse_effect_arg(arg)
+                .map(|r| format!("{r:?}"))
+                .expect_err(arg)
+                .to_string();
+            let name = arg.split('=').next().unwrap_or(arg);
+            assert!(
+                err.contains("--effect") && err.contains(name),
+                "{arg}: {err}"
+            );
+            assert!(
+                err.contains("must") && !err.contains("000000000"),
+                "{arg}: {err}"
+            );
+        }
+        for arg in [
+            "input_pulley_runout=0.003",
+            "load_compliance=-5e-4",
+            "encoder_delay=0.002",
+        ] {
+            assert!(parse_effect_arg(arg).is_ok(), "{arg}");
+        }
     }
 }

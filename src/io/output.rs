@@ -28,6 +28,16 @@ pub enum OutputError {
         /// What is there: `existing results directory`, `existing regular file`, ...
         what: &'static str,
     },
+    /// The results path is a regular file (or another non-directory): results are a
+    /// directory, and a file there is no earlier results to overwrite.
+    #[error(
+        "refusing to write results to {}: it is a regular file, not a results directory; choose another --out (a directory name)",
+        path.display()
+    )]
+    NotADirectory {
+        /// The path.
+        path: PathBuf,
+    },
     /// `--force` was given but the path holds something this program did not write.
     #[error(
         "refusing to replace {} with --force: it is {what}; move it away or choose another --out",
@@ -154,6 +164,12 @@ impl StagedDir {
             });
         };
         if exists(final_path) {
+            // With --force, `check_ours` says what the file is.
+            if !force && !final_path.is_dir() {
+                return Err(OutputError::NotADirectory {
+                    path: final_path.to_path_buf(),
+                });
+            }
             if !force {
                 return Err(OutputError::Exists {
                     path: final_path.to_path_buf(),
@@ -317,6 +333,19 @@ mod tests {
         assert_eq!(staged.commit().unwrap(), out);
         assert_eq!(fs::read(out.join("a.txt")).unwrap(), b"hello");
         assert_eq!(entries(&root.path().join("nested")), vec!["run1"]);
+    }
+
+    #[test]
+    fn a_regular_file_is_not_called_a_results_directory() {
+        let root = tempfile::tempdir().unwrap();
+        let out = root.path().join("good.csv");
+        fs::write(&out, b"t_s,theta_in_rad\n").unwrap();
+        let msg = StagedDir::create(&out, false).unwrap_err().to_string();
+        assert!(
+            msg.contains("regular file") && !msg.contains("existing results directory"),
+            "{msg}"
+        );
+        assert_eq!(fs::read(&out).unwrap(), b"t_s,theta_in_rad\n");
     }
 
     #[test]

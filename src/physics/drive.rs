@@ -292,7 +292,13 @@ impl std::fmt::Display for Half {
 /// A fault's number with `decimals` decimals, in exponent form when huge: a friction
 /// coefficient of 1e-300 demands a slip zone of 1e300 rad, which must not print 300 digits.
 fn shown(v: &f64, decimals: usize) -> String {
-    crate::fixed(*v, decimals)
+    // An infinite tension or slip zone (a load beyond any drive) is said in words: `inf`
+    // is no number a user can act on.
+    if v.is_infinite() {
+        format!("{}more than 1e308", if *v < 0.0 { "-" } else { "" })
+    } else {
+        crate::fixed(*v, decimals)
+    }
 }
 
 /// A state the cable cannot reach: the drive's capacity is exceeded.

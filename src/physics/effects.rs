@@ -66,7 +66,7 @@ pub struct EffectsParams {
     /// on the output angle. Negative: the output gives way with the load like a flexible
     /// link, adding to the spans' stretch (a jaw or pin, typically -1e-4 to -1e-2 on
     /// instruments); positive: the drive is stiffer under a steady load than the cable
-    /// model (3.2 for the da Vinci jaw). The closed loop puts it, with the friction
+    /// model (3.41 for the da Vinci jaw). The closed loop puts it, with the friction
     /// memory, in a massless link between the drum and the output sensor.
     /// Allowed: -100 to 100.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -95,21 +95,21 @@ pub struct EffectsParams {
     /// Growth `beta` of every contact's slip threshold with the transmitted torque's
     /// magnitude: threshold `r_j (1 + beta |M|)` (the normal force on a wrap contact is the
     /// local cable tension, preload plus the load's share). 0 or absent: fixed thresholds;
-    /// about 9 for the da Vinci jaw.
+    /// 4.16 for the da Vinci jaw.
     /// Allowed: 0 to 1e4.
     /// Unit: 1/(N m).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction_memory_threshold_growth_per_nm: Option<f64>,
     /// Free travel of slack and clearances at no load, rad of input: a play whose width
     /// `s (1 - |M|/M_u)` shrinks as tension takes it up, to nothing at
-    /// `friction_memory_slack_taken_up_nm` (`M_u`). Needs the other two slack keys; 0.18
-    /// (weighing 0.1) for the da Vinci jaw.
+    /// `friction_memory_slack_taken_up_nm` (`M_u`). Needs the other two slack keys; 0.211
+    /// (weighing 0.076) for the da Vinci jaw.
     /// Allowed: 0 to 10.
     /// Unit: rad.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction_memory_slack_rad: Option<f64>,
     /// Torque magnitude `M_u` at which the slack is taken up, N m (a fraction of the working
-    /// torque; 0.038 N m for the da Vinci jaw).
+    /// torque; 0.0298 N m for the da Vinci jaw).
     /// Allowed: above 0, up to 1e4.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction_memory_slack_taken_up_nm: Option<f64>,

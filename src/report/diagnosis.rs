@@ -299,6 +299,15 @@ pub fn summary_text(d: &Diagnosis) -> String {
                     p.name, p.value, p.unit, n.reason
                 );
             }
+            // No spread at all, or exactly zero, is a value the fit held (a weight kept at
+            // zero by its bound), not one it pinned exactly.
+            None if p.std == 0.0 || p.value == 0.0 => {
+                let _ = writeln!(
+                    s,
+                    "  {:<28} {:>14.6e}    {}; held on its bound, not fitted freely",
+                    p.name, p.value, p.unit
+                );
+            }
             None => {
                 let _ = writeln!(
                     s,
@@ -575,6 +584,15 @@ pub fn save_model(
     let mut s = scenario.clone();
     s.drive = diagnosis.drive.clone();
     s.effects = Some(diagnosis.effects.clone());
+    calibrated_identity(
+        &mut s,
+        &format!(
+            "calibrated on {} (held-out RMSE {:.4} mrad; cause: {})",
+            diagnosis.logs.join(", "),
+            diagnosis.rmse_extended_mrad,
+            diagnosis.cause
+        ),
+    );
     let text = toml::to_string(&s).map_err(|e| IdentifyError::Write {
         path: path.display().to_string(),
         message: e.to_string(),
@@ -587,4 +605,19 @@ pub fn save_model(
         diagnosis.cause
     );
     wr(path, &(header + &text))
+}
+
+/// Names a saved model after what it now is: `<name>_calibrated` (an `_uncalibrated` or
+/// `_calibrated` suffix replaced) with a description of what it was calibrated on, so a
+/// model calibrated from `davinci_tool4_uncalibrated` does not describe itself as "before
+/// calibration" above calibrated values.
+pub fn calibrated_identity(s: &mut Scenario, calibrated_on: &str) {
+    let name = s.name().to_string();
+    let stem = name
+        .strip_suffix("_uncalibrated")
+        .or_else(|| name.strip_suffix("_calibrated"))
+        .unwrap_or(&name)
+        .to_string();
+    s.name = Some(format!("{stem}_calibrated"));
+    s.description = Some(format!("{stem} {calibrated_on}"));
 }

@@ -139,6 +139,8 @@ pub(super) fn plain_message(message: &str) -> String {
     let mut out = one_line
         .replace("expected f64", "expected a number")
         .replace("expected u32", "expected a whole number >= 0")
+        .replace("expected usize", "expected a whole number >= 0")
+        .replace("expected u64", "expected a whole number >= 0")
         .replace("expected a string", "expected a quoted string")
         .replace("expected a sequence", "expected a list in brackets [ ]")
         .replace(

@@ -89,6 +89,19 @@ fn type_errors_in_tagged_sections_name_the_key_and_its_line() {
 }
 
 #[test]
+fn a_negative_count_asks_for_a_whole_number() {
+    let err = Scenario::load("gimbal_ident", &["identify.max_effects=-1".into()])
+        .map(|_| "accepted")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("identify.max_effects") && err.contains("a whole number >= 0"),
+        "{err}"
+    );
+    assert!(!err.contains("usize"), "{err}");
+}
+
+#[test]
 fn sweep_values_are_checked_one_by_one() {
     let text = builtin("paper_fig11")
         .unwrap()

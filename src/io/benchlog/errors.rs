@@ -17,6 +17,10 @@ pub enum ValueProblem {
     Infinite,
     /// The text is a number too large for an `f64` (e.g. `1e999`).
     OutOfRange,
+    /// A finite number beyond what the column can physically hold
+    /// ([`super::MAX_MAGNITUDE`]: a load of 1e308 N m is a broken logger, and the replay
+    /// would carry it to infinity).
+    BeyondColumn,
 }
 
 /// Errors from reading or writing a bench log.
@@ -186,6 +190,17 @@ pub enum LogError {
         /// Column, when the bytes are inside a data field.
         column: Option<String>,
     },
+    /// Control bytes (NUL and the like) in the header: the file is not text at all.
+    #[error(
+        "{path}: line {line}: the header holds control bytes (such as NUL): this is not a text CSV file (a binary file?); a bench log is UTF-8 text whose header names the columns {}",
+        REQUIRED_COLUMNS.join(",")
+    )]
+    NotText {
+        /// File path or stream name.
+        path: String,
+        /// Line of the header row.
+        line: u64,
+    },
     /// Any other CSV-level problem reported by the `csv` crate.
     #[error("{path}{}: malformed CSV: {message}", line.map(|l| format!(": line {l}")).unwrap_or_default())]
     Csv {
@@ -224,7 +239,8 @@ impl LogError {
             | LogError::NonIncreasingTime { line, .. }
             | LogError::Ragged { line, .. }
             | LogError::CommentAfterHeader { line, .. }
-            | LogError::Encoding { line, .. } => Some(*line),
+            | LogError::Encoding { line, .. }
+            | LogError::NotText { line, .. } => Some(*line),
         }
     }
 
@@ -243,6 +259,7 @@ impl LogError {
             | LogError::Ragged { path, .. }
             | LogError::CommentAfterHeader { path, .. }
             | LogError::Encoding { path, .. }
+            | LogError::NotText { path, .. }
             | LogError::Csv { path, .. }
             | LogError::Invalid { path, .. } => path,
         }
@@ -306,6 +323,11 @@ pub(super) fn describe_value(reason: ValueProblem, text: &str) -> String {
         ValueProblem::OutOfRange => format!(
             "value {} is out of range for a 64-bit float (overflows to infinity)",
             show(text)
+        ),
+        ValueProblem::BeyondColumn => format!(
+            "value {} is out of range: angles (rad) and loads (N m) are allowed up to {} in magnitude",
+            show(text),
+            crate::number(super::MAX_MAGNITUDE)
         ),
     }
 }

@@ -53,6 +53,11 @@ pub const REQUIRED_COLUMNS: [&str; 4] = ["t_s", "theta_in_rad", "theta_out_rad",
 /// Optional columns, in the order [`write_bench_log`] writes them (after the required ones).
 pub const OPTIONAL_COLUMNS: [&str; 3] = ["tension_upper_n", "tension_lower_n", "motor_current_a"];
 
+/// Largest magnitude an angle (rad) or load (N m) column of a log a drive is judged on
+/// may hold ([`read_drive_log`]): 1e6 is far beyond any drive (160 000 turns, a megajoule
+/// per radian), and a replay of anything larger overflows.
+pub const MAX_MAGNITUDE: f64 = 1e6;
+
 /// Maximum number of characters of offending input quoted in an error message.
 const MAX_SHOWN_CHARS: usize = 40;
 
@@ -94,10 +99,28 @@ pub fn read_bench_log(path: &Path) -> Result<BenchLog, LogError> {
     read_bench_log_from(file, &name)
 }
 
+/// [`read_bench_log`] for a log a drive is judged on: angles and loads beyond
+/// [`MAX_MAGNITUDE`] are refused with file, line and column, as any other bad value (a
+/// load of 1e308 N m reached the replay and its messages as `inf`).
+pub fn read_drive_log(path: &Path) -> Result<BenchLog, LogError> {
+    let name = path.display().to_string();
+    let file = File::open(path).map_err(|source| LogError::Io {
+        path: name.clone(),
+        source,
+    })?;
+    read_log(file, &name, true)
+}
+
 /// Read and validate a bench log from any reader (buffering is done internally);
 /// `name` stands for the file path in error messages and in [`BenchLog::source`].
 pub fn read_bench_log_from<R: Read>(reader: R, name: &str) -> Result<BenchLog, LogError> {
+    read_log(reader, name, false)
+}
+
+/// [`read_bench_log_from`], with angles and loads held to [`MAX_MAGNITUDE`] when `bounded`.
+fn read_log<R: Read>(reader: R, name: &str, bounded: bool) -> Result<BenchLog, LogError> {
     let mut parser = Parser::open(reader, name)?;
+    parser.bounded = bounded;
     let info = &parser.info;
     let mut log = BenchLog {
         tension_upper_n: info.has_tension_upper_n.then(Vec::new),

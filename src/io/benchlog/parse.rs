@@ -248,6 +248,9 @@ pub(super) struct Parser<R: Read> {
     /// Time and line of the previous sample.
     prev: Option<(f64, u64)>,
     pub(super) info: LogInfo,
+    /// Refuse angles and loads beyond [`super::MAX_MAGNITUDE`] (a log a drive is judged
+    /// on); the plain reader takes any finite number.
+    pub(super) bounded: bool,
 }
 
 impl<R: Read> Parser<R> {
@@ -264,6 +267,7 @@ impl<R: Read> Parser<R> {
             slots: Vec::new(),
             prev: None,
             info: LogInfo::default(),
+            bounded: false,
         };
         let Some(line) = parser.read_record()? else {
             return Err(LogError::Empty {
@@ -283,6 +287,12 @@ impl<R: Read> Parser<R> {
                     column: None,
                 });
             };
+            if text.chars().any(|c| c.is_control() && c != '\t') {
+                return Err(LogError::NotText {
+                    path: parser.name.clone(),
+                    line,
+                });
+            }
             let column = trim_ascii_ws(text);
             if column.is_empty() {
                 return Err(LogError::EmptyColumnName {
@@ -407,13 +417,22 @@ impl<R: Read> Parser<R> {
             };
             let Some(col) = *slot else { continue };
             let text = trim_ascii_ws(text);
-            let v = parse_value(text).map_err(|reason| LogError::BadValue {
-                path: self.name.clone(),
-                line,
-                column: column(),
-                text: truncate(text),
-                reason,
-            })?;
+            let bounded = self.bounded && matches!(col, Col::ThetaIn | Col::ThetaOut | Col::Load);
+            let v = parse_value(text)
+                .and_then(|v| {
+                    if bounded && v.abs() > super::MAX_MAGNITUDE {
+                        Err(ValueProblem::BeyondColumn)
+                    } else {
+                        Ok(v)
+                    }
+                })
+                .map_err(|reason| LogError::BadValue {
+                    path: self.name.clone(),
+                    line,
+                    column: column(),
+                    text: truncate(text),
+                    reason,
+                })?;
             match col {
                 Col::T => s.t_s = v,
                 Col::ThetaIn => s.theta_in_rad = v,

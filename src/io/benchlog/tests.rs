@@ -73,6 +73,12 @@ fn error_messages() {
     assert!(e.contains("infinite value \"-inf\""), "{e}");
     let e = err(format!("{h}0,1,1e999,3\n").as_bytes());
     assert!(e.contains("out of range"), "{e}");
+    let e = err(b"\0\x01\x02garbage\n1,2\n");
+    assert!(
+        e.contains("not a text CSV") && !e.contains("\\u{") && !e.contains("\\0"),
+        "{e}"
+    );
+
     let e = err(format!("{h}0,1,2,3\n0,1,2,3\n").as_bytes());
     assert!(
         e.contains("line 3") && e.contains("equals") && e.contains("(line 2)"),
@@ -393,4 +399,26 @@ fn reads_the_real_davinci_logs() {
             "{name}: mean load {mean} N m, README {mean_load_nm}"
         );
     }
+}
+
+#[test]
+fn a_drive_log_refuses_loads_and_angles_beyond_any_drive() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("huge.csv");
+    std::fs::write(
+        &path,
+        "t_s,theta_in_rad,theta_out_rad,load_nm\n0,1,2,0.1\n0.01,1,2,1e308\n",
+    )
+    .unwrap();
+    let e = super::read_drive_log(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("huge.csv")
+            && e.contains("line 3")
+            && e.contains("load_nm")
+            && e.contains("out of range")
+            && !e.contains("inf"),
+        "{e}"
+    );
+    // The plain reader keeps its contract: any finite number round-trips.
+    assert!(read_bench_log(&path).is_ok());
 }
