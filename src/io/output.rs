@@ -19,14 +19,12 @@ pub const INCOMPLETE_FILE: &str = "INCOMPLETE.txt";
 pub enum OutputError {
     /// The final results directory already exists and `force` was not given.
     #[error(
-        "refusing to overwrite {what} {}; pass --force to replace it or --out to choose another",
+        "refusing to overwrite existing results directory {}; pass --force to replace it or --out to choose another",
         path.display()
     )]
     Exists {
         /// The existing results path.
         path: PathBuf,
-        /// What is there: `existing results directory`, `existing regular file`, ...
-        what: &'static str,
     },
     /// The results path is a regular file (or another non-directory): results are a
     /// directory, and a file there is no earlier results to overwrite.
@@ -60,16 +58,6 @@ pub enum OutputError {
         /// Underlying I/O error.
         source: io::Error,
     },
-}
-
-/// What stands at an existing `path`, for the refusal to overwrite it (a plain file given
-/// as `--out` is not a results directory).
-fn existing(path: &Path) -> &'static str {
-    match fs::symlink_metadata(path) {
-        Ok(m) if m.is_dir() => "existing results directory",
-        Ok(m) if m.is_file() => "existing regular file",
-        _ => "existing path",
-    }
 }
 
 fn io_err(path: &Path) -> impl FnOnce(io::Error) -> OutputError + '_ {
@@ -173,7 +161,6 @@ impl StagedDir {
             if !force {
                 return Err(OutputError::Exists {
                     path: final_path.to_path_buf(),
-                    what: existing(final_path),
                 });
             }
             check_ours(final_path)?;
@@ -230,9 +217,14 @@ impl StagedDir {
         let parent = parent_dir(&self.final_path).to_path_buf();
         if exists(&self.final_path) {
             if !self.force {
-                return Err(OutputError::Exists {
-                    path: self.final_path.clone(),
-                    what: existing(&self.final_path),
+                return Err(if self.final_path.is_dir() {
+                    OutputError::Exists {
+                        path: self.final_path.clone(),
+                    }
+                } else {
+                    OutputError::NotADirectory {
+                        path: self.final_path.clone(),
+                    }
                 });
             }
             check_ours(&self.final_path)?;
