@@ -129,3 +129,76 @@ fn a_log_the_calibrated_drive_cannot_carry_is_still_judged() {
         "{text}"
     );
 }
+
+/// A calibrated instrument carries an encoder delay; a new log's delay is twice as long.
+/// The effect is held at its calibrated size and not searched again, so the report says
+/// so and gives the setting that refits it on each log; with that setting the new log is
+/// explained to the noise.
+#[test]
+fn a_carried_effect_held_at_its_calibrated_size_is_named_with_how_to_refit_it() {
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let run = |args: &[&str]| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_cable-servo"))
+            .args(args)
+            .current_dir(tmp.path())
+            .output()
+            .expect("the binary runs");
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(o.status.success(), "{args:?}: {text}");
+        text
+    };
+    let synth = ["synth", "--scenario", "gimbal_ident", "--effect"];
+    run(&[
+        &synth[..],
+        &["encoder_delay=0.0005", "--seed", "21", "--out", "a.csv"],
+    ]
+    .concat());
+    run(&[
+        "diagnose",
+        "--scenario",
+        "gimbal_ident",
+        "--data",
+        "a.csv",
+        "--out",
+        "first",
+        "--save-model",
+        "instrument.toml",
+    ]);
+    run(&[
+        &synth[..],
+        &["encoder_delay=0.001", "--seed", "11", "--out", "b.csv"],
+    ]
+    .concat());
+    let judged = [
+        "diagnose",
+        "--scenario",
+        "instrument.toml",
+        "--data",
+        "b.csv",
+    ];
+    let text = run(&[&judged[..], &["--out", "held"]].concat());
+    assert!(
+        text.contains("Held at its calibrated size and not searched again: encoder_delay.")
+            && text.contains("--set 'identify.per_log=[\"encoder_delay\"]'"),
+        "{text}"
+    );
+    let text = run(&[
+        &judged[..],
+        &[
+            "--out",
+            "refit",
+            "--set",
+            "identify.per_log=[\"encoder_delay\"]",
+        ],
+    ]
+    .concat());
+    assert!(
+        text.contains("CAUSE: nothing beyond sensor noise"),
+        "{text}"
+    );
+    assert!(!text.contains("Held at its calibrated size"), "{text}");
+}

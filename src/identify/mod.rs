@@ -1065,6 +1065,11 @@ pub fn diagnose_with_progress(
             let refitted_per_log = std::iter::once("encoder zero".to_string())
                 .chain(ident.per_log.iter().map(|e| e.to_string()))
                 .collect();
+            let held_not_refitted: Vec<String> = effects::PER_LOG_EFFECTS
+                .iter()
+                .filter(|e| e.carried_by(fx) && !ident.per_log.contains(e))
+                .map(|e| e.to_string())
+                .collect();
             Some(match &cannot_carry {
                 None => {
                     let c = baseline::score(&drive0, fx, &prepared, &keep, &ident.per_log)?;
@@ -1074,6 +1079,7 @@ pub fn diagnose_with_progress(
                         cannot_carry: None,
                         refitted_per_log,
                         per_log_terms: c.per_log_terms,
+                        held_not_refitted,
                         residual_signatures: loo::residual_signatures(
                             &prepared,
                             &c.residual,
@@ -1088,6 +1094,7 @@ pub fn diagnose_with_progress(
                     cannot_carry: Some(raise.clone()),
                     refitted_per_log,
                     per_log_terms: Vec::new(),
+                    held_not_refitted,
                     residual_signatures: Vec::new(),
                 },
             })

@@ -103,6 +103,10 @@ pub struct CalibratedModelScore {
     /// Each log's own value of every term marked per log, added to the calibrated one, in
     /// `logs` order (empty when none is marked).
     pub per_log_terms: Vec<PerLogTerms>,
+    /// Effects the calibration carries, held at their calibrated size and not searched
+    /// again, that `identify.per_log` could refit on each log (an encoder delay, say): a
+    /// log whose own size differs shows its difference as something else.
+    pub held_not_refitted: Vec<String>,
     /// What its residual still follows, strongest first.
     pub residual_signatures: Vec<ResidualSignature>,
 }

@@ -132,6 +132,19 @@ pub fn summary_text(d: &Diagnosis) -> String {
                 }
             )
         };
+        if !c.held_not_refitted.is_empty() {
+            let quoted: Vec<String> = c
+                .held_not_refitted
+                .iter()
+                .map(|e| format!("\"{e}\""))
+                .collect();
+            let _ = writeln!(
+                s,
+                "Held at its calibrated size and not searched again: {}. A log whose own size differs shows the difference as something else; to refit it on each log: --set 'identify.per_log=[{}]'.",
+                c.held_not_refitted.join(", "),
+                quoted.join(",")
+            );
+        }
     }
     for (log, columns) in &d.ignored_columns {
         let _ = writeln!(
