@@ -886,23 +886,13 @@ pub fn diagnose_with_progress(
         });
     let cov = analysis.cov.clone();
     let ext_drive = with_base(&drive_for, &nl_final, &ext_fit.x);
-    let (mut params, drive_out, mut effects_out) =
-        estimates::parameters(&drive0, &ext_drive, &nl_final, &ext_fit, &cov);
-    let (stroke, thresholds) = ev_final.stroke_and_thresholds();
-    extra_effects::parameters(
+    let (params, drive_out, mut effects_out) = reported_parameters(
+        &ev_final,
+        &prepared,
+        (&drive0, &ext_drive),
+        &nl_final,
         &ext_fit,
-        nl_final.len(),
         &cov,
-        &extra_effects::Basis {
-            stroke,
-            thresholds: &thresholds,
-            mean_load_factor: extra_effects::mean_load_factor(
-                prepared.iter().map(|l| l.torque.as_slice()),
-                model::memory_load_exponent(&nl_final, &ext_fit.x),
-            ),
-        },
-        &mut params,
-        &mut effects_out,
     );
     // The extended model on a calibrated instrument is the instrument with what was found
     // on top: a saved model must carry both.
@@ -1404,6 +1394,37 @@ fn still_input(p: &Prepared) -> Result<(), IdentifyError> {
     })
 }
 
+/// The parameter table of a fit as the report prints it, with the drive and effects it
+/// stands for: the calibrated terms and the effects' own parameters on the logs' stroke,
+/// memory thresholds and load. `drives` is `(base drive, drive of the fit)`.
+fn reported_parameters(
+    ev: &Evaluator,
+    logs: &[Prepared],
+    (base, fitted): (&DriveParams, &DriveParams),
+    nl: &[(NlParam, f64, f64, f64)],
+    fit: &Fitted,
+    cov: &nalgebra::DMatrix<f64>,
+) -> (Vec<ParamEstimate>, DriveParams, EffectsParams) {
+    let (mut params, drive, mut eff) = estimates::parameters(base, fitted, nl, fit, cov);
+    let (stroke, thresholds) = ev.stroke_and_thresholds();
+    extra_effects::parameters(
+        fit,
+        nl.len(),
+        cov,
+        &extra_effects::Basis {
+            stroke,
+            thresholds: &thresholds,
+            mean_load_factor: extra_effects::mean_load_factor(
+                logs.iter().map(|l| l.torque.as_slice()),
+                model::memory_load_exponent(nl, &fit.x),
+            ),
+        },
+        &mut params,
+        &mut eff,
+    );
+    (params, drive, eff)
+}
+
 /// Standard deviations by which an effect's fitted size must stand off zero to be found:
 /// under two, its size is not told from zero (a clean 2 s gimbal log fitted a drum runout
 /// of 8.1e-5 +- 6.4e-5, and a 5 % held-out gain named it).
@@ -1441,23 +1462,7 @@ fn size_not_found(
         }
     }
     let analysis = ev.identifiability(fit, mask).ok()?;
-    let (mut params, _, mut eff) = estimates::parameters(&drive, &drive, &nl, fit, &analysis.cov);
-    let (stroke, thresholds) = ev.stroke_and_thresholds();
-    extra_effects::parameters(
-        fit,
-        nl.len(),
-        &analysis.cov,
-        &extra_effects::Basis {
-            stroke,
-            thresholds: &thresholds,
-            mean_load_factor: extra_effects::mean_load_factor(
-                logs.iter().map(|l| l.torque.as_slice()),
-                model::memory_load_exponent(&nl, &fit.x),
-            ),
-        },
-        &mut params,
-        &mut eff,
-    );
+    let (params, _, _) = reported_parameters(&ev, logs, (&drive, &drive), &nl, fit, &analysis.cov);
     new.iter().find_map(|e| {
         let p = params.iter().find(|p| p.name == e.as_str())?;
         let seen = p.std > 0.0 && p.std.is_finite();
