@@ -1223,9 +1223,20 @@ pub fn run_margins(
     let shown_setup = closed_loop::ClosedLoopSource::closed_loop_setup(shown)?;
     let shown_p = shown.closed_loop.as_ref().unwrap_or(p);
     let models = crate::analysis::linear_model::loop_models(&shown_setup);
-    let explored = explore_load_nm
-        .is_some()
-        .then(|| crate::analysis::verdict::operating_range(&shown_setup));
+    // The explored range is read off the models just computed, not computed again.
+    let explored = explore_load_nm.is_some().then(|| {
+        let points = models
+            .points
+            .iter()
+            .map(|m| crate::analysis::verdict::OperatingPoint {
+                condition: m.condition.clone(),
+                load_nm: m.load_nm,
+                half_stiffness_n_per_m: m.half_stiffness_n_per_m,
+                margins: m.margins.clone(),
+            })
+            .collect();
+        (points, models.problem.clone())
+    });
     let staged = StagedDir::create(&out.dir, out.force)?;
     let dir = staged.path().to_path_buf();
     report::margins::write_outputs(&dir, scenario, shown_p, &models, &verdict, explore_load_nm)?;

@@ -11,7 +11,7 @@ use serde::Serialize;
 use super::effects::{EffectName, IdentifyParams};
 use super::model::{self, Evaluator, Fitted, NlParam, Prepared, Spec};
 use super::startup::{self, StartCut, StartMode};
-use super::{estimates, extra_effects, play, BenchLog, IdentifyError, ParamEstimate};
+use super::{extra_effects, play, BenchLog, IdentifyError, ParamEstimate};
 use crate::physics::DriveParams;
 
 /// Shared parameters whose standard deviation exceeds this fraction of their value are
@@ -644,24 +644,7 @@ fn as_scenario<'a>(
             NlParam::Effect(_) | NlParam::Memory(_) => {}
         }
     }
-    let (mut shared, out_drive, mut eff) = estimates::parameters(drive, &d, nl, f, cov);
-    let (stroke, thresholds) = basis;
-    extra_effects::parameters(
-        f,
-        nl.len(),
-        cov,
-        &extra_effects::Basis {
-            stroke,
-            thresholds: &thresholds,
-            mean_load_factor: extra_effects::mean_load_factor(
-                torques,
-                super::model::memory_load_exponent(nl, &f.x),
-            ),
-        },
-        &mut shared,
-        &mut eff,
-    );
-    (shared, out_drive, eff)
+    super::reported_parameters((drive, &d), nl, f, cov, basis, torques)
 }
 
 /// `log` diagnosed alone against `drive` and `effects` (a fold's calibration, as a saved

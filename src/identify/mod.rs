@@ -887,12 +887,12 @@ pub fn diagnose_with_progress(
     let cov = analysis.cov.clone();
     let ext_drive = with_base(&drive_for, &nl_final, &ext_fit.x);
     let (params, drive_out, mut effects_out) = reported_parameters(
-        &ev_final,
-        &prepared,
         (&drive0, &ext_drive),
         &nl_final,
         &ext_fit,
         &cov,
+        ev_final.stroke_and_thresholds(),
+        prepared.iter().map(|l| l.torque.as_slice()),
     );
     // The extended model on a calibrated instrument is the instrument with what was found
     // on top: a saved model must carry both.
@@ -1395,18 +1395,19 @@ fn still_input(p: &Prepared) -> Result<(), IdentifyError> {
 }
 
 /// The parameter table of a fit as the report prints it, with the drive and effects it
-/// stands for: the calibrated terms and the effects' own parameters on the logs' stroke,
-/// memory thresholds and load. `drives` is `(base drive, drive of the fit)`.
-fn reported_parameters(
-    ev: &Evaluator,
-    logs: &[Prepared],
+/// stands for: the calibrated terms (`base` as given, `fitted` the drive of the fit) and the
+/// effects' own parameters on `basis`, the logs' stroke and memory thresholds, with the
+/// memory's size at the mean of `torques`, the loads of the logs fitted.
+pub(super) fn reported_parameters<'a>(
     (base, fitted): (&DriveParams, &DriveParams),
     nl: &[(NlParam, f64, f64, f64)],
     fit: &Fitted,
     cov: &nalgebra::DMatrix<f64>,
+    basis: ((f64, f64), [f64; extra_effects::MEMORY_THRESHOLDS]),
+    torques: impl Iterator<Item = &'a [f64]>,
 ) -> (Vec<ParamEstimate>, DriveParams, EffectsParams) {
     let (mut params, drive, mut eff) = estimates::parameters(base, fitted, nl, fit, cov);
-    let (stroke, thresholds) = ev.stroke_and_thresholds();
+    let (stroke, thresholds) = basis;
     extra_effects::parameters(
         fit,
         nl.len(),
@@ -1415,7 +1416,7 @@ fn reported_parameters(
             stroke,
             thresholds: &thresholds,
             mean_load_factor: extra_effects::mean_load_factor(
-                logs.iter().map(|l| l.torque.as_slice()),
+                torques,
                 model::memory_load_exponent(nl, &fit.x),
             ),
         },
@@ -1462,7 +1463,14 @@ fn size_not_found(
         }
     }
     let analysis = ev.identifiability(fit, mask).ok()?;
-    let (params, _, _) = reported_parameters(&ev, logs, (&drive, &drive), &nl, fit, &analysis.cov);
+    let (params, _, _) = reported_parameters(
+        (&drive, &drive),
+        &nl,
+        fit,
+        &analysis.cov,
+        ev.stroke_and_thresholds(),
+        logs.iter().map(|l| l.torque.as_slice()),
+    );
     new.iter().find_map(|e| {
         let p = params.iter().find(|p| p.name == e.as_str())?;
         let seen = p.std > 0.0 && p.std.is_finite();

@@ -340,43 +340,16 @@ pub fn parse_effect_arg(arg: &str) -> Result<(EffectName, f64), IdentifyError> {
 fn within_effects_limits(e: EffectName, v: f64) -> Result<(), String> {
     use crate::physics::EffectsParams;
     let mut fx = EffectsParams::default();
-    let key = match e {
-        EffectName::InputPulleyRunout => {
-            fx.input_pulley_runout = Some(v);
-            "input_pulley_runout"
-        }
-        EffectName::OutputDrumRunout => {
-            fx.output_drum_runout = Some(v);
-            "output_drum_runout"
-        }
-        EffectName::EncoderDelay => {
-            fx.encoder_delay_s = Some(v);
-            "encoder_delay_s"
-        }
-        EffectName::EncoderScaleError => {
-            fx.encoder_scale_error = Some(v);
-            "encoder_scale_error"
-        }
-        EffectName::PreloadRelaxation => {
-            fx.preload_relaxation_per_s = Some(v);
-            "preload_relaxation_per_s"
-        }
-        EffectName::BearingFriction => {
-            fx.bearing_friction_nm = Some(v);
-            "bearing_friction_nm"
-        }
-        EffectName::CableTransport => {
-            fx.cable_transport_rad = Some(v);
-            "cable_transport_rad"
-        }
-        EffectName::ThermalDrift => {
-            fx.thermal_drift_rad_per_s = Some(v);
-            "thermal_drift_rad_per_s"
-        }
-        EffectName::LoadCompliance => {
-            fx.load_compliance_rad_per_nm = Some(v);
-            "load_compliance_rad_per_nm"
-        }
+    match e {
+        EffectName::InputPulleyRunout => fx.input_pulley_runout = Some(v),
+        EffectName::OutputDrumRunout => fx.output_drum_runout = Some(v),
+        EffectName::EncoderDelay => fx.encoder_delay_s = Some(v),
+        EffectName::EncoderScaleError => fx.encoder_scale_error = Some(v),
+        EffectName::PreloadRelaxation => fx.preload_relaxation_per_s = Some(v),
+        EffectName::BearingFriction => fx.bearing_friction_nm = Some(v),
+        EffectName::CableTransport => fx.cable_transport_rad = Some(v),
+        EffectName::ThermalDrift => fx.thermal_drift_rad_per_s = Some(v),
+        EffectName::LoadCompliance => fx.load_compliance_rad_per_nm = Some(v),
         // The shape is drawn as P_2 and P_3 terms of up to sqrt 7 times its RMS, each
         // held to the [effects] limit of 1 rad.
         EffectName::AngleDependentRatio => {
@@ -402,9 +375,9 @@ fn within_effects_limits(e: EffectName, v: f64) -> Result<(), String> {
                 ))
             };
         }
-    };
+    }
     fx.validate()
-        .map_err(|(_, m)| format!("{e} {m}, the range of [effects] {key} (docs/keys.md)"))
+        .map_err(|(key, m)| format!("{e} {m}, the range of [effects] {key} (docs/keys.md)"))
 }
 
 #[cfg(test)]

@@ -91,24 +91,24 @@ pub struct LogInfo {
 ///
 /// The file is streamed; memory use is the returned columns. Errors name `path`.
 pub fn read_bench_log(path: &Path) -> Result<BenchLog, LogError> {
-    let name = path.display().to_string();
-    let file = File::open(path).map_err(|source| LogError::Io {
-        path: name.clone(),
-        source,
-    })?;
-    read_bench_log_from(file, &name)
+    read_file(path, false)
 }
 
 /// [`read_bench_log`] for a log a drive is judged on: angles and loads beyond
 /// [`MAX_MAGNITUDE`] are refused with file, line and column, as any other bad value (a
 /// load of 1e308 N m reached the replay and its messages as `inf`).
 pub fn read_drive_log(path: &Path) -> Result<BenchLog, LogError> {
+    read_file(path, true)
+}
+
+/// The file at `path` read by [`read_log`]; errors name `path`.
+fn read_file(path: &Path, bounded: bool) -> Result<BenchLog, LogError> {
     let name = path.display().to_string();
     let file = File::open(path).map_err(|source| LogError::Io {
         path: name.clone(),
         source,
     })?;
-    read_log(file, &name, true)
+    read_log(file, &name, bounded)
 }
 
 /// Read and validate a bench log from any reader (buffering is done internally);
