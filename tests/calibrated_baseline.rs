@@ -131,11 +131,11 @@ fn a_log_the_calibrated_drive_cannot_carry_is_still_judged() {
 }
 
 /// A calibrated instrument carries an encoder delay; a new log's delay is twice as long.
-/// The effect is held at its calibrated size and not searched again, so the report says
-/// so and gives the setting that refits it on each log; with that setting the new log is
-/// explained to the noise.
+/// The replay holds the effect at its calibrated size, the search on top finds it at the
+/// new log's size, and the report says so with the setting that refits it on each log;
+/// with that setting the new log is explained to the noise.
 #[test]
-fn a_carried_effect_held_at_its_calibrated_size_is_named_with_how_to_refit_it() {
+fn a_carried_effect_at_another_size_is_found_and_named_with_how_to_refit_it() {
     let tmp = tempfile::tempdir().expect("temporary directory");
     let run = |args: &[&str]| {
         let o = std::process::Command::new(env!("CARGO_BIN_EXE_cable-servo"))
@@ -182,9 +182,23 @@ fn a_carried_effect_held_at_its_calibrated_size_is_named_with_how_to_refit_it() 
     ];
     let text = run(&[&judged[..], &["--out", "held"]].concat());
     assert!(
-        text.contains("Held at its calibrated size and not searched again: encoder_delay.")
-            && text.contains("--set 'identify.per_log=[\"encoder_delay\"]'"),
+        text.contains("the search on top tries it at one other size shared by the logs judged: encoder_delay.")
+            && text.contains("--set 'identify.per_log=[\"encoder_delay\"]'")
+            && text.contains("CAUSE: encoder_delay at another size than calibrated"),
         "{text}"
+    );
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(tmp.path().join("held/diagnosis.json")).expect("diagnosis.json"),
+    )
+    .expect("JSON");
+    let r = &json["resized"][0];
+    let (calibrated, found) = (
+        r["calibrated"].as_f64().expect("calibrated size"),
+        r["found"].as_f64().expect("found size"),
+    );
+    assert!(
+        (calibrated - 0.0005).abs() < 2e-5 && (found - 0.001).abs() < 2e-5,
+        "{r}"
     );
     let text = run(&[
         &judged[..],
@@ -201,4 +215,5 @@ fn a_carried_effect_held_at_its_calibrated_size_is_named_with_how_to_refit_it() 
         "{text}"
     );
     assert!(!text.contains("Held at its calibrated size"), "{text}");
+    assert!(!text.contains("(resized)"), "{text}");
 }

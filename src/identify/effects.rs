@@ -105,6 +105,31 @@ impl EffectName {
         }
     }
 
+    /// The size `fx` gives one of the one-column effects ([`PER_LOG_EFFECTS`]), in the
+    /// effect's unit; `None` for the others, or when `fx` leaves it out.
+    pub fn one_column_size(self, fx: &crate::physics::EffectsParams) -> Option<f64> {
+        match self {
+            EffectName::EncoderDelay => fx.encoder_delay_s,
+            EffectName::EncoderScaleError => fx.encoder_scale_error,
+            EffectName::ThermalDrift => fx.thermal_drift_rad_per_s,
+            EffectName::LoadCompliance => fx.load_compliance_rad_per_nm,
+            _ => None,
+        }
+    }
+
+    /// Sets the size of a one-column effect ([`PER_LOG_EFFECTS`]) in `fx`; the others
+    /// are left as they are.
+    pub fn set_one_column_size(self, fx: &mut crate::physics::EffectsParams, value: f64) {
+        let slot = match self {
+            EffectName::EncoderDelay => &mut fx.encoder_delay_s,
+            EffectName::EncoderScaleError => &mut fx.encoder_scale_error,
+            EffectName::ThermalDrift => &mut fx.thermal_drift_rad_per_s,
+            EffectName::LoadCompliance => &mut fx.load_compliance_rad_per_nm,
+            _ => return,
+        };
+        *slot = Some(value);
+    }
+
     /// Name as used in files and on the command line.
     pub fn as_str(self) -> &'static str {
         match self {

@@ -312,6 +312,14 @@ fn ties_with(rmse: f64, best: f64, floor: f64) -> bool {
         || rmse * rmse - floor * floor <= (1.0 + TIE_FRACTION) * (best * best - floor * floor)
 }
 
+/// How the candidate table names a carried effect tried at another size.
+pub const RESIZED: &str = " (resized)";
+
+/// The effect's own name in a candidate-table name.
+fn unlabelled(name: &str) -> &str {
+    name.strip_suffix(RESIZED).unwrap_or(name)
+}
+
 /// Tie `t`, seen in the round that accepted its effect, judged on the whole model the
 /// search ended with (`chosen`, held-out RMSE `found`, rad; `floor` in rad): each
 /// alternative takes the accepted effect's place beside the other effects found and is
@@ -328,7 +336,7 @@ where
     F: Fn(&[EffectName]) -> Option<f64> + Sync,
 {
     use rayon::prelude::*;
-    let gone: Vec<&str> = t.accepted.split(" + ").collect();
+    let gone: Vec<&str> = t.accepted.split(" + ").map(unlabelled).collect();
     let kept: Vec<EffectName> = chosen
         .iter()
         .copied()
@@ -341,7 +349,7 @@ where
             let parts: Vec<EffectName> = a
                 .name
                 .split(" + ")
-                .map(str::parse)
+                .map(|p| unlabelled(p).parse())
                 .collect::<Result<_, _>>()
                 .ok()?;
             if parts.iter().any(|p| kept.contains(p)) {
@@ -568,6 +576,21 @@ pub fn diagnose_with_progress(
 
     // Candidates.
     let ratio_free = ident.is_unknown("ratio");
+    // A carried one-column effect the scenario holds at one size for every log: the
+    // search may find the logs judged at another ([`Diagnosis::resized`]).
+    let resizable = |e: EffectName| {
+        top.is_some_and(|fx| e.carried_by(fx))
+            && effects::PER_LOG_EFFECTS.contains(&e)
+            && !ident.per_log.contains(&e)
+    };
+    // A candidate's name in the table: a carried effect tried at another size says so.
+    let label = |e: EffectName| {
+        if resizable(e) {
+            format!("{e}{RESIZED}")
+        } else {
+            e.to_string()
+        }
+    };
     let mut pool: Vec<EffectName> = options
         .candidates
         .clone()
@@ -575,10 +598,14 @@ pub fn diagnose_with_progress(
         .into_iter()
         // A free ratio and an output scale error are the same column.
         .filter(|e| !(ratio_free && *e == EffectName::EncoderScaleError))
-        // What the calibrated instrument already carries is not searched again, nor what
-        // it refits on each log.
-        .filter(|e| top.is_none_or(|fx| !e.carried_by(fx) && !ident.per_log.contains(e)))
+        // What the calibrated instrument already carries is not searched again as a new
+        // effect, nor what it refits on each log; a one-column effect it carries is tried
+        // at another size, as a change on top of the calibrated one.
+        .filter(|e| {
+            top.is_none_or(|fx| (!e.carried_by(fx) || resizable(*e)) && !ident.per_log.contains(e))
+        })
         .collect();
+    let searchable: Vec<String> = pool.iter().map(|e| label(*e)).collect();
     // Each round judges every candidate left and takes one out of the pool (two, when
     // only a pair passes the gate).
     let rounds = ident.max_effects.min(pool.len());
@@ -673,12 +700,12 @@ pub fn diagnose_with_progress(
             let (rmse, fit, not_sized) = match r {
                 Ok((not_sized, (rmse, _, fit))) => (rmse, fit, not_sized),
                 Err(err) => {
-                    scores.push(failed_score(e.to_string(), round, &err));
+                    scores.push(failed_score(label(e), round, &err));
                     continue;
                 }
             };
             let significant = not_sized.is_none();
-            let (ok, row) = judge(e.to_string(), rmse, &fit, not_sized);
+            let (ok, row) = judge(label(e), rmse, &fit, not_sized);
             if rmse < current && admissible(&fit, floor) && significant {
                 helpful.push((e, rmse));
             }
@@ -700,7 +727,7 @@ pub fn diagnose_with_progress(
             current = rmse;
             pool.iter()
                 .copied()
-                .filter(|p| p.as_str() == scores[idx].name)
+                .filter(|p| label(*p) == scores[idx].name)
                 .collect()
         } else if chosen.len() + 2 <= ident.max_effects && helpful.len() >= 2 {
             // No effect passes the gate alone: two that each carry part of the structure
@@ -723,7 +750,7 @@ pub fn diagnose_with_progress(
             let pairs_from = scores.len();
             let mut best_pair: Option<(usize, f64, (EffectName, EffectName), Fitted)> = None;
             for ((a, b), r) in results {
-                let name = format!("{a} + {b}");
+                let name = format!("{} + {}", label(a), label(b));
                 let (rmse, fit, not_sized) = match r {
                     Ok((not_sized, (rmse, _, fit))) => (rmse, fit, not_sized),
                     Err(err) => {
@@ -886,7 +913,7 @@ pub fn diagnose_with_progress(
         });
     let cov = analysis.cov.clone();
     let ext_drive = with_base(&drive_for, &nl_final, &ext_fit.x);
-    let (params, drive_out, mut effects_out) = reported_parameters(
+    let (mut params, drive_out, mut effects_out) = reported_parameters(
         (&drive0, &ext_drive),
         &nl_final,
         &ext_fit,
@@ -894,6 +921,24 @@ pub fn diagnose_with_progress(
         ev_final.stroke_and_thresholds(),
         prepared.iter().map(|l| l.torque.as_slice()),
     );
+    // A carried effect found at another size was fitted as a change on top of the
+    // calibrated size: the size reported and saved is the two together.
+    let mut resized = Vec::new();
+    for e in chosen.iter().filter(|e| resizable(**e)) {
+        let calibrated = top.and_then(|fx| e.one_column_size(fx));
+        let p = params.iter_mut().find(|p| p.name == e.as_str());
+        if let (Some(calibrated), Some(p)) = (calibrated, p) {
+            p.value += calibrated;
+            e.set_one_column_size(&mut effects_out, p.value);
+            resized.push(ResizedEffect {
+                effect: e.to_string(),
+                calibrated,
+                found: p.value,
+                std: p.std,
+                unit: p.unit.clone(),
+            });
+        }
+    }
     // The extended model on a calibrated instrument is the instrument with what was found
     // on top: a saved model must carry both.
     if let Some(fx) = top {
@@ -1109,6 +1154,8 @@ pub fn diagnose_with_progress(
         play_operator,
         beats_play_operator,
         directions,
+        resized,
+        searchable,
         holdout: split.text,
         logs: prepared.iter().map(|l| l.source.clone()).collect(),
         ignored_columns: logs
@@ -1446,6 +1493,8 @@ fn size_not_found(
     new: &[EffectName],
 ) -> Option<String> {
     let drive = spec.drive.clone();
+    let carried = |e: EffectName| spec.calibrated.as_ref().is_some_and(|fx| e.carried_by(fx));
+    let change: Vec<bool> = new.iter().map(|e| carried(*e)).collect();
     let mut ev = Evaluator::new(spec, logs);
     let nl = ev.nonlinear();
     for e in new {
@@ -1471,12 +1520,17 @@ fn size_not_found(
         ev.stroke_and_thresholds(),
         logs.iter().map(|l| l.torque.as_slice()),
     );
-    new.iter().find_map(|e| {
+    new.iter().zip(&change).find_map(|(e, change)| {
         let p = params.iter().find(|p| p.name == e.as_str())?;
         let seen = p.std > 0.0 && p.std.is_finite();
         (!seen || p.value.abs() < MIN_SIZE_SIGMAS * p.std).then(|| {
+            let what = if *change {
+                format!("a change of {e} from its calibrated size")
+            } else {
+                e.to_string()
+            };
             format!(
-                "{e} of {} +- {} not told from zero (under {} sigma)",
+                "{what} of {} +- {} not told from zero (under {} sigma)",
                 crate::compact(p.value),
                 crate::compact(p.std),
                 crate::compact(MIN_SIZE_SIGMAS)

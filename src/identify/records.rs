@@ -103,9 +103,10 @@ pub struct CalibratedModelScore {
     /// Each log's own value of every term marked per log, added to the calibrated one, in
     /// `logs` order (empty when none is marked).
     pub per_log_terms: Vec<PerLogTerms>,
-    /// Effects the calibration carries, held at their calibrated size and not searched
-    /// again, that `identify.per_log` could refit on each log (an encoder delay, say): a
-    /// log whose own size differs shows its difference as something else.
+    /// One-column effects the calibration carries that `identify.per_log` does not refit
+    /// on each log (an encoder delay, say): the replay holds them at their calibrated
+    /// size, and the search on top tries each at one other size shared by the logs
+    /// judged ([`Diagnosis::resized`]).
     pub held_not_refitted: Vec<String>,
     /// What its residual still follows, strongest first.
     pub residual_signatures: Vec<ResidualSignature>,
@@ -158,6 +159,21 @@ pub struct EffectDirection {
     pub value: f64,
     /// What the sign means for the drive.
     pub meaning: String,
+}
+
+/// A carried effect found at another size than the calibration's.
+#[derive(Clone, Debug, Serialize)]
+pub struct ResizedEffect {
+    /// Effect name.
+    pub effect: String,
+    /// Its size in the scenario's `[effects]`, in `unit`.
+    pub calibrated: f64,
+    /// Its size on the logs judged (calibrated plus the change fitted on top), in `unit`.
+    pub found: f64,
+    /// Standard deviation of the change, in `unit`.
+    pub std: f64,
+    /// Unit of the sizes (s for an encoder delay, rad/(N m) for a compliance).
+    pub unit: String,
 }
 
 /// Held-out score of one candidate.
@@ -307,6 +323,15 @@ pub struct Diagnosis {
     /// with the load, or a drive stiffer than the cable model).
     #[serde(default)]
     pub directions: Vec<EffectDirection>,
+    /// Effects the calibrated instrument carries that the logs judged show at another
+    /// size (found by the search on top, past the same gate as a new effect): empty
+    /// when no scenario `[effects]` were given or every carried size stands.
+    #[serde(default)]
+    pub resized: Vec<ResizedEffect>,
+    /// The candidates the search on top could try, named as in `candidates`; none is
+    /// tried when the model already leaves no more than 5 % above the noise floor.
+    #[serde(default)]
+    pub searchable: Vec<String>,
     /// How data was held out.
     pub holdout: String,
     /// Logs used.

@@ -110,7 +110,13 @@ pub fn summary_text(d: &Diagnosis) -> String {
             .filter(|c| c.round == 1 && !c.name.contains(" + "))
             .map(|c| c.name.as_str())
             .collect();
-        let _ = if searched.is_empty() {
+        let _ = if searched.is_empty() && !d.searchable.is_empty() {
+            writeln!(
+                s,
+                "Nothing was searched on top of it: what it leaves is within 5 % of the noise floor (candidates: {}).",
+                d.searchable.join(", ")
+            )
+        } else if searched.is_empty() {
             writeln!(
                 s,
                 "Nothing was searched on top of it: it already carries every candidate effect ([identify] candidates){}.",
@@ -138,10 +144,30 @@ pub fn summary_text(d: &Diagnosis) -> String {
                 .iter()
                 .map(|e| format!("\"{e}\""))
                 .collect();
+            let (tried, not_tried): (Vec<&String>, Vec<&String>) =
+                c.held_not_refitted.iter().partition(|e| {
+                    d.searchable
+                        .iter()
+                        .any(|k| *k == format!("{e}{}", crate::identify::RESIZED))
+                });
+            let join = |v: &[&String]| v.iter().map(|e| e.as_str()).collect::<Vec<_>>().join(", ");
+            if !tried.is_empty() {
+                let _ = writeln!(
+                    s,
+                    "Held at its calibrated size in the replay; the search on top tries it at one other size shared by the logs judged: {}.",
+                    join(&tried)
+                );
+            }
+            if !not_tried.is_empty() {
+                let _ = writeln!(
+                    s,
+                    "Held at its calibrated size and not searched again (not among the candidates): {}. A log whose own size differs shows the difference as something else.",
+                    join(&not_tried)
+                );
+            }
             let _ = writeln!(
                 s,
-                "Held at its calibrated size and not searched again: {}. A log whose own size differs shows the difference as something else; to refit it on each log: --set 'identify.per_log=[{}]'.",
-                c.held_not_refitted.join(", "),
+                "To refit it on each log instead: --set 'identify.per_log=[{}]'.",
                 quoted.join(",")
             );
         }
@@ -195,10 +221,26 @@ pub fn summary_text(d: &Diagnosis) -> String {
         ("unexplained", None) => "structure remains that no effect in the library explains (look at the residual plots: resonance, sensor fault, load not logged?)".to_string(),
         (c, _) => {
             let m = c.parse::<EffectName>().map(|e| e.meaning()).unwrap_or("");
-            format!("{c} ({m})")
+            let other = if d.resized.iter().any(|r| r.effect == c) {
+                " at another size than calibrated"
+            } else {
+                ""
+            };
+            format!("{c}{other} ({m})")
         }
     };
     let _ = writeln!(s, "\nCAUSE: {verdict}");
+    for r in &d.resized {
+        let _ = writeln!(
+            s,
+            "  {}: {} {unit} calibrated, {} +- {} {unit} on the logs judged (one size for them all)",
+            r.effect,
+            crate::compact(r.calibrated),
+            crate::compact(r.found),
+            crate::compact(r.std),
+            unit = r.unit
+        );
+    }
     for d in &d.directions {
         let unit = d
             .effect
@@ -334,10 +376,17 @@ pub fn summary_text(d: &Diagnosis) -> String {
         s,
         "\nCandidates (held-out RMSE, gain, share of structure explained):"
     );
+    // Single candidates line up; a pair's longer name pushes its own row only.
+    let width = d
+        .candidates
+        .iter()
+        .filter(|c| !c.name.contains(" + "))
+        .map(|c| c.name.len())
+        .fold(22, usize::max);
     for c in &d.candidates {
         let _ = writeln!(
             s,
-            "  round {} {:<22} {:.4} mrad {:+6.1} % {:5.2}  {}",
+            "  round {} {:<width$} {:.4} mrad {:+6.1} % {:5.2}  {}",
             c.round, c.name, c.rmse_heldout_mrad, c.gain_percent, c.explained_fraction, c.verdict
         );
     }
