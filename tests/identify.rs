@@ -768,33 +768,46 @@ fn what_is_missing_is_found_on_top_of_a_calibrated_instrument() {
     assert_eq!(d.cause, "none", "{:?}", d.candidates);
 }
 
+/// A log of the test instrument (instrument seed 77) with a load compliance `c`
+/// (rad/(N m)), noise drawn from `seed`.
+fn compliance_log(c: f64, seed: u64) -> BenchLog {
+    let o = TruthOptions {
+        instrument_seed: Some(77),
+        ..TruthOptions::default()
+    };
+    truth_log(
+        &scenario(false),
+        &[(EffectName::LoadCompliance, c)],
+        seed,
+        &o,
+    )
+    .unwrap_or_else(|e| panic!("truth: {e}"))
+    .log
+}
+
+/// The test instrument calibrated on one log with a link that gives way at -5e-4
+/// rad/(N m), saved as a scenario at `path`; returns the calibrated compliance.
+fn calibrate_compliance(path: &std::path::Path) -> f64 {
+    let sc = scenario(false);
+    let d = diagnose(&sc, &[compliance_log(-5e-4, 1)], &opts_every()).expect("calibration");
+    assert_eq!(d.cause, "load_compliance", "{:?}", d.candidates);
+    cable_servo::report::diagnosis::save_model(path, &sc, &d).unwrap();
+    d.effects
+        .load_compliance_rad_per_nm
+        .expect("the calibrated compliance")
+}
+
 /// A term the scenario marks as belonging to each log (`identify.per_log`) is refitted on
 /// a new log before the log is judged, and not searched on top: a jaw gripped harder on
 /// the new log is the instrument as calibrated, not a new effect. Unmarked, the same log
 /// leaves the calibrated model a larger error.
 #[test]
 fn a_term_marked_per_log_is_refitted_on_each_log() {
-    let sc = scenario(false);
-    let o = TruthOptions {
-        instrument_seed: Some(77),
-        ..TruthOptions::default()
-    };
-    let log = |c: f64, seed: u64| {
-        truth_log(&sc, &[(EffectName::LoadCompliance, c)], seed, &o)
-            .unwrap_or_else(|e| panic!("truth: {e}"))
-            .log
-    };
-    let d = diagnose(&sc, &[log(-5e-4, 1)], &opts_every()).expect("calibration");
-    assert_eq!(d.cause, "load_compliance", "{:?}", d.candidates);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("calibrated.toml");
-    cable_servo::report::diagnosis::save_model(&path, &sc, &d).unwrap();
+    let c0 = calibrate_compliance(&path);
     let path = path.to_str().unwrap();
-    let c0 = Scenario::load(path, &[])
-        .unwrap()
-        .effects
-        .and_then(|fx| fx.load_compliance_rad_per_nm)
-        .expect("the calibrated compliance");
+    let log = compliance_log;
 
     let truth = -9e-4;
     let new_log = log(truth, 2);
@@ -847,27 +860,11 @@ fn a_term_marked_per_log_is_refitted_on_each_log() {
 /// library search is 0.95).
 #[test]
 fn a_carried_term_at_another_size_is_found_on_top() {
-    let sc = scenario(false);
-    let o = TruthOptions {
-        instrument_seed: Some(77),
-        ..TruthOptions::default()
-    };
-    let log = |c: f64, seed: u64| {
-        truth_log(&sc, &[(EffectName::LoadCompliance, c)], seed, &o)
-            .unwrap_or_else(|e| panic!("truth: {e}"))
-            .log
-    };
-    let d = diagnose(&sc, &[log(-5e-4, 1)], &opts_every()).expect("calibration");
-    assert_eq!(d.cause, "load_compliance", "{:?}", d.candidates);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("calibrated.toml");
-    cable_servo::report::diagnosis::save_model(&path, &sc, &d).unwrap();
+    let c0 = calibrate_compliance(&path);
     let calibrated = Scenario::load(path.to_str().unwrap(), &[]).unwrap();
-    let c0 = calibrated
-        .effects
-        .as_ref()
-        .and_then(|fx| fx.load_compliance_rad_per_nm)
-        .expect("the calibrated compliance");
+    let log = compliance_log;
 
     for (truth, seed) in [
         (-2e-4, 2),
