@@ -230,15 +230,18 @@ pub fn summary_text(d: &Diagnosis) -> String {
         }
     };
     let _ = writeln!(s, "\nCAUSE: {verdict}");
+    // A size with its unit; a ratio's unit "1" is left out.
+    let sized = |v: f64, unit: &str| match unit {
+        "" | "1" => crate::compact(v),
+        u => format!("{} {u}", crate::compact(v)),
+    };
     for r in &d.resized {
         let _ = writeln!(
             s,
-            "  {}: {} {unit} calibrated, {} +- {} {unit} on the logs judged (one size for them all)",
+            "  {}: {} calibrated, {} on the logs judged (one size for them all)",
             r.effect,
-            crate::compact(r.calibrated),
-            crate::compact(r.found),
-            crate::compact(r.std),
-            unit = r.unit
+            sized(r.calibrated, &r.unit),
+            sized(r.found, &format!("+- {}", sized(r.std, &r.unit))),
         );
     }
     for d in &d.directions {
@@ -249,9 +252,9 @@ pub fn summary_text(d: &Diagnosis) -> String {
             .unwrap_or("");
         let _ = writeln!(
             s,
-            "  {} = {} {unit}: {}",
+            "  {} = {}: {}",
             d.effect,
-            crate::compact(d.value),
+            sized(d.value, unit),
             d.meaning
         );
     }
