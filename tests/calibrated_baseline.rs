@@ -133,7 +133,8 @@ fn a_log_the_calibrated_drive_cannot_carry_is_still_judged() {
 /// A calibrated instrument carries an encoder delay; a new log's delay is twice as long.
 /// The replay holds the effect at its calibrated size, the search on top finds it at the
 /// new log's size, and the report says so with the setting that refits it on each log;
-/// with that setting the new log is explained to the noise.
+/// with that setting the new log is explained to the noise. A log at the calibrated size
+/// leaves nothing to search, and the report says that this is why nothing was searched.
 #[test]
 fn a_carried_effect_at_another_size_is_found_and_named_with_how_to_refit_it() {
     let tmp = tempfile::tempdir().expect("temporary directory");
@@ -199,6 +200,29 @@ fn a_carried_effect_at_another_size_is_found_and_named_with_how_to_refit_it() {
     assert!(
         (calibrated - 0.0005).abs() < 2e-5 && (found - 0.001).abs() < 2e-5,
         "{r}"
+    );
+    // A log of the instrument as calibrated leaves nothing for the search: the report
+    // says why, not that every candidate is already carried.
+    run(&[
+        &synth[..],
+        &["encoder_delay=0.0005", "--seed", "5", "--out", "c.csv"],
+    ]
+    .concat());
+    let text = run(&[
+        "diagnose",
+        "--scenario",
+        "instrument.toml",
+        "--data",
+        "c.csv",
+        "--out",
+        "same",
+    ]);
+    assert!(
+        text.contains(
+            "Nothing was searched on top of it: what it leaves is within 5 % of the noise floor"
+        ) && text.contains("CAUSE: nothing beyond sensor noise")
+            && !text.contains("already carries every candidate"),
+        "{text}"
     );
     let text = run(&[
         &judged[..],

@@ -312,6 +312,10 @@ fn ties_with(rmse: f64, best: f64, floor: f64) -> bool {
         || rmse * rmse - floor * floor <= (1.0 + TIE_FRACTION) * (best * best - floor * floor)
 }
 
+/// The search for effects ends when the model's held-out error is within this factor of
+/// the noise floor (1.05): what is left above it is too little for any effect to show.
+pub const SEARCH_ENDS_WITHIN: f64 = 1.05;
+
 /// How the candidate table names a carried effect tried at another size.
 pub const RESIZED: &str = " (resized)";
 
@@ -630,7 +634,7 @@ pub fn diagnose_with_progress(
         )
     };
     for round in 1..=ident.max_effects {
-        if pool.is_empty() || current <= 1.05 * floor {
+        if pool.is_empty() || current <= SEARCH_ENDS_WITHIN * floor {
             break;
         }
         use rayon::prelude::*;

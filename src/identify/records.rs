@@ -328,8 +328,8 @@ pub struct Diagnosis {
     /// when no scenario `[effects]` were given or every carried size stands.
     #[serde(default)]
     pub resized: Vec<ResizedEffect>,
-    /// The candidates the search on top could try, named as in `candidates`; none is
-    /// tried when the model already leaves no more than 5 % above the noise floor.
+    /// The candidates the search could try, named as in `candidates`; none is tried when
+    /// the model's error is already within [`super::SEARCH_ENDS_WITHIN`] of the noise floor.
     #[serde(default)]
     pub searchable: Vec<String>,
     /// How data was held out.

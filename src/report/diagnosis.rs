@@ -113,7 +113,8 @@ pub fn summary_text(d: &Diagnosis) -> String {
         let _ = if searched.is_empty() && !d.searchable.is_empty() {
             writeln!(
                 s,
-                "Nothing was searched on top of it: what it leaves is within 5 % of the noise floor (candidates: {}).",
+                "Nothing was searched on top of it: what it leaves is within {:.0} % of the noise floor (candidates: {}).",
+                100.0 * (crate::identify::SEARCH_ENDS_WITHIN - 1.0),
                 d.searchable.join(", ")
             )
         } else if searched.is_empty() {
