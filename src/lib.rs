@@ -26,6 +26,7 @@ pub mod report;
 pub mod run;
 pub mod scenario;
 pub mod signal;
+pub mod stats;
 pub mod study;
 pub mod sweep;
 

@@ -20,6 +20,7 @@ const LAYERS: &[(&str, &[&str])] = &[
             "duration_words",
             "physics",
             "signal",
+            "stats",
             "metrics",
             "measurement",
             "progress",
