@@ -192,6 +192,24 @@ fn a_carried_effect_at_another_size_is_found_and_named_with_how_to_refit_it() {
         &std::fs::read_to_string(tmp.path().join("held/diagnosis.json")).expect("diagnosis.json"),
     )
     .expect("JSON");
+    // Every candidate's gain is reckoned against the calibrated model held out, the
+    // figure the report prints first and the candidates figure draws.
+    let start = json["calibrated_model"]["held_out_mrad"]
+        .as_f64()
+        .expect("held-out start");
+    for c in json["candidates"].as_array().expect("candidates") {
+        let (rmse, gain) = (
+            c["rmse_heldout_mrad"].as_f64().expect("rmse"),
+            c["gain_percent"].as_f64().expect("gain"),
+        );
+        assert!(
+            (gain - 100.0 * (1.0 - rmse / start)).abs() < 1e-9,
+            "{c} against {start}"
+        );
+    }
+    assert!(text.contains(&format!(
+        "({start:.2} mrad held out, where the search on top starts)"
+    )));
     let r = &json["resized"][0];
     let (calibrated, found) = (
         r["calibrated"].as_f64().expect("calibrated size"),

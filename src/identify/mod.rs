@@ -547,6 +547,8 @@ pub fn diagnose_with_progress(
     };
     let mut current = rmse_base;
     let mut cannot_carry: Option<CarryRaise> = None;
+    // On a calibrated instrument: what the search on top starts from, held out.
+    let mut calibrated_held_out = rmse_base;
     if let Some(fx) = top {
         full_drive = drive0.clone();
         fold_drives = vec![drive0.clone(); split.folds.len()];
@@ -572,6 +574,7 @@ pub fn diagnose_with_progress(
             top,
         )?;
         current = rmse;
+        calibrated_held_out = rmse;
         // The search builds on the calibrated model, so its residual, not the capstan
         // model's, says what is noise.
         let spec = spec_for(&full_drive, &search_ident, &[], false, top);
@@ -1117,6 +1120,7 @@ pub fn diagnose_with_progress(
                     let c = baseline::score(&drive0, fx, &prepared, &keep, &ident.per_log)?;
                     CalibratedModelScore {
                         rmse_mrad: Some(c.rmse_mrad),
+                        held_out_mrad: calibrated_held_out * 1e3,
                         per_log_mrad: c.per_log_mrad.into_iter().map(Some).collect(),
                         cannot_carry: None,
                         refitted_per_log,
@@ -1132,6 +1136,7 @@ pub fn diagnose_with_progress(
                 }
                 Some(raise) => CalibratedModelScore {
                     rmse_mrad: None,
+                    held_out_mrad: calibrated_held_out * 1e3,
                     per_log_mrad: per_log_calibrated(&drive0, fx, &prepared, &keep, &ident.per_log),
                     cannot_carry: Some(raise.clone()),
                     refitted_per_log,

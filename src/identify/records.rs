@@ -94,6 +94,11 @@ pub struct CalibratedModelScore {
     pub rmse_mrad: Option<f64>,
     /// The same per log, in `logs` order, mrad (`None` for a log the drive cannot carry).
     pub per_log_mrad: Vec<Option<f64>>,
+    /// Held-out RMS transmission error of the model the search on top started from (the
+    /// calibrated model, on the drive raised to carry the logs where `cannot_carry` says
+    /// so), each log's zero fitted on the training blocks, mrad: the error each candidate
+    /// added on top is judged against.
+    pub held_out_mrad: f64,
     /// Where the calibrated drive as given cannot carry a log's load, and the drive the
     /// search on top then ran on; `None` when it carries every log.
     pub cannot_carry: Option<CarryRaise>,

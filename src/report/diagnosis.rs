@@ -43,7 +43,10 @@ pub fn summary_text(d: &Diagnosis) -> String {
             ),
         };
         let given = match (c.rmse_mrad, &c.cannot_carry) {
-            (Some(r), _) => format!("{r:.2} mrad RMS"),
+            (Some(r), _) => format!(
+                "{r:.2} mrad RMS ({:.2} mrad held out, where the search on top starts)",
+                c.held_out_mrad
+            ),
             (None, Some(f)) => format!("cannot carry the load: {}", f.fault),
             (None, None) => "no replay".to_string(),
         };
@@ -592,7 +595,7 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
         );
     }
     // Candidates by name on the y axis (first at the top), their held-out RMSE along x,
-    // accepted ones apart; the base model as a vertical line to beat.
+    // accepted ones apart; the model they were added to as a vertical line to beat.
     let round_one: Vec<&crate::identify::CandidateScore> =
         d.candidates.iter().filter(|c| c.round == 1).collect();
     let n = round_one.len();
@@ -617,18 +620,23 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
     };
     let (rx, ry) = pick(false);
     let (ax, ay) = pick(true);
+    // On a calibrated instrument the candidates were added to it, not to the base model.
+    let (start, start_mrad) = match &d.calibrated_model {
+        Some(c) => ("calibrated model", c.held_out_mrad),
+        None => ("base model", d.rmse_base_mrad),
+    };
     let series = vec![
         Series::points("not accepted", rx, ry).in_slot(0),
         Series::points("accepted", ax, ay).in_slot(2),
         Series::line(
-            format!("base model ({:.2} mrad)", d.rmse_base_mrad),
-            vec![d.rmse_base_mrad, d.rmse_base_mrad],
+            format!("{start} ({start_mrad:.2} mrad)"),
+            vec![start_mrad, start_mrad],
             vec![0.5, n as f64 + 0.5],
         )
         .in_slot(7),
     ];
     let cands = Chart {
-        title: "Held-out RMSE of each candidate effect added to the base model (round 1)".into(),
+        title: format!("Held-out RMSE of each candidate effect added to the {start} (round 1)"),
         x_label: "held-out RMSE (mrad)".into(),
         y_label: "candidate effect".into(),
         series,
