@@ -183,7 +183,7 @@ fn a_carried_effect_at_another_size_is_found_and_named_with_how_to_refit_it() {
     ];
     let text = run(&[&judged[..], &["--out", "held"]].concat());
     assert!(
-        text.contains("the search on top tries it at one other size shared by the logs judged: encoder_delay.")
+        text.contains("the search on top tries each at one other size shared by the logs judged: encoder_delay.")
             && text.contains("--set 'identify.per_log=[\"encoder_delay\"]'")
             && text.contains("CAUSE: encoder_delay at another size than calibrated"),
         "{text}"
@@ -208,7 +208,8 @@ fn a_carried_effect_at_another_size_is_found_and_named_with_how_to_refit_it() {
         );
     }
     assert!(text.contains(&format!(
-        "({start:.2} mrad held out, where the search on top starts)"
+        "({} mrad held out, where the search on top starts)",
+        cable_servo::significant(start, 3)
     )));
     let r = &json["resized"][0];
     let (calibrated, found) = (
@@ -256,6 +257,6 @@ fn a_carried_effect_at_another_size_is_found_and_named_with_how_to_refit_it() {
         text.contains("CAUSE: nothing beyond sensor noise"),
         "{text}"
     );
-    assert!(!text.contains("Held at its calibrated size"), "{text}");
+    assert!(!text.contains("Held at the calibrated size"), "{text}");
     assert!(!text.contains("(resized)"), "{text}");
 }

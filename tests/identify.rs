@@ -902,7 +902,8 @@ fn a_term_marked_per_log_is_refitted_on_each_log() {
 /// A term the calibration carries, held at one size for every log (not marked per log),
 /// is tried on top at another size: logs of the instrument with a link that gives way
 /// less, more, or the other way get it named and sized within 10 % (the calibrated size
-/// plus the change), two draws each. On six logs of the instrument as calibrated nothing
+/// plus the change), two draws each; two logs at -7e-4 and -1e-3 judged together share a
+/// size between theirs, and each log's own is told within 10 %. On six logs of the instrument as calibrated nothing
 /// is resized, and the answer is `none` on all but at most one (the clean-log rate of the
 /// library search is 0.95).
 #[test]
@@ -943,6 +944,16 @@ fn a_carried_term_at_another_size_is_found_on_top() {
             "{text}"
         );
     }
+    // Two logs that differ share one size between theirs; each log's own is told apart.
+    let both = [log(-7e-4, 2), log(-1e-3, 4)];
+    let d = diagnose(&calibrated, &both, &opts_every()).unwrap();
+    let r = d.resized.first().expect("resized on the two logs");
+    assert_eq!(r.per_log.len(), 2, "{r:?}");
+    for ((_, own), truth) in r.per_log.iter().zip([-7e-4, -1e-3]) {
+        assert!((own - truth).abs() <= 0.1 * truth.abs(), "{r:?}");
+    }
+    assert!(r.found < -7e-4 && r.found > -1e-3, "{r:?}");
+
     let mut named = Vec::new();
     for seed in 8..14 {
         let d = diagnose(&calibrated, &[log(-5e-4, seed)], &opts_every()).unwrap();

@@ -93,14 +93,14 @@ impl EffectName {
         match self {
             EffectName::InputPulleyRunout => nz(fx.input_pulley_runout),
             EffectName::OutputDrumRunout => nz(fx.output_drum_runout),
-            EffectName::EncoderDelay => nz(fx.encoder_delay_s),
-            EffectName::EncoderScaleError => nz(fx.encoder_scale_error),
+            EffectName::EncoderDelay
+            | EffectName::EncoderScaleError
+            | EffectName::ThermalDrift
+            | EffectName::LoadCompliance => nz(self.one_column_size(fx)),
             EffectName::PreloadRelaxation => nz(fx.preload_relaxation_per_s),
             EffectName::BearingFriction => nz(fx.bearing_friction_nm),
             EffectName::CableTransport => nz(fx.cable_transport_rad),
-            EffectName::ThermalDrift => nz(fx.thermal_drift_rad_per_s),
             EffectName::AngleDependentRatio => any(&fx.angle_dependent_ratio_coefs),
-            EffectName::LoadCompliance => nz(fx.load_compliance_rad_per_nm),
             EffectName::DistributedFrictionMemory => fx.has_friction_memory(),
         }
     }

@@ -317,11 +317,11 @@ fn ties_with(rmse: f64, best: f64, floor: f64) -> bool {
 pub const SEARCH_ENDS_WITHIN: f64 = 1.05;
 
 /// How the candidate table names a carried effect tried at another size.
-pub const RESIZED: &str = " (resized)";
+pub const RESIZED_SUFFIX: &str = " (resized)";
 
 /// The effect's own name in a candidate-table name.
 fn unlabelled(name: &str) -> &str {
-    name.strip_suffix(RESIZED).unwrap_or(name)
+    name.strip_suffix(RESIZED_SUFFIX).unwrap_or(name)
 }
 
 /// Tie `t`, seen in the round that accepted its effect, judged on the whole model the
@@ -582,7 +582,8 @@ pub fn diagnose_with_progress(
     }
 
     // Candidates.
-    let ratio_free = ident.is_unknown("ratio");
+    // On a calibrated instrument the search holds the ratio, whatever the base fit frees.
+    let ratio_free = search_ident.is_unknown("ratio");
     // A carried one-column effect the scenario holds at one size for every log: the
     // search may find the logs judged at another ([`Diagnosis::resized`]).
     let resizable = |e: EffectName| {
@@ -593,7 +594,7 @@ pub fn diagnose_with_progress(
     // A candidate's name in the table: a carried effect tried at another size says so.
     let label = |e: EffectName| {
         if resizable(e) {
-            format!("{e}{RESIZED}")
+            format!("{e}{RESIZED_SUFFIX}")
         } else {
             e.to_string()
         }
@@ -753,7 +754,8 @@ pub fn diagnose_with_progress(
                     let r = score_with(&effs);
                     (
                         (*a, *b),
-                        r.map(|r| (size_of(&effs, &r.2, &[*a, *b], pairs.len()), r)),
+                        // Each pair tests two sizes.
+                        r.map(|r| (size_of(&effs, &r.2, &[*a, *b], 2 * pairs.len()), r)),
                     )
                 })
                 .collect();
@@ -946,6 +948,7 @@ pub fn diagnose_with_progress(
                 found: p.value,
                 std: p.std,
                 unit: p.unit.clone(),
+                per_log: Vec::new(),
             });
         }
     }
@@ -953,6 +956,21 @@ pub fn diagnose_with_progress(
     // on top: a saved model must carry both.
     if let Some(fx) = top {
         effects_out = overlay(fx, &effects_out);
+    }
+    // One size shared by logs that differ fits none of them: each log's own says so.
+    if prepared.len() > 1 {
+        for r in &mut resized {
+            let Ok(e) = r.effect.parse::<EffectName>() else {
+                continue;
+            };
+            if let Ok(c) = baseline::score(&drive_for, &effects_out, &prepared, &keep, &[e]) {
+                r.per_log = c
+                    .per_log_terms
+                    .iter()
+                    .filter_map(|t| Some((t.log.clone(), r.found + t.values.first()?.value)))
+                    .collect();
+            }
+        }
     }
     // A held-out log's encoder zero is fitted on that log only when it is scored.
     let params: Vec<ParamEstimate> = params
@@ -1112,7 +1130,7 @@ pub fn diagnose_with_progress(
                 .collect();
             let held_not_refitted: Vec<String> = effects::PER_LOG_EFFECTS
                 .iter()
-                .filter(|e| e.carried_by(fx) && !ident.per_log.contains(e))
+                .filter(|e| resizable(**e))
                 .map(|e| e.to_string())
                 .collect();
             Some(match &cannot_carry {
@@ -1494,10 +1512,10 @@ pub const MIN_SIZE_SIGMAS: f64 = 2.0;
 /// hold passes [`size_sigmas`] (0.05, two-sided).
 pub const SIZE_FAMILY_LEVEL: f64 = 0.05;
 
-/// Standard deviations by which a size must stand off zero when `judged` candidates (or
-/// pairs) are judged side by side in one round: at least [`MIN_SIZE_SIGMAS`], and the
+/// Standard deviations by which a size must stand off zero when `judged` sizes (one per
+/// candidate, two per pair) are judged side by side in one round: at least [`MIN_SIZE_SIGMAS`], and the
 /// two-sided [`SIZE_FAMILY_LEVEL`] shared among them (Bonferroni: 2.73 for 8 candidates,
-/// 2.84 for 11, 2.94 for 15 pairs). With one threshold of two for every candidate, the
+/// 2.84 for 11, 3.14 for the 30 sizes of 15 pairs). With one threshold of two for every candidate, the
 /// chance that one of eleven passes by noise alone is about 40 %: beside a 2e-4 rad
 /// friction memory on `synth` logs an encoder scale error of 1.35e-6 +- 5.5e-7 (2.4
 /// sigma) was named second on two of four seeds.

@@ -179,6 +179,10 @@ pub struct ResizedEffect {
     pub std: f64,
     /// Unit of the sizes (s for an encoder delay, rad/(N m) for a compliance).
     pub unit: String,
+    /// With several logs, each log's own size (the shared one plus what the log alone
+    /// adds, its zero refitted with it), `(log, size)` in `logs` order: logs that differ
+    /// call for `identify.per_log`. Empty for one log.
+    pub per_log: Vec<(String, f64)>,
 }
 
 /// Held-out score of one candidate.

@@ -44,8 +44,9 @@ pub fn summary_text(d: &Diagnosis) -> String {
         };
         let given = match (c.rmse_mrad, &c.cannot_carry) {
             (Some(r), _) => format!(
-                "{r:.2} mrad RMS ({:.2} mrad held out, where the search on top starts)",
-                c.held_out_mrad
+                "{} mrad RMS ({} mrad held out, where the search on top starts)",
+                crate::significant(r, 3),
+                crate::significant(c.held_out_mrad, 3)
             ),
             (None, Some(f)) => format!("cannot carry the load: {}", f.fault),
             (None, None) => "no replay".to_string(),
@@ -89,11 +90,16 @@ pub fn summary_text(d: &Diagnosis) -> String {
             .play_operator
             .as_ref()
             .is_none_or(|p| rmse < p.rmse_heldout_mrad);
+        let (on, shows) = if d.logs.len() > 1 {
+            ("on these logs", "these logs show")
+        } else {
+            ("on this log", "this log shows")
+        };
         let verdict = match (rmse < d.rmse_base_mrad, beats_play) {
-            (true, true) => "The calibrated model beats both on this log",
-            (true, false) => "The calibrated model beats the base model but not the play operator on this log",
-            (false, true) => "The calibrated model beats the play operator but not the recalibrated base model on this log",
-            (false, false) => "The calibrated model beats neither on this log: the instrument has changed, or this log shows what its calibration did not see",
+            (true, true) => format!("The calibrated model beats both {on}"),
+            (true, false) => format!("The calibrated model beats the base model but not the play operator {on}"),
+            (false, true) => format!("The calibrated model beats the play operator but not the recalibrated base model {on}"),
+            (false, false) => format!("The calibrated model beats neither {on}: the instrument has changed, or {shows} what its calibration did not see"),
         };
         let follows = c
             .residual_signatures
@@ -152,26 +158,27 @@ pub fn summary_text(d: &Diagnosis) -> String {
                 c.held_not_refitted.iter().partition(|e| {
                     d.searchable
                         .iter()
-                        .any(|k| *k == format!("{e}{}", crate::identify::RESIZED))
+                        .any(|k| *k == format!("{e}{}", crate::identify::RESIZED_SUFFIX))
                 });
             let join = |v: &[&String]| v.iter().map(|e| e.as_str()).collect::<Vec<_>>().join(", ");
             if !tried.is_empty() {
                 let _ = writeln!(
                     s,
-                    "Held at its calibrated size in the replay; the search on top tries it at one other size shared by the logs judged: {}.",
+                    "Held at the calibrated size in the replay; the search on top {} each at one other size shared by the logs judged: {}.",
+                    if searched.is_empty() { "would try" } else { "tries" },
                     join(&tried)
                 );
             }
             if !not_tried.is_empty() {
                 let _ = writeln!(
                     s,
-                    "Held at its calibrated size and not searched again (not among the candidates): {}. A log whose own size differs shows the difference as something else.",
+                    "Held at the calibrated size and not searched again (not among the candidates searched): {}. A log whose own size differs shows the difference as something else.",
                     join(&not_tried)
                 );
             }
             let _ = writeln!(
                 s,
-                "To refit it on each log instead: --set 'identify.per_log=[{}]'.",
+                "To refit on each log instead: --set 'identify.per_log=[{}]'.",
                 quoted.join(",")
             );
         }
@@ -242,11 +249,25 @@ pub fn summary_text(d: &Diagnosis) -> String {
     for r in &d.resized {
         let _ = writeln!(
             s,
-            "  {}: {} calibrated, {} on the logs judged (one size for them all)",
+            "  {}: {} calibrated, {} +- {} on the logs judged (one size for them all)",
             r.effect,
             sized(r.calibrated, &r.unit),
-            sized(r.found, &format!("+- {}", sized(r.std, &r.unit))),
+            crate::compact(r.found),
+            sized(r.std, &r.unit),
         );
+        if r.per_log.len() > 1 {
+            let each: Vec<String> = r
+                .per_log
+                .iter()
+                .map(|(log, v)| format!("{log} {}", sized(*v, &r.unit)))
+                .collect();
+            let _ = writeln!(
+                s,
+                "  each log alone: {}; where they differ, refit it on each log: --set 'identify.per_log=[\"{}\"]'",
+                each.join(", "),
+                r.effect
+            );
+        }
     }
     for d in &d.directions {
         let unit = d
@@ -263,10 +284,21 @@ pub fn summary_text(d: &Diagnosis) -> String {
         );
     }
     if d.causes.len() > 1 && d.cause != "unexplained" {
+        let named: Vec<String> = d
+            .causes
+            .iter()
+            .map(|c| {
+                if d.resized.iter().any(|r| r.effect == *c) {
+                    format!("{c}{}", crate::identify::RESIZED_SUFFIX)
+                } else {
+                    c.clone()
+                }
+            })
+            .collect();
         let _ = writeln!(
             s,
             "All effects found, strongest first: {}",
-            d.causes.join(", ")
+            named.join(", ")
         );
     }
     for t in &d.indistinguishable {
@@ -379,10 +411,14 @@ pub fn summary_text(d: &Diagnosis) -> String {
             }
         }
     }
-    let _ = writeln!(
-        s,
-        "\nCandidates (held-out RMSE, gain, share of structure explained):"
-    );
+    let _ = if d.candidates.is_empty() {
+        writeln!(s, "\nCandidates: none judged")
+    } else {
+        writeln!(
+            s,
+            "\nCandidates (held-out RMSE, gain, share of structure explained):"
+        )
+    };
     // Single candidates line up; a pair's longer name pushes its own row only.
     let width = d
         .candidates

@@ -457,11 +457,8 @@ pub(crate) mod tests {
         };
         let cases = expand(&spec, &toml::Table::new()).unwrap();
         assert_eq!(cases.len(), n);
-        let to_u: [&dyn Fn(f64) -> f64; 3] = [
-            &|x| x,
-            &|y| (y + 10.0) / 40.0,
-            &crate::sweep::sample::normal_cdf,
-        ];
+        let to_u: [&dyn Fn(f64) -> f64; 3] =
+            [&|x| x, &|y| (y + 10.0) / 40.0, &crate::stats::normal_cdf];
         for (j, u_of) in to_u.iter().enumerate() {
             let mut hits = vec![0; n];
             for c in &cases {

@@ -8,6 +8,8 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use crate::stats::{normal_cdf, normal_quantile};
+
 /// SplitMix64 finaliser: spreads nearby inputs (case 0, 1, 2...) over unrelated seeds.
 fn splitmix(mut z: u64) -> u64 {
     z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
@@ -38,8 +40,6 @@ pub fn lhs_strata(seed: u64, parameter: usize, n: usize) -> Vec<u32> {
     perm.shuffle(&mut rng);
     perm
 }
-
-pub use crate::stats::{normal_cdf, normal_quantile};
 
 /// A distribution ready to draw from, in the unit of its key.
 #[derive(Clone, Copy, Debug, PartialEq)]
