@@ -844,6 +844,39 @@ fn calibrate_compliance(path: &std::path::Path) -> f64 {
         .expect("the calibrated compliance")
 }
 
+/// A carried encoder scale error is tried at another size also when the scenario frees
+/// the ratio: the search on top of a calibrated instrument holds the ratio, so the two are
+/// not the same column there. Before, the scale error was left out, and a log at twice the
+/// calibrated scale error named a 3.2e-3 drum runout instead.
+#[test]
+fn a_carried_scale_error_is_resized_with_the_ratio_free() {
+    use cable_servo::identify::{synthesize, SynthOptions};
+    let sc = scenario(false);
+    let log = |v: f64, seed: u64| {
+        synthesize(
+            &sc,
+            &[(EffectName::EncoderScaleError, v)],
+            seed,
+            &SynthOptions::default(),
+        )
+        .unwrap()
+    };
+    let d = diagnose(&sc, &[log(0.002, 1)], &opts()).expect("calibration");
+    assert_eq!(d.cause, "encoder_scale_error", "{:?}", d.candidates);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("calibrated.toml");
+    cable_servo::report::diagnosis::save_model(&path, &sc, &d).unwrap();
+    let free = Scenario::load(
+        path.to_str().unwrap(),
+        &["identify.unknown=[\"cable_modulus_n\",\"ratio\"]".to_string()],
+    )
+    .unwrap();
+    let d = diagnose(&free, &[log(0.004, 2)], &opts()).unwrap();
+    assert_eq!(d.cause, "encoder_scale_error", "{:?}", d.candidates);
+    let r = d.resized.first().expect("resized");
+    assert!((r.found - 0.004).abs() <= 0.02 * 0.004, "{r:?}");
+}
+
 /// A term the scenario marks as belonging to each log (`identify.per_log`) is refitted on
 /// a new log before the log is judged, and not searched on top: a jaw gripped harder on
 /// the new log is the instrument as calibrated, not a new effect. Unmarked, the same log
