@@ -454,20 +454,20 @@ fn a_delay_at_the_top_of_its_range_leaves_only_the_noise() {
 /// seeds.
 #[test]
 fn a_delay_alone_is_named_alone() {
+    named_alone_on_synth_logs(EffectName::EncoderDelay, 1e-3, &opts());
+}
+
+/// `effect` of `size` hidden alone in `synth` logs of seeds 1 to 4 is the only effect the
+/// diagnosis with `o` names.
+fn named_alone_on_synth_logs(effect: EffectName, size: f64, o: &DiagnoseOptions) {
     use cable_servo::identify::{synthesize, SynthOptions};
     let sc = scenario(false);
     for seed in 1..=4u64 {
-        let log = synthesize(
-            &sc,
-            &[(EffectName::EncoderDelay, 1e-3)],
-            seed,
-            &SynthOptions::default(),
-        )
-        .unwrap();
-        let d = diagnose(&sc, &[log], &opts()).unwrap();
+        let log = synthesize(&sc, &[(effect, size)], seed, &SynthOptions::default()).unwrap();
+        let d = diagnose(&sc, &[log], o).unwrap();
         assert_eq!(
             d.causes,
-            ["encoder_delay"],
+            [effect.as_str()],
             "seed {seed}: {:?}",
             d.candidates
         );
@@ -501,24 +501,7 @@ fn the_size_gate_grows_with_the_candidates_judged() {
 /// four seeds.
 #[test]
 fn a_friction_memory_alone_is_named_alone() {
-    use cable_servo::identify::{synthesize, SynthOptions};
-    let sc = scenario(false);
-    for seed in 1..=4u64 {
-        let log = synthesize(
-            &sc,
-            &[(EffectName::DistributedFrictionMemory, 2e-4)],
-            seed,
-            &SynthOptions::default(),
-        )
-        .unwrap();
-        let d = diagnose(&sc, &[log], &opts_every()).unwrap();
-        assert_eq!(
-            d.causes,
-            ["distributed_friction_memory"],
-            "seed {seed}: {:?}",
-            d.candidates
-        );
-    }
+    named_alone_on_synth_logs(EffectName::DistributedFrictionMemory, 2e-4, &opts_every());
 }
 
 /// Two effects that share the structure so that neither passes a strict gate alone (each
