@@ -919,9 +919,9 @@ fn a_term_marked_per_log_is_refitted_on_each_log() {
 /// is tried on top at another size: logs of the instrument with a link that gives way
 /// less, more, or the other way get it named and sized within 10 % (the calibrated size
 /// plus the change), two draws each; two logs at -7e-4 and -1e-3 judged together share a
-/// size between theirs, and each log's own is told within 10 %. On six logs of the instrument as calibrated nothing
-/// is resized, and the answer is `none` on all but at most one (the clean-log rate of the
-/// library search is 0.95).
+/// size between theirs, and each log's own is told within 10 %. On six logs of the
+/// instrument as calibrated nothing is resized, and the answer is `none` on all but at
+/// most one (the clean-log rate of the library search is 0.95).
 #[test]
 fn a_carried_term_at_another_size_is_found_on_top() {
     let dir = tempfile::tempdir().unwrap();

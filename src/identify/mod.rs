@@ -1513,12 +1513,12 @@ pub const MIN_SIZE_SIGMAS: f64 = 2.0;
 pub const SIZE_FAMILY_LEVEL: f64 = 0.05;
 
 /// Standard deviations by which a size must stand off zero when `judged` sizes (one per
-/// candidate, two per pair) are judged side by side in one round: at least [`MIN_SIZE_SIGMAS`], and the
-/// two-sided [`SIZE_FAMILY_LEVEL`] shared among them (Bonferroni: 2.73 for 8 candidates,
-/// 2.84 for 11, 3.14 for the 30 sizes of 15 pairs). With one threshold of two for every candidate, the
-/// chance that one of eleven passes by noise alone is about 40 %: beside a 2e-4 rad
-/// friction memory on `synth` logs an encoder scale error of 1.35e-6 +- 5.5e-7 (2.4
-/// sigma) was named second on two of four seeds.
+/// candidate, two per pair) are judged side by side in one round: at least
+/// [`MIN_SIZE_SIGMAS`], and the two-sided [`SIZE_FAMILY_LEVEL`] shared among them
+/// (Bonferroni: 2.73 for 8 candidates, 2.84 for 11, 3.14 for the 30 sizes of 15 pairs).
+/// With one threshold of two for every candidate, the chance that one of eleven passes by
+/// noise alone is about 40 %: beside a 2e-4 rad friction memory on `synth` logs an encoder
+/// scale error of 1.35e-6 +- 5.5e-7 (2.4 sigma) was named second on two of four seeds.
 pub fn size_sigmas(judged: usize) -> f64 {
     let m = judged.max(1) as f64;
     MIN_SIZE_SIGMAS.max(crate::stats::normal_quantile(
@@ -1527,12 +1527,12 @@ pub fn size_sigmas(judged: usize) -> f64 {
 }
 
 /// Why the effects `new` of a fit are not found, when one is not: a size within `sigmas`
-/// standard deviations of zero ([`size_sigmas`]) or along a direction the logs do not see, or a size fitted
-/// onto the bound that means none of the effect (a cable transport over the least travel
-/// allowed, a bearing friction or preload relaxation of zero), where the logs push it to
-/// less than the model can hold. `None`: every new effect stands off zero. The sizes are
-/// read as the report reads them ([`estimates::parameters`]), on the fit `fit` of the
-/// model `spec` over the rows `mask`.
+/// standard deviations of zero ([`size_sigmas`]) or along a direction the logs do not
+/// see, or a size fitted onto the bound that means none of the effect (a cable transport
+/// over the least travel allowed, a bearing friction or preload relaxation of zero), where
+/// the logs push it to less than the model can hold. `None`: every new effect stands off
+/// zero. The sizes are read as the report reads them ([`estimates::parameters`]), on the
+/// fit `fit` of the model `spec` over the rows `mask`.
 fn size_not_found(
     logs: &[Prepared],
     spec: Spec,
