@@ -1145,7 +1145,10 @@ fn short_clean_logs_are_none() {
 
 /// A fit that runs an effect onto the bound meaning none of it has not found the effect:
 /// beside a 1 ms encoder delay, a cable transport over the least travel allowed (1e-4 rad)
-/// was named second on every seed.
+/// was named second on every seed. Those logs carried the generator's interpolation error
+/// (see `a_delay_alone_is_named_alone`); read off a cubic they leave nothing for a second
+/// round, so this test now guards the answer but no longer brings a candidate onto its
+/// bound: with the rule switched off it still passes. No log found since does.
 #[test]
 fn an_effect_fitted_onto_its_none_bound_is_not_found() {
     use cable_servo::identify::{synthesize, SynthOptions};
