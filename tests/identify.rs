@@ -1148,7 +1148,8 @@ fn short_clean_logs_are_none() {
 /// was named second on every seed. Those logs carried the generator's interpolation error
 /// (see `a_delay_alone_is_named_alone`); read off a cubic they leave nothing for a second
 /// round, so this test now guards the answer but no longer brings a candidate onto its
-/// bound: with the rule switched off it still passes. No log found since does.
+/// bound: with the rule switched off it still passes. No log found since does; the rule
+/// itself is held by the unit test `an_effect_on_the_bound_that_means_none_is_told`.
 #[test]
 fn an_effect_fitted_onto_its_none_bound_is_not_found() {
     use cable_servo::identify::{synthesize, SynthOptions};

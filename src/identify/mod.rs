@@ -1547,13 +1547,7 @@ fn size_not_found(
     let mut ev = Evaluator::new(spec, logs);
     let nl = ev.nonlinear();
     for e in new {
-        let at_none = nl
-            .iter()
-            .zip(&fit.x)
-            .find(|(n, _)| n.0 == NlParam::Effect(*e) && !model::is_linear(*e))
-            .filter(|(n, v)| (**v - n.1).abs() <= 1e-6 * (n.2 - n.1))
-            .map(|(n, _)| n.1);
-        if let Some(lo) = at_none {
+        if let Some(lo) = model::at_none_bound(&nl, &fit.x, *e) {
             return Some(format!(
                 "{e} fitted onto its lower bound {} (none of it): not found",
                 crate::compact(lo)

@@ -478,6 +478,22 @@ pub fn is_linear(e: EffectName) -> bool {
     )
 }
 
+/// The bound that means none of effect `e` (a cable transport over the least travel
+/// allowed, 1e-4 rad; a bearing friction or preload relaxation of zero) when the fit `x`
+/// (layout `nl`) sits on it, within a millionth of the parameter's range: the logs pushed
+/// it to less than the model can hold, so the effect is not found. `None` for an effect
+/// sized by a linear column (fitted with its sign, never held at a bound) or off the bound.
+pub fn at_none_bound(nl: &[(NlParam, f64, f64, f64)], x: &[f64], e: EffectName) -> Option<f64> {
+    if is_linear(e) {
+        return None;
+    }
+    nl.iter()
+        .zip(x)
+        .find(|(n, _)| n.0 == NlParam::Effect(e))
+        .filter(|(n, v)| (**v - n.1).abs() <= 1e-6 * (n.2 - n.1))
+        .map(|(n, _)| n.1)
+}
+
 /// The friction memory's load exponent in a fit's nonlinear parameters `x` (layout `nl`),
 /// 1 when the memory is not in the model.
 pub fn memory_load_exponent(nl: &[(NlParam, f64, f64, f64)], x: &[f64]) -> f64 {
@@ -1350,6 +1366,37 @@ mod bound_tests {
         assert!(said[0].starts_with("friction_coefficient = 0.02 is on its lower bound"));
         assert!(said[1].starts_with("friction_memory_load_exponent = 8 is on its upper bound"));
         assert!(on_bounds(&nl, &[0.1, 123.0, 2.5]).is_empty());
+    }
+
+    /// A transport on its least travel and a bearing friction of zero are none of either;
+    /// a millionth of the range above the bound, or the upper bound, is a size; a linear
+    /// effect is never held at a bound.
+    #[test]
+    fn an_effect_on_the_bound_that_means_none_is_told() {
+        let transport = NlParam::Effect(EffectName::CableTransport);
+        let friction = NlParam::Effect(EffectName::BearingFriction);
+        let nl = [
+            (NlParam::Preload, 10.0, 1000.0, 100.0),
+            (transport, 1e-4, 3.0, 0.05),
+            (friction, 0.0, 8.0, 0.4),
+        ];
+        let e = EffectName::CableTransport;
+        assert_eq!(at_none_bound(&nl, &[10.0, 1e-4, 1.0], e), Some(1e-4));
+        assert_eq!(at_none_bound(&nl, &[10.0, 1e-4 + 2e-6, 1.0], e), Some(1e-4));
+        assert_eq!(at_none_bound(&nl, &[10.0, 1e-4 + 4e-6, 1.0], e), None);
+        assert_eq!(at_none_bound(&nl, &[10.0, 3.0, 1.0], e), None);
+        let f = EffectName::BearingFriction;
+        assert_eq!(at_none_bound(&nl, &[10.0, 0.5, 0.0], f), Some(0.0));
+        assert_eq!(at_none_bound(&nl, &[10.0, 0.5, 1e-3], f), None);
+        // Not in the fit, or sized by a linear column: nothing to tell.
+        assert_eq!(
+            at_none_bound(&nl, &[10.0, 0.5, 0.0], EffectName::PreloadRelaxation),
+            None
+        );
+        assert_eq!(
+            at_none_bound(&nl, &[10.0, 0.5, 0.0], EffectName::LoadCompliance),
+            None
+        );
     }
 }
 
