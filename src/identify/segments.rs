@@ -3,7 +3,8 @@
 //! Real benches record events the quasi-static drive model has no business explaining: the
 //! input spindle jerked by its motor (a rad in a fifth of a second, the output following
 //! dynamically), an encoder reading that drops to a wrong value and holds it while the
-//! other channel moves on, an input that leaves its commanded motion for a moment. Fitted as
+//! other channel moves on, an input that leaves its commanded motion for a moment, a few
+//! output samples far off their neighbours. Fitted as
 //! physics, such a stretch of a few hundred milliseconds can outweigh every effect the
 //! diagnosis looks for. Each detector judges the log by its own statistics (median and MAD
 //! of the quantity it watches) so that encoder quantisation and sensor noise, which set
@@ -42,6 +43,29 @@ pub const STUCK_NOISE_BANDS: f64 = 5.0;
 /// a jerk (a held reading, which lags the motion, never reaches 1).
 pub const JERK_SPEED: f64 = 1.5;
 
+/// A speed of the input itself (not of its residual from the motion) beyond this many times
+/// its own 95th percentile is a jerk, whatever the motion fitted: an input that jumps and
+/// stays shifted moves every later sample off the motion family, which then fits neither
+/// side and reads the jump as its own scatter. The percentile is that of the motion for any
+/// jerk shorter than a twentieth of the log (a sine's is 0.997 of its peak speed).
+pub const JERK_SPEED_QUANTILE: f64 = 0.95;
+
+/// An output sample off the mean of its two neighbours, in the output's deviation from
+/// the drive's play (the reading less its play operator of the input), by more than this
+/// many encoder steps, and by [`ROBUST_K`] robust standard deviations of that deviation, is
+/// a spike however short: the truth's sensor outliers reach 10 steps, a wrong reading of
+/// a millirad on a 2^20-count encoder is 167. A single such sample sets the log's RMS
+/// error (3.5 mrad over 3000 samples is 0.064 mrad, ten noise floors).
+pub const SPIKE_STEPS: f64 = 30.0;
+
+/// Longest spike, samples: longer wrong readings are judged as departures and jumps.
+pub const SPIKE_MAX_SAMPLES: usize = 5;
+
+/// How straight the path around a spike must be: the slopes just before and just after it
+/// differ from the slope across it by less than this share of the spike's size (over the
+/// spike's length), where a kink of the drive differs by about its whole size.
+pub const SPIKE_STRAIGHT: f64 = 0.25;
+
 /// How long after a flagged input stretch the output may still be catching up with it, s:
 /// output stretches within this (and the padding) of one are not judged.
 pub const FOLLOW_S: f64 = 0.1;
@@ -78,6 +102,8 @@ pub enum Reason {
     Departure,
     /// The reading holds one value while the other channel moves.
     Stuck,
+    /// A few samples of the reading far off their neighbours (a glitch of the encoder).
+    Spike,
 }
 
 impl Reason {
@@ -91,6 +117,7 @@ impl Reason {
             }
             (Reason::Stuck, Channel::Input) => "input stuck while output moves".into(),
             (Reason::Stuck, Channel::Output) => "output stuck while input moves".into(),
+            (Reason::Spike, c) => format!("{c} spike (samples far off their neighbours)"),
         }
     }
 }
@@ -642,11 +669,30 @@ fn input_departures(t: &[f64], x: &[f64], q_in: f64, dt: f64) -> (Vec<Raw>, Opti
         .map(|i| (r[i] - mr).abs() > tr || (v[i] - mv).abs() > tv)
         .collect();
     let peak_speed = m.peak_speed(t);
+    // The input's own speed against its usual speed: a jump that leaves the input shifted
+    // bends the motion fitted through both sides (and so the thresholds above) but not
+    // this.
+    let u: Vec<f64> = (0..n)
+        .map(|i| {
+            let a = i.saturating_sub(h);
+            let b = (i + h).min(n - 1);
+            ((x[b] - x[a]) / (t[b] - t[a]).max(1e-300)).abs()
+        })
+        .collect();
+    let usual = {
+        let mut w = u.clone();
+        let k = ((n as f64 * JERK_SPEED_QUANTILE) as usize).min(n - 1);
+        let (_, q, _) = w.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+        q.max(peak_speed)
+    };
+    let tu = JERK_SPEED * usual + 10.0 * q_in / (2.0 * h as f64 * dt);
+    let jumps: Vec<bool> = u.iter().map(|s| *s > tu).collect();
+    let flag: Vec<bool> = flag.iter().zip(&jumps).map(|(f, j)| *f || *j).collect();
     let found = runs(&flag, min_len)
         .into_iter()
         .map(|(a, b)| {
             let fastest = v[a..b].iter().fold(0.0f64, |p, e| p.max((e - mv).abs()));
-            let reason = if fastest > JERK_SPEED * peak_speed {
+            let reason = if fastest > JERK_SPEED * peak_speed || jumps[a..b].contains(&true) {
                 Reason::Jerk
             } else {
                 Reason::Departure
@@ -706,7 +752,7 @@ fn output_departures(
     let flag: Vec<bool> = (0..n)
         .map(|i| ((e[i] - me).abs() > te && (e_play[i] - mp).abs() > tp) || fast[i])
         .collect();
-    runs(&flag, min_len)
+    let mut found: Vec<Raw> = runs(&flag, min_len)
         .into_iter()
         .map(|(a, b)| {
             let reason = if fast[a..b].iter().any(|f| *f) {
@@ -716,7 +762,56 @@ fn output_departures(
             };
             (Channel::Output, reason, a, b)
         })
-        .collect()
+        .collect();
+    // Spikes count however short: up to [`SPIKE_MAX_SAMPLES`] samples off the straight
+    // path their neighbours on both sides agree on. The drive's own kinks (a brake breaking
+    // away at a reversal turns the output within a sample) bend that path, so they are not
+    // spikes, however sharp.
+    let off_neighbours: Vec<f64> = (0..n)
+        .map(|i| {
+            if i == 0 || i + 1 >= n {
+                0.0
+            } else {
+                e_play[i] - 0.5 * (e_play[i - 1] + e_play[i + 1])
+            }
+        })
+        .collect();
+    let (sd, _) = robust(&off_neighbours);
+    let ts = (ROBUST_K * sd).max(SPIKE_STEPS * q_out).max(1e-12);
+    let mut spikes = vec![false; n];
+    for a in 2..n {
+        for len in 1..=SPIKE_MAX_SAMPLES {
+            let b = a + len;
+            if b + 1 >= n {
+                break;
+            }
+            let e = &e_play;
+            let gap = (e[b] - e[a - 1]) / (len + 1) as f64;
+            let chord = |k: usize| e[a - 1] + gap * (k + 1 - a) as f64;
+            let devs = (a..b).map(|k| e[k] - chord(k));
+            let (lo, hi) = devs.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), d| {
+                (l.min(d), h.max(d))
+            });
+            // Every sample off the chord by more than the threshold, the same way.
+            let smallest = if lo > 0.0 { lo } else { -hi };
+            if smallest <= ts {
+                continue;
+            }
+            let bend = ((e[a - 1] - e[a - 2]) - gap)
+                .abs()
+                .max(((e[b + 1] - e[b]) - gap).abs())
+                * (len + 1) as f64;
+            if bend < SPIKE_STRAIGHT * smallest {
+                spikes[a..b].iter_mut().for_each(|s| *s = true);
+            }
+        }
+    }
+    found.extend(
+        runs(&spikes, 1)
+            .into_iter()
+            .map(|(a, b)| (Channel::Output, Reason::Spike, a, b)),
+    );
+    found
 }
 
 /// Widest play half-width tried for [`play_residual`], as a share of the input's range:
