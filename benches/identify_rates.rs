@@ -9,7 +9,7 @@
 mod support;
 
 use cable_servo::identify::EffectName;
-use support::rates::{clean_rate, opts, opts_every, run_effect, size_tolerance};
+use support::rates::{clean_rate, opts_every, opts_library, run_effect, size_tolerance};
 
 fn main() {
     let seeds: u64 = std::env::var("IDENTIFY_RATE_SEEDS")
@@ -42,7 +42,7 @@ fn main() {
         println!("{row}");
     }
     if wanted("clean") {
-        let none = clean_rate(seeds, &opts(), "library searched");
+        let none = clean_rate(seeds, &opts_library(), "library searched");
         let none_every = clean_rate(seeds, &opts_every(), "every effect searched");
         println!("| clean logs, library searched | `none` {none}/{seeds} | | | |");
         println!("| clean logs, every effect searched | `none` {none_every}/{seeds} | | | |");

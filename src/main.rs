@@ -321,7 +321,7 @@ enum Command {
         #[arg(long = "keep-segments")]
         keep_segments: bool,
         /// Effect of the extension scored by --leave-one-out (repeatable; default: the
-        /// scenario's [identify] candidates, the whole library when that list is empty, as
+        /// scenario's [identify] candidates, every effect when that list is empty, as
         /// for a single diagnosis). Only with --leave-one-out; a single diagnosis
         /// searches the scenario's [identify] candidates, e.g. --set
         /// 'identify.candidates=["load_compliance"]'.

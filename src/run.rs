@@ -962,8 +962,8 @@ pub fn run_diagnosis_with_progress(
 }
 
 /// Joint calibration over several logs and leave-one-log-out validation of the extension
-/// `effects` (empty: the scenario's `[identify] candidates`, the whole library when that
-/// list is empty), written as
+/// `effects` (empty: the scenario's `[identify] candidates`, every effect when that list
+/// is empty), written as
 /// `leave_one_out.json` and `leave_one_out.txt` into a staged results directory.
 pub fn run_leave_one_out(
     scenario: &Scenario,

@@ -9,8 +9,8 @@ use cable_servo::identify::{diagnose, effect_value, BenchLog, DiagnoseOptions, E
 use cable_servo::io::benchlog::{read_bench_log, write_bench_log};
 use cable_servo::scenario::Scenario;
 use support::rates::{
-    claimed_rates, clean_rate, opts, opts_every, opts_for, run_effect, scenario, size_range,
-    size_tolerance, truth,
+    claimed_rates, clean_rate, opts, opts_every, opts_for, opts_library, run_effect, scenario,
+    size_range, size_tolerance, truth,
 };
 use support::truth::{oracle_jump_mrad, truth_log, Instrument, Ringing, TruthOptions};
 
@@ -303,7 +303,7 @@ fn clean_none(o: &DiagnoseOptions, what: &str) {
 
 #[test]
 fn clean_logs_are_none() {
-    clean_none(&opts(), "library searched");
+    clean_none(&opts_library(), "library searched");
 }
 
 #[test]

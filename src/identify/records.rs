@@ -58,7 +58,7 @@ pub struct DiagnoseOptions {
     /// Indices of logs held out entirely (calibrate on the others, score on these). Empty:
     /// contiguous time blocks of every log are held out in turn.
     pub holdout_logs: Vec<usize>,
-    /// Restrict the candidate effects (None: scenario's list, or the whole library).
+    /// Restrict the candidate effects (None: scenario's list, or every effect).
     pub candidates: Option<Vec<EffectName>>,
     /// Skip the play-operator baseline (saves time in statistical runs).
     pub skip_play_operator: bool,

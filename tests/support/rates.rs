@@ -76,10 +76,21 @@ pub fn claimed_rates(e: EffectName) -> (f64, f64) {
     }
 }
 
+/// The default search (every effect, unless the scenario lists candidates), without the
+/// play operator's comparison.
 pub fn opts() -> DiagnoseOptions {
     DiagnoseOptions {
         skip_play_operator: true,
         ..DiagnoseOptions::default()
+    }
+}
+
+/// Options searching the library alone (the default before the multi-wrap effects
+/// joined it).
+pub fn opts_library() -> DiagnoseOptions {
+    DiagnoseOptions {
+        candidates: Some(EffectName::ALL.to_vec()),
+        ..opts()
     }
 }
 
