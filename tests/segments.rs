@@ -724,3 +724,60 @@ fn a_log_flagged_from_end_to_end_is_refused_not_called_clean() {
     let d = diagnose(&sc, &[late], &kept).expect("judged as it is");
     assert_ne!(d.cause, "none", "{:?}", d.candidates);
 }
+
+/// An input that jumps and stays, made by `synth` from a scan with a ramp added (so the
+/// load, the stretch and the friction follow the jump), near the scan's fastest points:
+/// the jump alone is flagged, from where it starts to where it ends, and kept out up to the
+/// next reversal; the clean log is `none`. Before, the motion fitted through both sides of
+/// such a jump kept one of them, and the stretch flagged ran from the log's start to the
+/// jump (three draws of seven in an outside check) or from the jump to the log's end.
+/// A jump no faster than 1.5 times the scan (0.7 rad in 0.2 s, or one against the scan's
+/// own motion) is named a departure.
+#[test]
+fn a_jump_that_stays_is_cut_where_it_happens() {
+    use cable_servo::identify::{synthesize, SynthOptions};
+    let base = Scenario::load("gimbal_ident", &[]).unwrap();
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/gimbal_ident.toml"),
+    )
+    .unwrap();
+    for (seed, t0, amp, rise) in [
+        (1u64, 9.21, 1.75, 0.12),
+        (2, 19.99, -1.5, 0.1),
+        (3, 10.86, 0.7, 0.2),
+    ] {
+        let sine = "kind = \"sine\"\namplitude_rad = 10.0\nfrequency_hz = 0.1";
+        assert!(text.contains(sine));
+        let sum = format!(
+            "kind = \"sum\"\nparts = [ {{ kind = \"sine\", amplitude_rad = 10.0, frequency_hz = 0.1 }}, {{ kind = \"ramp\", rate_rad_s = {}, start_s = {t0}, stop_s = {} }} ]",
+            amp / rise,
+            t0 + rise
+        );
+        let sc = Scenario::from_toml(&text.replace(sine, &sum), "jump", "jump", &[]).unwrap();
+        let log = synthesize(&sc, &[], seed, &SynthOptions::default()).unwrap();
+        let s = flagged(&log);
+        let what = format!("jump of {amp} rad at {t0} s over {rise} s: {s:?}");
+        assert_eq!(s.len(), 1, "{what}");
+        assert_eq!(s[0].channel, Channel::Input, "{what}");
+        assert!(
+            s[0].start_s <= t0 && s[0].start_s >= t0 - PAD_S - 0.15,
+            "{what}"
+        );
+        let end = t0 + rise;
+        assert!(
+            s[0].end_s >= end && s[0].end_s <= end + PAD_S + 0.15,
+            "{what}"
+        );
+        // The scan reverses every 5 s from 2.5 s.
+        let next = 2.5 + 5.0 * ((s[0].end_s - 2.5) / 5.0).ceil();
+        assert!((s[0].excluded_to_s - next).abs() < 0.1, "{what}");
+        // A jerk where the input moves faster than 1.5 times the scan ever does, else a
+        // departure (the jump at 20 s runs against the scan: 8.7 rad/s net).
+        assert!(
+            s[0].reason.contains("jerk") || s[0].reason.contains("departs"),
+            "{what}"
+        );
+        let d = diagnose(&base, std::slice::from_ref(&log), &opts()).expect("diagnosis");
+        assert_eq!(d.cause, "none", "{what}: {:?}", d.candidates);
+    }
+}

@@ -58,6 +58,28 @@ pub const JERK_SPEED_QUANTILE: f64 = 0.95;
 /// error (3.5 mrad over 3000 samples is 0.064 mrad, ten noise floors).
 pub const SPIKE_STEPS: f64 = 30.0;
 
+/// Where the input moves faster than this many times its usual speed (its
+/// [`JERK_SPEED_QUANTILE`]), a lasting shift is looked for: lower than [`JERK_SPEED`], since
+/// a shift slower than a jerk still bends the motion fitted through both sides (0.7 rad in
+/// 0.2 s on a 6.3 rad/s scan had a third of the log flagged as departing). Where there is
+/// no shift (a sum of two sines runs up to 1.14 times its usual speed), the stretches
+/// between are moved back onto the motion fitted through all of them.
+pub const JUMP_SEARCH_SPEED: f64 = 1.2;
+
+/// How much closer the motion must fit the input between its jumps once their lasting
+/// shifts are taken out (the robust spread's ratio) for the shifts to be kept.
+pub const JUMP_FIT_GAIN: f64 = 0.5;
+
+/// Most refits of the motion through an input whose lasting jumps were taken out.
+pub const JUMP_REFITS: usize = 4;
+
+/// Fast runs of the input closer than this, s, are one jump when its lasting shift is
+/// read: a jerk and its return cancel.
+pub const JUMP_MERGE_S: f64 = 0.3;
+
+/// Length of input on either side of a jump from which its lasting shift is read, s.
+pub const JUMP_SIDE_S: f64 = 0.2;
+
 /// Longest spike, samples: longer wrong readings are judged as departures and jumps.
 pub const SPIKE_MAX_SAMPLES: usize = 5;
 
@@ -591,6 +613,160 @@ type Raw = (Channel, Reason, usize, usize);
 /// Input stretches that leave the input's own periodic motion: far off it (departure) or
 /// far faster (jerk). Returns them with the fitted motion.
 fn input_departures(t: &[f64], x: &[f64], q_in: f64, dt: f64) -> (Vec<Raw>, Option<Motion>) {
+    let (mut shifted, jumps) = without_lasting_jumps(t, x, q_in, dt);
+    if !jumps.is_empty() {
+        // Read off a short stretch on either side, a shift is off by the motion's
+        // curvature there (0.04 rad of a 1.7 rad shift on a 10 rad scan, which the motion
+        // fitted after it left as a departure of one side); each stretch between jumps is
+        // then moved onto the motion fitted through all of them, a few times over, as the
+        // motion fitted through a shifted stretch is bent by it.
+        let all: Vec<usize> = (0..t.len()).collect();
+        let mut bounds = vec![0];
+        for (a, b) in &jumps {
+            bounds.extend([*a, *b]);
+        }
+        bounds.push(t.len());
+        let pieces: Vec<(usize, usize)> = bounds.chunks(2).map(|c| (c[0], c[1])).collect();
+        for _ in 0..JUMP_REFITS {
+            let Some(m) = fit_motion(t, &shifted, &all) else {
+                break;
+            };
+            let r: Vec<f64> = (0..t.len()).map(|i| shifted[i] - m.at(t[i])).collect();
+            let first = median(&r[pieces[0].0..pieces[0].1]);
+            let mut moved = 0.0f64;
+            for &(a, b) in pieces.iter().skip(1) {
+                if b > a {
+                    let off = median(&r[a..b]) - first;
+                    shifted[a..b].iter_mut().for_each(|v| *v -= off);
+                    moved = moved.max(off.abs());
+                }
+            }
+            if moved <= q_in {
+                break;
+            }
+        }
+        // Kept only where the motion then fits the stretches between the jumps at least
+        // twice as close: an input held and then catching up with its motion jumps fast
+        // without shifting what follows (a held input's log read 0.135 rad of spread with
+        // the catch-up taken out as a shift, 0.141 without, and the rest of the log then
+        // departed from the motion).
+        let between: Vec<usize> = pieces.iter().flat_map(|&(a, b)| a..b).collect();
+        let spread = |y: &[f64]| {
+            fit_motion(t, y, &all).map_or(f64::INFINITY, |m| {
+                let r: Vec<f64> = between.iter().map(|&i| y[i] - m.at(t[i])).collect();
+                robust(&r).0
+            })
+        };
+        if spread(&shifted) >= JUMP_FIT_GAIN * spread(x) {
+            shifted = x.to_vec();
+        }
+    }
+    departures_from(t, x, &shifted, q_in, dt)
+}
+
+/// Speed of `x` over `2 h` samples around each sample, rad/s (the ends one-sided).
+fn window_speeds(t: &[f64], x: &[f64], h: usize) -> Vec<f64> {
+    let n = t.len();
+    (0..n)
+        .map(|i| {
+            let a = i.saturating_sub(h);
+            let b = (i + h).min(n - 1);
+            ((x[b] - x[a]) / (t[b] - t[a]).max(1e-300)).abs()
+        })
+        .collect()
+}
+
+/// The input with each lasting jump taken out, and the jumps taken out (index ranges,
+/// in time order): where it moves faster than [`JERK_SPEED`]
+/// times its usual speed (runs within [`JUMP_MERGE_S`] joined, so a jerk and its return
+/// are one), the shift from before to after, read off one quadratic in time with a step
+/// fitted to [`JUMP_SIDE_S`] on either side, is subtracted from every later sample when it
+/// exceeds twenty encoder steps and 0.2 % of the input's range. A jump that stays would
+/// otherwise put every later sample off the motion fitted before it: the fit then bends
+/// through both sides or keeps one, and the other side reads as a departure (a jump near
+/// the middle of a 30 s log had the whole first third flagged, and its next reversal read
+/// as the log's end).
+fn without_lasting_jumps(
+    t: &[f64],
+    x: &[f64],
+    q_in: f64,
+    dt: f64,
+) -> (Vec<f64>, Vec<(usize, usize)>) {
+    let n = t.len();
+    let h = ((0.01 / dt).round() as usize).max(1);
+    let u = window_speeds(t, x, h);
+    let mut sorted = u.clone();
+    let k = ((n as f64 * JERK_SPEED_QUANTILE) as usize).min(n - 1);
+    let (_, usual, _) = sorted.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    let tu = JUMP_SEARCH_SPEED * *usual + 10.0 * q_in / (2.0 * h as f64 * dt);
+    let fast: Vec<bool> = u.iter().map(|s| *s > tu).collect();
+    let merge = ((JUMP_MERGE_S / dt).round() as usize).max(1);
+    let mut spans: Vec<(usize, usize)> = Vec::new();
+    for (a, b) in runs(&fast, 1) {
+        match spans.last_mut() {
+            Some(last) if a <= last.1 + merge => last.1 = b,
+            _ => spans.push((a, b)),
+        }
+    }
+    let mut out = x.to_vec();
+    let mut taken = Vec::new();
+    if spans.is_empty() {
+        return (out, taken);
+    }
+    let (lo, hi) = x
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+            (l.min(*v), h.max(*v))
+        });
+    let least = (20.0 * q_in).max(0.002 * (hi - lo));
+    let side = ((JUMP_SIDE_S / dt).round() as usize).max(3);
+    for (a, b) in spans {
+        // Clear of the jump's slower flanks by as much again as its fast part.
+        let margin = (b - a).max(h);
+        let (l1, r0) = (a.saturating_sub(margin), (b + margin).min(n));
+        let (l0, r1) = (l1.saturating_sub(side), (r0 + side).min(n));
+        if l1 - l0 < 3 || r1 - r0 < 3 {
+            continue;
+        }
+        let mid = 0.5 * (t[a] + t[b - 1]);
+        let rows: Vec<usize> = (l0..l1).chain(r0..r1).collect();
+        let Some((c, _)) = lsq(
+            x,
+            |i| {
+                let tau = t[i] - mid;
+                [1.0, tau, tau * tau, if t[i] > mid { 1.0 } else { 0.0 }]
+            },
+            &rows,
+        ) else {
+            continue;
+        };
+        let step = c[3];
+        if step.abs() <= least {
+            continue;
+        }
+        for (i, v) in out.iter_mut().enumerate().skip(a) {
+            // Through the jump itself a share of the step (those rows are flagged anyway).
+            let share = if i >= b {
+                1.0
+            } else {
+                (i + 1 - a) as f64 / (b - a + 1) as f64
+            };
+            *v -= share * step;
+        }
+        taken.push((a, b));
+    }
+    (out, taken)
+}
+
+/// [`input_departures`] on `x`, the input with its lasting jumps taken out; `raw` is the
+/// input as read, whose own speed names jumps.
+fn departures_from(
+    t: &[f64],
+    raw: &[f64],
+    x: &[f64],
+    q_in: f64,
+    dt: f64,
+) -> (Vec<Raw>, Option<Motion>) {
     let n = t.len();
     let h = ((0.01 / dt).round() as usize).max(1);
     let min_len = ((MIN_RUN_S / dt).round() as usize).max(3);
@@ -672,13 +848,7 @@ fn input_departures(t: &[f64], x: &[f64], q_in: f64, dt: f64) -> (Vec<Raw>, Opti
     // The input's own speed against its usual speed: a jump that leaves the input shifted
     // bends the motion fitted through both sides (and so the thresholds above) but not
     // this.
-    let u: Vec<f64> = (0..n)
-        .map(|i| {
-            let a = i.saturating_sub(h);
-            let b = (i + h).min(n - 1);
-            ((x[b] - x[a]) / (t[b] - t[a]).max(1e-300)).abs()
-        })
-        .collect();
+    let u = window_speeds(t, raw, h);
     let usual = {
         let mut w = u.clone();
         let k = ((n as f64 * JERK_SPEED_QUANTILE) as usize).min(n - 1);
