@@ -50,10 +50,11 @@ pub const JERK_SPEED: f64 = 1.5;
 /// jerk shorter than a twentieth of the log (a sine's is 0.997 of its peak speed).
 pub const JERK_SPEED_QUANTILE: f64 = 0.95;
 
-/// An output sample off the mean of its two neighbours, in the output's deviation from
-/// the drive's play (the reading less its play operator of the input), by more than this
-/// many encoder steps, and by [`ROBUST_K`] robust standard deviations of that deviation, is
-/// a spike however short: the truth's sensor outliers reach 10 steps, a wrong reading of
+/// Up to [`SPIKE_MAX_SAMPLES`] output samples off the straight path their neighbours agree
+/// on, in the output's deviation from the drive's play (the reading less its play operator
+/// of the input), all the same way by more than this many encoder steps and by [`ROBUST_K`]
+/// robust standard deviations of a sample's deviation from the mean of its two
+/// neighbours, are a spike however short: the truth's sensor outliers reach 10 steps, a wrong reading of
 /// a millirad on a 2^20-count encoder is 167. A single such sample sets the log's RMS
 /// error (3.5 mrad over 3000 samples is 0.064 mrad, ten noise floors).
 pub const SPIKE_STEPS: f64 = 30.0;
@@ -677,9 +678,8 @@ fn window_speeds(t: &[f64], x: &[f64], h: usize) -> Vec<f64> {
 }
 
 /// The input with each lasting jump taken out, and the jumps taken out (index ranges,
-/// in time order): where it moves faster than [`JERK_SPEED`]
-/// times its usual speed (runs within [`JUMP_MERGE_S`] joined, so a jerk and its return
-/// are one), the shift from before to after, read off one quadratic in time with a step
+/// in time order): where it moves faster than [`JUMP_SEARCH_SPEED`] times its usual speed
+/// (runs within [`JUMP_MERGE_S`] joined, so a jerk and its return are one), the shift from before to after, read off one quadratic in time with a step
 /// fitted to [`JUMP_SIDE_S`] on either side, is subtracted from every later sample when it
 /// exceeds twenty encoder steps and 0.2 % of the input's range. A jump that stays would
 /// otherwise put every later sample off the motion fitted before it: the fit then bends
