@@ -9,8 +9,8 @@ use cable_servo::identify::{diagnose, effect_value, BenchLog, DiagnoseOptions, E
 use cable_servo::io::benchlog::{read_bench_log, write_bench_log};
 use cable_servo::scenario::Scenario;
 use support::rates::{
-    claimed_rates, clean_rate, opts, opts_every, opts_for, opts_library, run_effect, scenario,
-    size_range, size_tolerance, truth,
+    claimed_rates, clean_rate, opts, opts_every, opts_library, run_effect, scenario, size_range,
+    size_tolerance, truth,
 };
 use support::truth::{oracle_jump_mrad, truth_log, Instrument, Ringing, TruthOptions};
 
@@ -282,7 +282,7 @@ fn effects_below_the_smallest_size_are_none_or_named_right() {
                 let v = scale * size_range(e).0;
                 let sc = scenario(seed == 1);
                 let log = truth(&sc, &[(e, v)], 500 + seed);
-                let d = diagnose(&sc, &[log], &opts_for(e)).unwrap();
+                let d = diagnose(&sc, &[log], &opts()).unwrap();
                 eprintln!("below: {e} at {v:e}: {}", d.cause);
                 if must_be_none || d.cause != e.as_str() {
                     assert_eq!(d.cause, "none", "{e} at {v:e}: {:?}", d.candidates);
@@ -1091,12 +1091,7 @@ fn candidates_the_log_cannot_tell_apart_are_named_as_such() {
     let seed = 46;
     let sc = scenario(true);
     let v = support::rates::size_of(Compliance, seed);
-    let d = diagnose(
-        &sc,
-        &[truth(&sc, &[(Compliance, v)], seed)],
-        &opts_for(Compliance),
-    )
-    .expect("diagnosis");
+    let d = diagnose(&sc, &[truth(&sc, &[(Compliance, v)], seed)], &opts()).expect("diagnosis");
     assert!(
         d.indistinguishable.iter().any(|t| {
             t.accepted == "load_compliance"
@@ -1115,7 +1110,7 @@ fn candidates_the_log_cannot_tell_apart_are_named_as_such() {
     ] {
         let sc = scenario(seed % 4 >= 2);
         let log = truth(&sc, &[(e, support::rates::size_of(e, seed))], seed);
-        let d = diagnose(&sc, &[log], &opts_for(e)).expect("diagnosis");
+        let d = diagnose(&sc, &[log], &opts()).expect("diagnosis");
         assert!(
             d.cause == e.as_str() && d.indistinguishable.is_empty(),
             "{e} seed {seed}: {} {:?}",

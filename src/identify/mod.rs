@@ -322,6 +322,12 @@ pub const SEARCH_ENDS_WITHIN: f64 = 1.05;
 /// How the candidate table names a carried effect tried at another size.
 pub const RESIZED_SUFFIX: &str = " (resized)";
 
+/// The candidate-table name of effect `name` (e.g. `encoder_delay`) tried at another size
+/// than calibrated: `encoder_delay (resized)`.
+pub fn resized_label(name: &str) -> String {
+    format!("{name}{RESIZED_SUFFIX}")
+}
+
 /// The effect's own name in a candidate-table name.
 fn unlabelled(name: &str) -> &str {
     name.strip_suffix(RESIZED_SUFFIX).unwrap_or(name)
@@ -597,7 +603,7 @@ pub fn diagnose_with_progress(
     // A candidate's name in the table: a carried effect tried at another size says so.
     let label = |e: EffectName| {
         if resizable(e) {
-            format!("{e}{RESIZED_SUFFIX}")
+            resized_label(e.as_str())
         } else {
             e.to_string()
         }

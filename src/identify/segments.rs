@@ -614,7 +614,8 @@ type Raw = (Channel, Reason, usize, usize);
 /// Input stretches that leave the input's own periodic motion: far off it (departure) or
 /// far faster (jerk). Returns them with the fitted motion.
 fn input_departures(t: &[f64], x: &[f64], q_in: f64, dt: f64) -> (Vec<Raw>, Option<Motion>) {
-    let (mut shifted, jumps) = without_lasting_jumps(t, x, q_in, dt);
+    let speeds = RawSpeeds::of(t, x, dt);
+    let (mut shifted, jumps) = without_lasting_jumps(t, x, &speeds, q_in, dt);
     if !jumps.is_empty() {
         // Read off a short stretch on either side, a shift is off by the motion's
         // curvature there (0.04 rad of a 1.7 rad shift on a 10 rad scan, which the motion
@@ -662,26 +663,52 @@ fn input_departures(t: &[f64], x: &[f64], q_in: f64, dt: f64) -> (Vec<Raw>, Opti
             shifted = x.to_vec();
         }
     }
-    departures_from(t, x, &shifted, q_in, dt)
+    departures_from(t, &speeds, &shifted, q_in, dt)
 }
 
-/// Speed of `x` over `2 h` samples around each sample, rad/s (the ends one-sided).
-fn window_speeds(t: &[f64], x: &[f64], h: usize) -> Vec<f64> {
-    let n = t.len();
-    (0..n)
-        .map(|i| {
-            let a = i.saturating_sub(h);
-            let b = (i + h).min(n - 1);
-            ((x[b] - x[a]) / (t[b] - t[a]).max(1e-300)).abs()
-        })
-        .collect()
+/// The input's own speed as read, rad/s: over the 10 ms window (`2 h` samples) around each
+/// sample (the ends one-sided), and its usual value, the [`JERK_SPEED_QUANTILE`].
+struct RawSpeeds {
+    h: usize,
+    speed: Vec<f64>,
+    usual: f64,
+}
+
+impl RawSpeeds {
+    fn of(t: &[f64], x: &[f64], dt: f64) -> Self {
+        let n = t.len();
+        let h = ((0.01 / dt).round() as usize).max(1);
+        let speed: Vec<f64> = (0..n)
+            .map(|i| {
+                let a = i.saturating_sub(h);
+                let b = (i + h).min(n - 1);
+                ((x[b] - x[a]) / (t[b] - t[a]).max(1e-300)).abs()
+            })
+            .collect();
+        let mut sorted = speed.clone();
+        let k = ((n as f64 * JERK_SPEED_QUANTILE) as usize).min(n.saturating_sub(1));
+        let usual = if sorted.is_empty() {
+            0.0
+        } else {
+            *sorted.select_nth_unstable_by(k, |a, b| a.total_cmp(b)).1
+        };
+        RawSpeeds { h, speed, usual }
+    }
+
+    /// Where the speed exceeds `factor` times `usual` (rad/s) plus ten encoder steps
+    /// (`q` rad) per window.
+    fn above(&self, factor: f64, usual: f64, q: f64, dt: f64) -> Vec<bool> {
+        let limit = factor * usual + 10.0 * q / (2.0 * self.h as f64 * dt);
+        self.speed.iter().map(|s| *s > limit).collect()
+    }
 }
 
 /// The input with each lasting jump taken out, and the jumps taken out (index ranges,
 /// in time order): where it moves faster than [`JUMP_SEARCH_SPEED`] times its usual speed
-/// (runs within [`JUMP_MERGE_S`] joined, so a jerk and its return are one), the shift from before to after, read off one quadratic in time with a step
-/// fitted to [`JUMP_SIDE_S`] on either side, is subtracted from every later sample when it
-/// exceeds twenty encoder steps and 0.2 % of the input's range. A jump that stays would
+/// (runs within [`JUMP_MERGE_S`] joined, so a jerk and its return are one), the shift from
+/// before to after, read off one quadratic in time with a step fitted to [`JUMP_SIDE_S`] on
+/// either side, is subtracted from every later sample when it exceeds twenty encoder steps
+/// and 0.2 % of the input's range. A jump that stays would
 /// otherwise put every later sample off the motion fitted before it: the fit then bends
 /// through both sides or keeps one, and the other side reads as a departure (a jump near
 /// the middle of a 30 s log had the whole first third flagged, and its next reversal read
@@ -689,17 +716,13 @@ fn window_speeds(t: &[f64], x: &[f64], h: usize) -> Vec<f64> {
 fn without_lasting_jumps(
     t: &[f64],
     x: &[f64],
+    speeds: &RawSpeeds,
     q_in: f64,
     dt: f64,
 ) -> (Vec<f64>, Vec<(usize, usize)>) {
     let n = t.len();
-    let h = ((0.01 / dt).round() as usize).max(1);
-    let u = window_speeds(t, x, h);
-    let mut sorted = u.clone();
-    let k = ((n as f64 * JERK_SPEED_QUANTILE) as usize).min(n - 1);
-    let (_, usual, _) = sorted.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
-    let tu = JUMP_SEARCH_SPEED * *usual + 10.0 * q_in / (2.0 * h as f64 * dt);
-    let fast: Vec<bool> = u.iter().map(|s| *s > tu).collect();
+    let h = speeds.h;
+    let fast = speeds.above(JUMP_SEARCH_SPEED, speeds.usual, q_in, dt);
     let merge = ((JUMP_MERGE_S / dt).round() as usize).max(1);
     let mut spans: Vec<(usize, usize)> = Vec::new();
     for (a, b) in runs(&fast, 1) {
@@ -758,11 +781,11 @@ fn without_lasting_jumps(
     (out, taken)
 }
 
-/// [`input_departures`] on `x`, the input with its lasting jumps taken out; `raw` is the
-/// input as read, whose own speed names jumps.
+/// [`input_departures`] on `x`, the input with its lasting jumps taken out; `speeds` are
+/// those of the input as read, which name jumps.
 fn departures_from(
     t: &[f64],
-    raw: &[f64],
+    speeds: &RawSpeeds,
     x: &[f64],
     q_in: f64,
     dt: f64,
@@ -848,15 +871,7 @@ fn departures_from(
     // The input's own speed against its usual speed: a jump that leaves the input shifted
     // bends the motion fitted through both sides (and so the thresholds above) but not
     // this.
-    let u = window_speeds(t, raw, h);
-    let usual = {
-        let mut w = u.clone();
-        let k = ((n as f64 * JERK_SPEED_QUANTILE) as usize).min(n - 1);
-        let (_, q, _) = w.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
-        q.max(peak_speed)
-    };
-    let tu = JERK_SPEED * usual + 10.0 * q_in / (2.0 * h as f64 * dt);
-    let jumps: Vec<bool> = u.iter().map(|s| *s > tu).collect();
+    let jumps = speeds.above(JERK_SPEED, speeds.usual.max(peak_speed), q_in, dt);
     let flag: Vec<bool> = flag.iter().zip(&jumps).map(|(f, j)| *f || *j).collect();
     let found = runs(&flag, min_len)
         .into_iter()

@@ -158,7 +158,7 @@ pub fn summary_text(d: &Diagnosis) -> String {
                 c.held_not_refitted.iter().partition(|e| {
                     d.searchable
                         .iter()
-                        .any(|k| *k == format!("{e}{}", crate::identify::RESIZED_SUFFIX))
+                        .any(|k| *k == crate::identify::resized_label(e))
                 });
             let join = |v: &[&String]| v.iter().map(|e| e.as_str()).collect::<Vec<_>>().join(", ");
             if !tried.is_empty() {
@@ -289,7 +289,7 @@ pub fn summary_text(d: &Diagnosis) -> String {
             .iter()
             .map(|c| {
                 if d.resized.iter().any(|r| r.effect == *c) {
-                    format!("{c}{}", crate::identify::RESIZED_SUFFIX)
+                    crate::identify::resized_label(c)
                 } else {
                     c.clone()
                 }

@@ -102,14 +102,6 @@ pub fn opts_every() -> DiagnoseOptions {
     }
 }
 
-pub fn opts_for(e: EffectName) -> DiagnoseOptions {
-    if EffectName::EXTENDED.contains(&e) {
-        opts_every()
-    } else {
-        opts()
-    }
-}
-
 /// Size of seed `seed`: even seeds within a factor 2 of the smallest size, odd seeds spread
 /// over the whole range (log-uniform).
 pub fn size_of(e: EffectName, seed: u64) -> f64 {
@@ -138,7 +130,7 @@ pub fn run_effect(e: EffectName, seeds: u64) -> Rates {
         let v = size_of(e, seed);
         let sc = scenario(seed % 4 >= 2);
         let log = truth(&sc, &[(e, v)], seed);
-        let d = diagnose(&sc, &[log], &opts_for(e)).expect("diagnosis");
+        let d = diagnose(&sc, &[log], &opts()).expect("diagnosis");
         if d.cause == e.as_str() {
             r.named += 1;
         }
