@@ -111,7 +111,7 @@ pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyErr
     };
     let vel_in = deriv(&th_in);
     let vel_out = deriv(&th_out);
-    let dir = direction(&vel_in, None, dir_floor(q_in, w, dt));
+    let dir = direction(&vel_in, None, dir_floor(q_in, w, dt), Some(&torque));
     let mut travel = vec![0.0; k];
     for i in 1..k {
         travel[i] = (th_in[i] - th_in[i - 1]).abs();
@@ -181,7 +181,12 @@ fn dir_floor(q_in: f64, w: usize, dt: f64) -> f64 {
 /// rows in `keep` (all rows without it), or `floor` (rad/s) when that is higher, and the
 /// flip is placed where the velocity last took the new sign before it: the reversal
 /// itself, not the row where the speed has grown past the threshold.
-fn direction(vel_in: &[f64], keep: Option<&[bool]>, floor: f64) -> Vec<f64> {
+fn direction(
+    vel_in: &[f64],
+    keep: Option<&[bool]>,
+    floor: f64,
+    torque: Option<&[f64]>,
+) -> Vec<f64> {
     let vmax = vel_in
         .iter()
         .enumerate()
@@ -194,6 +199,16 @@ fn direction(vel_in: &[f64], keep: Option<&[bool]>, floor: f64) -> Vec<f64> {
     // for 3 ms on the gimbal's sine) left 17 times the noise there, enough for a drum
     // runout to be named in a bearing friction's place.
     let thr = (0.002 * vmax).max(floor);
+    let load_range = torque.map_or(0.0, |m| {
+        let mut sorted: Vec<f64> = m.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let at = |q: f64| sorted[((sorted.len().max(1) - 1) as f64 * q).round() as usize];
+        if sorted.is_empty() {
+            0.0
+        } else {
+            at(0.99) - at(0.01)
+        }
+    });
     let first = vel_in
         .iter()
         .find(|v| v.abs() > thr)
@@ -210,6 +225,11 @@ fn direction(vel_in: &[f64], keep: Option<&[bool]>, floor: f64) -> Vec<f64> {
             while j > last_flip && vel_in[j - 1] * cur > 0.0 {
                 j -= 1;
             }
+            if let Some(r) =
+                torque.and_then(|m| turned_at(m, load_range, vel_in, thr, last_flip, j))
+            {
+                j = r;
+            }
             for d in &mut out[j..i] {
                 *d = cur;
             }
@@ -218,6 +238,38 @@ fn direction(vel_in: &[f64], keep: Option<&[bool]>, floor: f64) -> Vec<f64> {
         out[i] = cur;
     }
     out
+}
+
+/// The row at which a load that follows the motion (a brake) stepped, among the rows
+/// before `j` (the first that moves the new way, after `last_flip`) whose speed is under
+/// `thr`: where the input turns on a sample its speed there reads zero, and which way the
+/// drive already went is read off the load. `None` when no such row holds a step of a
+/// quarter of the load's `range` (N m, 1st to 99th percentile) that is also the largest
+/// step from there to `j`. (A bearing friction that flips at the turning sample itself,
+/// carried the old way, left 0.1 to 0.17 mrad on that one row per reversal, and a drum
+/// runout was named in its place.)
+fn turned_at(
+    m: &[f64],
+    range: f64,
+    vel_in: &[f64],
+    thr: f64,
+    last_flip: usize,
+    j: usize,
+) -> Option<usize> {
+    let mut k = j;
+    while k > last_flip + 1 && vel_in[k - 1].abs() <= thr {
+        k -= 1;
+    }
+    if k == j || j >= m.len() {
+        return None;
+    }
+    let step = |r: usize| (m[r] - m[r - 1]).abs();
+    let (r, big) =
+        (k.max(1)..=j).map(|r| (r, step(r))).fold(
+            (j, 0.0),
+            |(br, bs), (r, s)| if s > bs { (r, s) } else { (br, bs) },
+        );
+    (r < j && big > 0.25 * range).then_some(r)
 }
 
 /// Once the bad stretches of each log are known (`keep_per_log`, one flag per row of each
@@ -247,7 +299,7 @@ impl Prepared {
         let k = self.t.len();
         let dt = (self.t[k - 1] - self.t[0]) / (k - 1) as f64;
         let floor = dir_floor(self.q_in, window_rows(dt), dt);
-        self.dir = direction(&self.vel_in, Some(keep), floor);
+        self.dir = direction(&self.vel_in, Some(keep), floor, Some(&self.torque));
     }
 }
 
@@ -1446,7 +1498,7 @@ mod row_tests {
                 .filter(|&i| d[i] != d[i - 1] && !(995..1010).contains(&i))
                 .collect()
         };
-        let clean = direction(&v, None, floor);
+        let clean = direction(&v, None, floor, None);
         assert_eq!(flips(&clean), crossings);
         // Confirmed a row after each crossing, where the threshold alone would flip.
         let thr = 0.002 * 0.2;
@@ -1460,11 +1512,11 @@ mod row_tests {
             for x in &mut jumped[1000..1006] {
                 *x = jump;
             }
-            let kept = direction(&jumped, Some(&keep), floor);
+            let kept = direction(&jumped, Some(&keep), floor, None);
             assert_eq!(flips(&kept), crossings, "jump {jump}");
-            let unkept = direction(&jumped, None, floor);
+            let unkept = direction(&jumped, None, floor, None);
             assert_eq!(flips(&unkept).len(), flips_unkept, "jump {jump}");
         }
-        assert_eq!(direction(&v, Some(&[true; 3000]), floor), clean);
+        assert_eq!(direction(&v, Some(&[true; 3000]), floor, None), clean);
     }
 }

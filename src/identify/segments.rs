@@ -914,6 +914,12 @@ fn output_departures(
     let e_play = play_residual(xi, xo);
     let (sp, mp) = robust(&e_play);
     let tp = (ROBUST_K * sp).max(10.0 * q_out).max(1e-12);
+    // Nor is an output that changes branch the moment the input turns: where the load
+    // flips with the direction (a brake) the lag flips with it, before the input has
+    // moved back through any play.
+    let e_branch = branch_residual(xi, xo);
+    let (sb, mb) = robust(&e_branch);
+    let tb = (ROBUST_K * sb).max(10.0 * q_out).max(1e-12);
     let speed = |x: &[f64], i: usize| {
         let (a, b) = (i.saturating_sub(h), (i + h).min(n - 1));
         (x[b] - x[a]) / (t[b] - t[a]).max(1e-300)
@@ -935,7 +941,10 @@ fn output_departures(
         })
         .collect();
     let flag: Vec<bool> = (0..n)
-        .map(|i| ((e[i] - me).abs() > te && (e_play[i] - mp).abs() > tp) || fast[i])
+        .map(|i| {
+            ((e[i] - me).abs() > te && (e_play[i] - mp).abs() > tp && (e_branch[i] - mb).abs() > tb)
+                || fast[i]
+        })
         .collect();
     let mut found: Vec<Raw> = runs(&flag, min_len)
         .into_iter()
@@ -951,13 +960,35 @@ fn output_departures(
     // Spikes count however short: up to [`SPIKE_MAX_SAMPLES`] samples off the straight
     // path their neighbours on both sides agree on. The drive's own kinks (a brake breaking
     // away at a reversal turns the output within a sample) bend that path, so they are not
-    // spikes, however sharp.
+    // spikes, however sharp. A spike is off that path on both accounts of the drive (a
+    // play, and branches switched at the turn), so a reversal either follows is not one.
+    let on_play = spikes_in(&e_play, q_out);
+    let on_branch = spikes_in(&e_branch, q_out);
+    let spikes: Vec<bool> = on_play
+        .iter()
+        .zip(&on_branch)
+        .map(|(a, b)| *a && *b)
+        .collect();
+    found.extend(
+        runs(&spikes, 1)
+            .into_iter()
+            .map(|(a, b)| (Channel::Output, Reason::Spike, a, b)),
+    );
+    found
+}
+
+/// Samples of residual `e` (rad) that are spikes: up to [`SPIKE_MAX_SAMPLES`] in a row,
+/// all off the straight path their neighbours on both sides agree on, the same way, by
+/// more than [`ROBUST_K`] robust deviations of that offset and [`SPIKE_STEPS`] encoder
+/// steps (`q_out`, rad), with the path around them straight ([`SPIKE_STRAIGHT`]).
+fn spikes_in(e: &[f64], q_out: f64) -> Vec<bool> {
+    let n = e.len();
     let off_neighbours: Vec<f64> = (0..n)
         .map(|i| {
             if i == 0 || i + 1 >= n {
                 0.0
             } else {
-                e_play[i] - 0.5 * (e_play[i - 1] + e_play[i + 1])
+                e[i] - 0.5 * (e[i - 1] + e[i + 1])
             }
         })
         .collect();
@@ -970,7 +1001,6 @@ fn output_departures(
             if b + 1 >= n {
                 break;
             }
-            let e = &e_play;
             let gap = (e[b] - e[a - 1]) / (len + 1) as f64;
             let chord = |k: usize| e[a - 1] + gap * (k + 1 - a) as f64;
             let devs = (a..b).map(|k| e[k] - chord(k));
@@ -991,12 +1021,7 @@ fn output_departures(
             }
         }
     }
-    found.extend(
-        runs(&spikes, 1)
-            .into_iter()
-            .map(|(a, b)| (Channel::Output, Reason::Spike, a, b)),
-    );
-    found
+    spikes
 }
 
 /// Widest play half-width tried for [`play_residual`], as a share of the input's range:
@@ -1004,8 +1029,19 @@ fn output_departures(
 /// range of about 2.1 rad.
 const PLAY_MAX_SHARE: f64 = 0.1;
 
-/// Play half-widths tried, evenly from zero to [`PLAY_MAX_SHARE`] of the range.
-const PLAY_WIDTHS: usize = 20;
+/// Play half-widths tried besides zero, evenly in their logarithm from
+/// [`PLAY_NARROWEST`] times the widest to the widest: 40, a factor 1.19 apart. A stroke of
+/// 3 rad on a drive whose play is a few mrad needs widths far below the tenth of the
+/// range an even grid of 20 steps started at (30 mrad): the play went unfitted and the
+/// whole return branch of clean logs read as a departure.
+const PLAY_WIDTHS: usize = 40;
+
+/// Narrowest play half-width tried, as a share of the widest (1e-3: 0.6 mrad on a 6 rad
+/// range).
+const PLAY_NARROWEST: f64 = 1e-3;
+
+/// Widths tried around the best of the grid, between its two neighbours (8).
+const PLAY_REFINE: usize = 8;
 
 /// The output less the drive's response as a play operator: `xo - a - g P_r(xi)`, with the
 /// half-width `r`, the play's state at the first sample (centred or against either side)
@@ -1041,19 +1077,99 @@ fn play_residual(xi: &[f64], xo: &[f64]) -> Vec<f64> {
         robust(e).0
     };
     let mut best = (f64::INFINITY, 0.0, xi[0]);
-    for k in 0..=PLAY_WIDTHS {
-        let r = PLAY_MAX_SHARE * range * k as f64 / PLAY_WIDTHS as f64;
-        let starts: &[f64] = if k == 0 { &[0.0] } else { &[-1.0, 0.0, 1.0] };
+    let mut try_width = |r: f64, best: &mut (f64, f64, f64)| {
+        let starts: &[f64] = if r == 0.0 { &[0.0] } else { &[-1.0, 0.0, 1.0] };
         for side in starts {
             let y0 = xi[0] + side * r;
             let spread = fit(r, y0, &mut p, &mut e);
             if spread < best.0 {
-                best = (spread, r, y0);
+                *best = (spread, r, y0);
+            }
+        }
+    };
+    // Widths evenly spaced in their logarithm, so that a play of a few mrad on a stroke of
+    // a few rad is tried as closely as one of a tenth of the stroke; then refined between
+    // the neighbours of the best.
+    let widest = PLAY_MAX_SHARE * range;
+    let narrowest = widest * PLAY_NARROWEST;
+    let ratio = (widest / narrowest).powf(1.0 / PLAY_WIDTHS as f64);
+    try_width(0.0, &mut best);
+    for k in (0..=PLAY_WIDTHS).filter(|_| widest > 0.0) {
+        try_width(narrowest * ratio.powi(k as i32), &mut best);
+    }
+    if best.1 > 0.0 {
+        let centre = best.1;
+        for k in 1..PLAY_REFINE {
+            let step = ratio.powf(2.0 * k as f64 / PLAY_REFINE as f64 - 1.0);
+            if (step - 1.0).abs() > 1e-12 {
+                try_width(centre * step, &mut best);
             }
         }
     }
     fit(best.1, best.2, &mut p, &mut e);
     e
+}
+
+/// The output less the straight line through output against input with a step that
+/// follows the input's direction of travel: `xo - (a + g xi + b dir)`, least squares,
+/// `dir` +-1 from the input's own neighbours. Two parallel branches, switched the moment
+/// the input turns.
+fn branch_residual(xi: &[f64], xo: &[f64]) -> Vec<f64> {
+    let n = xi.len().min(xo.len());
+    if n < 3 {
+        return vec![0.0; n];
+    }
+    let mut dir = vec![0.0; n];
+    let mut held = vec![false; n];
+    let mut last = 0.0;
+    for (i, d) in dir.iter_mut().enumerate() {
+        let step = xi[(i + 1).min(n - 1)] - xi[i.saturating_sub(1)];
+        if step != 0.0 {
+            last = step.signum();
+        } else {
+            held[i] = true;
+        }
+        *d = last;
+    }
+    // Before the input first moves, the direction it first takes.
+    if let Some(first) = dir.iter().copied().find(|d| *d != 0.0) {
+        for d in dir.iter_mut().take_while(|d| **d == 0.0) {
+            *d = first;
+        }
+    }
+    // Least squares in centred columns, solved by Cramer's rule on the 2 x 2 system.
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / n as f64;
+    let (mx, md, mo) = (mean(&xi[..n]), mean(&dir), mean(&xo[..n]));
+    let (mut sxx, mut sxd, mut sdd, mut sxo, mut sdo) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for i in 0..n {
+        let (x, d, o) = (xi[i] - mx, dir[i] - md, xo[i] - mo);
+        sxx += x * x;
+        sxd += x * d;
+        sdd += d * d;
+        sxo += x * o;
+        sdo += d * o;
+    }
+    let det = sxx * sdd - sxd * sxd;
+    let (g, b) = if det > 1e-12 * sxx * sdd && det > 0.0 {
+        ((sxo * sdd - sdo * sxd) / det, (sdo * sxx - sxo * sxd) / det)
+    } else if sxx > 0.0 {
+        (sxo / sxx, 0.0)
+    } else {
+        (0.0, 0.0)
+    };
+    // Where the input's neighbours agree (the very sample it turns at, or a dwell) the
+    // drive may be on either branch: the nearer counts.
+    (0..n)
+        .map(|i| {
+            let r = xo[i] - mo - g * (xi[i] - mx) - b * (dir[i] - md);
+            let other = r + 2.0 * b * dir[i];
+            if held[i] && other.abs() < r.abs() {
+                other
+            } else {
+                r
+            }
+        })
+        .collect()
 }
 
 /// Band (rad) within which a reading that holds still stays, from its own sample-to-sample
