@@ -180,7 +180,8 @@ fn dir_floor(q_in: f64, w: usize, dt: f64) -> f64 {
 /// (rad/s). A reversal is confirmed where the speed passes 0.2 % of the peak speed of the
 /// rows in `keep` (all rows without it), or `floor` (rad/s) when that is higher, and the
 /// flip is placed where the velocity last took the new sign before it: the reversal
-/// itself, not the row where the speed has grown past the threshold.
+/// itself, not the row where the speed has grown past the threshold; or, given the
+/// transmitted `torque` (N m per row), at a turning row where it steps ([`turned_at`]).
 fn direction(
     vel_in: &[f64],
     keep: Option<&[bool]>,
