@@ -571,6 +571,34 @@ fn a_pair_of_which_one_adds_nothing_is_not_named() {
     }
 }
 
+/// A balanced axis (no unbalance) loads the drive with a brake of one size throughout,
+/// so a compliance trades against the cable modulus and its size cannot be told from
+/// zero, though it brings the error to the noise. The answer says so and names it; before,
+/// it named an encoder delay of -0.17 ms as all it found and said the library lacked
+/// what the drive does.
+#[test]
+fn an_effect_that_fits_but_cannot_be_sized_is_named_as_such() {
+    use cable_servo::identify::{synthesize, SynthOptions};
+    let text = include_str!("../scenarios/gimbal_ident.toml");
+    assert!(text.contains("unbalance_nm = 0.3"));
+    let sc = Scenario::from_toml(
+        &text.replace("unbalance_nm = 0.3", "unbalance_nm = 0.0"),
+        "balanced",
+        "balanced",
+        &[],
+    )
+    .unwrap();
+    let hidden = [(EffectName::LoadCompliance, 5e-4)];
+    let log = synthesize(&sc, &hidden, 200, &SynthOptions::default()).unwrap();
+    let d = diagnose(&sc, &[log], &opts()).expect("diagnosis");
+    let text = cable_servo::report::diagnosis::summary_text(&d);
+    assert!(
+        text.contains("Not pinned: load_compliance")
+            && text.contains("load_compliance would bring it to the noise"),
+        "{text}"
+    );
+}
+
 /// Three logs of one instrument; the middle one held out.
 #[test]
 fn several_logs_and_held_out_log() {

@@ -217,9 +217,18 @@ pub fn summary_text(d: &Diagnosis) -> String {
             d.rmse_base_mrad
         )
     };
+    let unpinned =
+        crate::identify::unpinned(&d.candidates, d.rmse_extended_mrad, d.noise_floor_mrad);
+    let missing = match unpinned.first() {
+        Some(c) => format!(
+            "{} would bring it to the noise, but these logs cannot pin its size (below)",
+            c.name
+        ),
+        None => "the drive does something the library does not hold".to_string(),
+    };
     let verdict = match (d.cause.as_str(), lost_to_play) {
         ("unexplained", Some(p)) => format!(
-            "not established: the extended model with {} {against_base} and loses to a play operator (deadband) fitted to the same log(s), held out ({:.2} against {:.2} mrad); the drive does something the library does not hold",
+            "not established: the extended model with {} {against_base} and loses to a play operator (deadband) fitted to the same log(s), held out ({:.2} against {:.2} mrad); {missing}",
             d.causes.join(" and "),
             d.rmse_extended_mrad,
             p.rmse_heldout_mrad
@@ -229,6 +238,7 @@ pub fn summary_text(d: &Diagnosis) -> String {
                 .to_string()
         }
         ("none", _) => "nothing beyond sensor noise: the calibrated base model explains the data".to_string(),
+        ("unexplained", None) if !unpinned.is_empty() => format!("structure remains; {missing}"),
         ("unexplained", None) => "structure remains that no effect in the library explains (look at the residual plots: resonance, sensor fault, load not logged?)".to_string(),
         (c, _) => {
             let m = c.parse::<EffectName>().map(|e| e.meaning()).unwrap_or("");
@@ -317,6 +327,16 @@ pub fn summary_text(d: &Diagnosis) -> String {
             rmses.join(", "),
             100.0 * crate::identify::TIE_FRACTION,
             100.0 * crate::identify::TIE_RMSE_FRACTION
+        );
+    }
+    for c in &unpinned {
+        let _ = writeln!(
+            s,
+            "Not pinned: {} brings the held-out error to {:.4} mrad, within the noise, against {:.4} for the effects found, but its size cannot be told from zero ({}): these logs cannot tell it from the base parameters it trades against; logs at other loads, speeds or strokes can",
+            c.name,
+            c.rmse_heldout_mrad,
+            d.rmse_extended_mrad,
+            c.verdict.trim_start_matches(crate::identify::SIZE_VERDICT)
         );
     }
     let extended = if d.calibrated_model.is_some() {
