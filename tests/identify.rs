@@ -555,15 +555,7 @@ fn a_pair_that_passes_only_together_is_found() {
 #[test]
 fn a_pair_of_which_one_adds_nothing_is_not_named() {
     use cable_servo::identify::{synthesize, SynthOptions};
-    let text = include_str!("../scenarios/gimbal_ident.toml");
-    assert!(text.contains("frequency_hz = 0.1"));
-    let sc = Scenario::from_toml(
-        &text.replace("frequency_hz = 0.1", "frequency_hz = 0.4"),
-        "gimbal_0.4hz",
-        "gimbal_0.4hz",
-        &[],
-    )
-    .unwrap();
+    let sc = support::rates::gimbal_changed("frequency_hz = 0.1", "frequency_hz = 0.4");
     for seed in [100u64, 104] {
         let log = synthesize(&sc, &[], seed, &SynthOptions::default()).unwrap();
         let d = diagnose(&sc, &[log], &opts()).expect("diagnosis");
@@ -579,15 +571,7 @@ fn a_pair_of_which_one_adds_nothing_is_not_named() {
 #[test]
 fn an_effect_that_fits_but_cannot_be_sized_is_named_as_such() {
     use cable_servo::identify::{synthesize, SynthOptions};
-    let text = include_str!("../scenarios/gimbal_ident.toml");
-    assert!(text.contains("unbalance_nm = 0.3"));
-    let sc = Scenario::from_toml(
-        &text.replace("unbalance_nm = 0.3", "unbalance_nm = 0.0"),
-        "balanced",
-        "balanced",
-        &[],
-    )
-    .unwrap();
+    let sc = support::rates::gimbal_changed("unbalance_nm = 0.3", "unbalance_nm = 0.0");
     let hidden = [(EffectName::LoadCompliance, 5e-4)];
     let log = synthesize(&sc, &hidden, 200, &SynthOptions::default()).unwrap();
     let d = diagnose(&sc, &[log], &opts()).expect("diagnosis");

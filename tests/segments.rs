@@ -793,7 +793,6 @@ fn a_jump_that_stays_is_cut_where_it_happens() {
 #[test]
 fn other_strokes_loads_and_lengths_flag_nothing() {
     use cable_servo::identify::{synthesize, SynthOptions};
-    let gimbal = include_str!("../scenarios/gimbal_ident.toml");
     for (what, from, to) in [
         (
             "3 rad stroke",
@@ -803,8 +802,7 @@ fn other_strokes_loads_and_lengths_flag_nothing() {
         ("no unbalance", "unbalance_nm = 0.3", "unbalance_nm = 0.0"),
         ("60 s", "duration_s = 30.0", "duration_s = 60.0"),
     ] {
-        assert!(gimbal.contains(from), "{from}");
-        let sc = Scenario::from_toml(&gimbal.replace(from, to), what, what, &[]).unwrap();
+        let sc = support::rates::gimbal_changed(from, to);
         for seed in 0..3u64 {
             let log = synthesize(&sc, &[], 100 + seed, &SynthOptions::default()).unwrap();
             let s = flagged(&log);

@@ -200,15 +200,19 @@ fn direction(
     // for 3 ms on the gimbal's sine) left 17 times the noise there, enough for a drum
     // runout to be named in a bearing friction's place.
     let thr = (0.002 * vmax).max(floor);
-    let load_range = torque.map_or(0.0, |m| {
+    // A load step worth reading a turn off: a quarter of the load's range (1st to 99th
+    // percentile), and twenty times its typical change between rows, so that a load
+    // without a brake, whose range is its noise, never places a turn.
+    let least_step = torque.map_or(f64::INFINITY, |m| {
+        if m.len() < 2 {
+            return f64::INFINITY;
+        }
         let mut sorted: Vec<f64> = m.to_vec();
         sorted.sort_by(f64::total_cmp);
-        let at = |q: f64| sorted[((sorted.len().max(1) - 1) as f64 * q).round() as usize];
-        if sorted.is_empty() {
-            0.0
-        } else {
-            at(0.99) - at(0.01)
-        }
+        let at = |q: f64| sorted[((sorted.len() - 1) as f64 * q).round() as usize];
+        let mut steps: Vec<f64> = m.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+        steps.sort_by(f64::total_cmp);
+        (0.25 * (at(0.99) - at(0.01))).max(20.0 * steps[steps.len() / 2])
     });
     let first = vel_in
         .iter()
@@ -227,7 +231,7 @@ fn direction(
                 j -= 1;
             }
             if let Some(r) =
-                torque.and_then(|m| turned_at(m, load_range, vel_in, thr, last_flip, j))
+                torque.and_then(|m| turned_at(m, least_step, vel_in, thr, last_flip, j))
             {
                 j = r;
             }
@@ -244,14 +248,13 @@ fn direction(
 /// The row at which a load that follows the motion (a brake) stepped, among the rows
 /// before `j` (the first that moves the new way, after `last_flip`) whose speed is under
 /// `thr`: where the input turns on a sample its speed there reads zero, and which way the
-/// drive already went is read off the load. `None` when no such row holds a step of a
-/// quarter of the load's `range` (N m, 1st to 99th percentile) that is also the largest
-/// step from there to `j`. (A bearing friction that flips at the turning sample itself,
-/// carried the old way, left 0.1 to 0.17 mrad on that one row per reversal, and a drum
-/// runout was named in its place.)
+/// drive already went is read off the load. `None` when no such row holds a step larger
+/// than `least_step` (N m) that is also the largest step from there to `j`. (A bearing
+/// friction that flips at the turning sample itself, carried the old way, left 0.1 to
+/// 0.17 mrad on that one row per reversal, and a drum runout was named in its place.)
 fn turned_at(
     m: &[f64],
-    range: f64,
+    least_step: f64,
     vel_in: &[f64],
     thr: f64,
     last_flip: usize,
@@ -270,7 +273,7 @@ fn turned_at(
             (j, 0.0),
             |(br, bs), (r, s)| if s > bs { (r, s) } else { (br, bs) },
         );
-    (r < j && big > 0.25 * range).then_some(r)
+    (r < j && big > least_step).then_some(r)
 }
 
 /// Once the bad stretches of each log are known (`keep_per_log`, one flag per row of each

@@ -22,6 +22,14 @@ pub fn scenario(triangle: bool) -> Scenario {
     Scenario::from_toml(&text, "gimbal", "gimbal", &[]).expect("test scenario")
 }
 
+/// The shipped gimbal scan with one line of its scenario changed (`from`, which must be
+/// there, to `to`): another stroke, speed or load, as a bench engineer would run it.
+pub fn gimbal_changed(from: &str, to: &str) -> Scenario {
+    assert!(GIMBAL.contains(from), "gimbal_ident.toml has no {from:?}");
+    let name = format!("gimbal, {to}");
+    Scenario::from_toml(&GIMBAL.replace(from, to), &name, &name, &[]).expect("changed scenario")
+}
+
 pub fn truth(sc: &Scenario, effects: &[(EffectName, f64)], seed: u64) -> BenchLog {
     truth_log(sc, effects, seed, &TruthOptions::default())
         .unwrap_or_else(|e| panic!("truth: {e}"))
