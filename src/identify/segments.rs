@@ -888,11 +888,14 @@ fn departures_from(
     (found, Some(m))
 }
 
-/// Output stretches that are not the drive's response to its input: the output off the
-/// straight line through output against input (`gain`, rad per rad) by far more than the
-/// log's own transmission error spreads (a departure), or moving faster than [`JERK_SPEED`]
-/// times what the input's travel, or its motion's peak speed, can drive (a jerk or jump).
-/// An input jerk the output follows is the drive and is not flagged here.
+/// Output stretches that are not the drive's response to its input: the output off each
+/// of three accounts of the drive, the straight line through output against input
+/// (`gain`, rad per rad), a play ([`play_residual`]) and two branches switched at the turn
+/// ([`branch_residual`]), by far more than the log's own transmission error spreads about
+/// it (a departure); moving faster than [`JERK_SPEED`] times what the input's travel, or
+/// its motion's peak speed, can drive (a jerk or jump); or a few samples off the path of
+/// their neighbours on both the play and the branches (a spike, [`spikes_in`]). An input
+/// jerk the output follows is the drive and is not flagged here.
 fn output_departures(
     t: &[f64],
     xi: &[f64],
