@@ -133,6 +133,18 @@ pub fn prepare(log: &BenchLog, max_rate_hz: f64) -> Result<Prepared, IdentifyErr
     })
 }
 
+/// A load's range, N m: its 1st to 99th percentile, so that a few outliers do not set it.
+/// 0 for an empty load.
+fn load_range(load_nm: &[f64]) -> f64 {
+    if load_nm.is_empty() {
+        return 0.0;
+    }
+    let mut sorted: Vec<f64> = load_nm.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let at = |q: f64| sorted[((sorted.len() - 1) as f64 * q).round() as usize];
+    at(0.99) - at(0.01)
+}
+
 /// Per row of `m` samples averaged (the rows [`prepare`] makes): whether the load steps
 /// inside it by more than half its range over the log (1st to 99th percentile). A brake
 /// or a bearing flips its torque within a sample where the drum reverses, and the drum's
@@ -147,10 +159,7 @@ pub fn straddles_a_step(load_nm: &[f64], m: usize) -> Vec<bool> {
     if m < 2 || rows == 0 {
         return vec![false; rows];
     }
-    let mut sorted: Vec<f64> = load_nm.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    let at = |q: f64| sorted[((sorted.len() - 1) as f64 * q).round() as usize];
-    let range = at(0.99) - at(0.01);
+    let range = load_range(load_nm);
     load_nm
         .chunks_exact(m)
         .map(|c| {
@@ -207,12 +216,9 @@ fn direction(
         if m.len() < 2 {
             return f64::INFINITY;
         }
-        let mut sorted: Vec<f64> = m.to_vec();
-        sorted.sort_by(f64::total_cmp);
-        let at = |q: f64| sorted[((sorted.len() - 1) as f64 * q).round() as usize];
         let mut steps: Vec<f64> = m.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
         steps.sort_by(f64::total_cmp);
-        (0.25 * (at(0.99) - at(0.01))).max(20.0 * steps[steps.len() / 2])
+        (0.25 * load_range(m)).max(20.0 * steps[steps.len() / 2])
     });
     let first = vel_in
         .iter()

@@ -1255,7 +1255,8 @@ fn running_median(v: &[f64], half: usize) -> Vec<f64> {
         .map(|i| {
             w.clear();
             w.extend_from_slice(&v[i.saturating_sub(half)..(i + half + 1).min(n)]);
-            median(&w)
+            let k = w.len() / 2;
+            *w.select_nth_unstable_by(k, f64::total_cmp).1
         })
         .collect()
 }
