@@ -114,9 +114,7 @@ impl PlantCable {
     #[inline(always)]
     pub fn tensions(&self, d: f64) -> Result<(f64, f64), DriveFault> {
         match self {
-            PlantCable::Hysteretic(drive) => {
-                hysteretic_solutions(drive, d).map(|(u, l)| (u.tension_n, l.tension_n))
-            }
+            PlantCable::Hysteretic(drive) => hysteretic_tensions(drive, d),
             PlantCable::Linear {
                 k_n_per_m,
                 preload_n,
@@ -163,6 +161,26 @@ fn hysteretic_solutions(
     let l = drive
         .lower()
         .solve_for_elongation(-d)
+        .ok_or_else(|| slack(Half::Lower))?;
+    Ok((u, l))
+}
+
+/// [`hysteretic_solutions`], the tensions alone `(Tu, Tl)`, N: the same solves, without
+/// the laws a commit needs, which the right-hand side would only copy.
+#[inline(always)]
+fn hysteretic_tensions(drive: &CableDrive, d: f64) -> Result<(f64, f64), DriveFault> {
+    let slack = |half| DriveFault::Slack {
+        half,
+        torque_nm: 0.0,
+        needed_preload_n: drive.params().preload_n,
+    };
+    let u = drive
+        .upper()
+        .tension_series(d)
+        .ok_or_else(|| slack(Half::Upper))?;
+    let l = drive
+        .lower()
+        .tension_series(-d)
         .ok_or_else(|| slack(Half::Lower))?;
     Ok((u, l))
 }

@@ -166,6 +166,13 @@ impl CableHalf {
             .map(|(tension_n, law)| HalfSolution { tension_n, law })
     }
 
+    /// [`Self::solve_for_elongation`], the tension alone (N): the plant's right-hand
+    /// side, which never commits.
+    #[inline(always)]
+    pub(crate) fn tension_series(&self, elongation_m: f64) -> Option<f64> {
+        self.wrap.tension_series(elongation_m)
+    }
+
     /// Slip growth of a solution (see [`HalfSlip::growth`]), and whether its slip zones
     /// reach the drum anchor and the pulley's neutral point.
     #[inline]

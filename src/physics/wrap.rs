@@ -249,7 +249,8 @@ impl WrapLaw {
         } else {
             -2.0 * rest / (beta + root)
         };
-        (u.is_finite() && u > 0.0).then_some(u * u)
+        // Finite and positive, in two comparisons (NaN fails both).
+        (u > 0.0 && u <= f64::MAX).then_some(u * u)
     }
 
     /// [`Self::solve`] on a sloped law for the free span it was built for, with the
@@ -396,6 +397,42 @@ pub struct WrapRegion {
     /// while the boundary tension stays in their range. Two, because a load that dithers
     /// about the committed state within a period alternates between them.
     laws: [Cell<WrapLaw>; 2],
+    /// What every sloped law shares with the others of its way and weight, by
+    /// `[outer][rising]`: see [`SlopedConsts`].
+    sloped: [[SlopedConsts; 2]; 2],
+}
+
+/// The coefficients of a sloped law ([`LawKind::Sloped`]) that depend only on its
+/// direction and on the weight of the segment it ends on, for the series span: computed
+/// once per region with the very expressions a law's build uses, so that a law built from
+/// them is bit for bit the one built from scratch.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct SlopedConsts {
+    /// The slip zone's coefficient of `Tb`, m (`WrapLaw::a`).
+    a: f64,
+    /// The meeting tension's coefficient, m (`WrapLaw::bt`).
+    bt: f64,
+    /// `+-w_seg`, m: the stored segment's end tension's coefficient before `/mu`.
+    sign_w: f64,
+    /// Weight of the segment, m.
+    w_seg: f64,
+    /// `4*(span + a)`, m, and `1/(2*(span + a))`, 1/m.
+    four_alpha: f64,
+    inv_two_alpha: f64,
+    /// `4*(span + a)*E*A`, N m.
+    disc1: f64,
+}
+
+impl SlopedConsts {
+    const ZERO: SlopedConsts = SlopedConsts {
+        a: 0.0,
+        bt: 0.0,
+        sign_w: 0.0,
+        w_seg: 0.0,
+        four_alpha: 0.0,
+        inv_two_alpha: 0.0,
+        disc1: 0.0,
+    };
 }
 
 impl WrapRegion {
@@ -446,9 +483,45 @@ impl WrapRegion {
             verts: Vec::with_capacity(16),
             generation: 0,
             laws: [Cell::new(WrapLaw::INVALID), Cell::new(WrapLaw::INVALID)],
+            sloped: [[SlopedConsts::ZERO; 2]; 2],
         };
+        region.refresh_sloped();
         region.reset();
         region
+    }
+
+    /// [`Self::sloped`] for the current series span.
+    fn refresh_sloped(&mut self) {
+        for outer in [false, true] {
+            for rising in [false, true] {
+                let sign = if rising { 1.0 } else { -1.0 };
+                let at_cut = if rising {
+                    self.decay_at_cut
+                } else {
+                    self.growth_at_cut
+                };
+                let w_seg = if outer {
+                    self.weight_outer_m
+                } else {
+                    self.weight_inner_m
+                };
+                let a = if !outer {
+                    sign * self.weight_inner_m / self.mu
+                } else {
+                    self.slip_coefficient(rising, at_cut, 0.0)
+                };
+                let alpha = self.series_span_m + a;
+                self.sloped[usize::from(outer)][usize::from(rising)] = SlopedConsts {
+                    a,
+                    bt: -2.0 * sign * w_seg / self.mu,
+                    sign_w: sign * w_seg,
+                    w_seg,
+                    four_alpha: 4.0 * alpha,
+                    inv_two_alpha: 0.5 / alpha,
+                    disc1: 4.0 * alpha * self.modulus_n,
+                };
+            }
+        }
     }
 
     /// The same region with a free span of length `span_m` (m) in series, for which
@@ -456,6 +529,7 @@ impl WrapRegion {
     pub fn with_series_span(mut self, span_m: f64) -> Self {
         self.series_span_m = span_m;
         self.series_span_per_n = span_m / self.modulus_n;
+        self.refresh_sloped();
         self.reset();
         self
     }
@@ -567,6 +641,16 @@ impl WrapRegion {
     /// lower (falling).
     fn build_law(&self, tb_n: f64) -> WrapLaw {
         let law = self.build_law_shape(tb_n);
+        if law.kind == LawKind::Sloped && law.span_m == self.series_span_m {
+            law
+        } else {
+            self.with_series(law)
+        }
+    }
+
+    /// `law` with the coefficients of the series span's solves.
+    #[inline]
+    fn with_series(&self, law: WrapLaw) -> WrapLaw {
         let span = self.series_span_m;
         let alpha = span + law.a;
         let rest0 = law.c - span * self.preload_n;
@@ -581,85 +665,26 @@ impl WrapRegion {
     }
 
     fn build_law_shape(&self, tb_n: f64) -> WrapLaw {
-        let (mu, pre) = (self.mu, self.preload_n);
         let top = self.verts.len() - 1;
         let top_v = self.verts[top];
         if tb_n == top_v.t {
             return self.stuck_law();
         }
         let rising = tb_n > top_v.t;
-        let sign = if rising { 1.0 } else { -1.0 };
+        let mut k = top;
+        while k > 0 {
+            let b = self.verts[k - 1];
+            if (rising && b.p >= tb_n) || (!rising && b.m <= tb_n) {
+                return self.segment_law(k, rising, tb_n);
+            }
+            k -= 1;
+        }
         let (at_cut, at_end) = if rising {
             (self.decay_at_cut, self.decay_at_end)
         } else {
             (self.growth_at_cut, self.growth_at_end)
         };
-        let mut k = top;
-        while k > 0 {
-            let b = self.verts[k - 1];
-            if (rising && b.p >= tb_n) || (!rising && b.m <= tb_n) {
-                let a = self.verts[k];
-                let w_seg = self.weight(&b);
-                let slip_a = if !b.outer {
-                    sign * self.weight_inner_m / mu
-                } else {
-                    self.slip_coefficient(rising, at_cut, 0.0)
-                };
-                let (lo, hi) = if rising { (a.p, b.p) } else { (b.m, a.m) };
-                let base = b.tail - pre * self.weight_total_m;
-                let law = WrapLaw {
-                    rising,
-                    generation: self.generation,
-                    index: k - 1,
-                    lo,
-                    hi,
-                    a: slip_a,
-                    w_seg,
-                    ..WrapLaw::INVALID
-                };
-                return if a.t == b.t {
-                    // The untouched plateau: T* = Tpre, s* = +-ln(Tb/Tpre)/mu.
-                    WrapLaw {
-                        kind: LawKind::Plateau,
-                        bt: -w_seg * pre,
-                        c: -sign * w_seg * pre / mu + w_seg * pre * self.angle(&b) + base,
-                        ..law
-                    }
-                } else if (b.t > a.t) == rising {
-                    // Segment of log-slope +mu (rising) or -mu (falling).
-                    let q = if rising { b.m } else { b.p };
-                    let bt = -2.0 * sign * w_seg / mu;
-                    WrapLaw {
-                        kind: LawKind::Sloped,
-                        bt,
-                        q,
-                        beta: bt * q.sqrt(),
-                        c: sign * w_seg * b.t / mu + base,
-                        ..law
-                    }
-                } else {
-                    // A segment parallel to the new slip zone can only hold the crossing
-                    // through rounding: it sits at its inner breakpoint, for this Tb only.
-                    let (lo, hi) = if rising {
-                        (tb_n.next_down(), tb_n)
-                    } else {
-                        (tb_n, tb_n.next_up())
-                    };
-                    let bt = -2.0 * sign * w_seg / mu;
-                    WrapLaw {
-                        kind: LawKind::Sloped,
-                        bt,
-                        q: b.t * b.t / tb_n,
-                        beta: bt * b.t / tb_n.sqrt(),
-                        c: sign * w_seg * b.t / mu + base,
-                        lo,
-                        hi,
-                        ..law
-                    }
-                };
-            }
-            k -= 1;
-        }
+        let pre = self.preload_n;
         let deepest = self.verts[0];
         let at_cut = if self.cut_rad < self.wrap_rad {
             at_cut
@@ -679,6 +704,125 @@ impl WrapRegion {
             q: at_end,
             ..WrapLaw::INVALID
         }
+    }
+
+    /// The law of a slip zone that rises (or falls) from the contact point and ends on
+    /// the stored segment between breakpoints `k - 1` and `k` (`k >= 1`), for boundary
+    /// tension `tb_n` (N). Only a segment parallel to the slip zone depends on `tb_n`.
+    #[inline]
+    fn segment_law(&self, k: usize, rising: bool, tb_n: f64) -> WrapLaw {
+        let (mu, pre) = (self.mu, self.preload_n);
+        let sign = if rising { 1.0 } else { -1.0 };
+        let at_cut = if rising {
+            self.decay_at_cut
+        } else {
+            self.growth_at_cut
+        };
+        let b = self.verts[k - 1];
+        let a = self.verts[k];
+        let w_seg = self.weight(&b);
+        let slip_a = if !b.outer {
+            sign * self.weight_inner_m / mu
+        } else {
+            self.slip_coefficient(rising, at_cut, 0.0)
+        };
+        let (lo, hi) = if rising { (a.p, b.p) } else { (b.m, a.m) };
+        let base = b.tail - pre * self.weight_total_m;
+        let law = WrapLaw {
+            rising,
+            generation: self.generation,
+            index: k - 1,
+            lo,
+            hi,
+            a: slip_a,
+            w_seg,
+            ..WrapLaw::INVALID
+        };
+        if a.t == b.t {
+            // The untouched plateau: T* = Tpre, s* = +-ln(Tb/Tpre)/mu.
+            WrapLaw {
+                kind: LawKind::Plateau,
+                bt: -w_seg * pre,
+                c: -sign * w_seg * pre / mu + w_seg * pre * self.angle(&b) + base,
+                ..law
+            }
+        } else if (b.t > a.t) == rising {
+            self.sloped_law(k, rising)
+        } else {
+            // A segment parallel to the new slip zone can only hold the crossing
+            // through rounding: it sits at its inner breakpoint, for this Tb only.
+            let (lo, hi) = if rising {
+                (tb_n.next_down(), tb_n)
+            } else {
+                (tb_n, tb_n.next_up())
+            };
+            let bt = -2.0 * sign * w_seg / mu;
+            WrapLaw {
+                kind: LawKind::Sloped,
+                bt,
+                q: b.t * b.t / tb_n,
+                beta: bt * b.t / tb_n.sqrt(),
+                c: sign * w_seg * b.t / mu + base,
+                lo,
+                hi,
+                ..law
+            }
+        }
+    }
+
+    /// [`Self::segment_law`] where the segment has log-slope `+mu` (rising) or `-mu`
+    /// (falling), with the series span's coefficients.
+    #[inline(always)]
+    fn sloped_law(&self, k: usize, rising: bool) -> WrapLaw {
+        let (mu, pre, span) = (self.mu, self.preload_n, self.series_span_m);
+        let (b, a) = (self.verts[k - 1], self.verts[k]);
+        let sc = self.sloped[usize::from(b.outer)][usize::from(rising)];
+        let (lo, hi, q) = if rising {
+            (a.p, b.p, b.m)
+        } else {
+            (b.m, a.m, b.p)
+        };
+        let base = b.tail - pre * self.weight_total_m;
+        let beta = sc.bt * q.sqrt();
+        let c = sc.sign_w * b.t / mu + base;
+        let rest0 = c - span * pre;
+        WrapLaw {
+            kind: LawKind::Sloped,
+            rising,
+            generation: self.generation,
+            index: k - 1,
+            lo,
+            hi,
+            a: sc.a,
+            bt: sc.bt,
+            q,
+            c,
+            beta,
+            span_m: span,
+            inv_two_alpha: sc.inv_two_alpha,
+            disc0: beta * beta - sc.four_alpha * rest0,
+            disc1: sc.disc1,
+            rest0,
+            w_seg: sc.w_seg,
+        }
+    }
+
+    /// The law a load turning back from the committed state starts on, `rising` being
+    /// the new direction: the one [`Self::build_law`] gives for every boundary tension
+    /// whose slip zone ends on the top stored segment, when that segment slopes against
+    /// the new slip zone (as the last commit's own slip zone does). `None` otherwise.
+    /// A servo holding still dithers across its committed state, so most reversals end
+    /// here: tried first, it spares them a search.
+    #[inline]
+    fn reversal_law(&self, rising: bool) -> Option<WrapLaw> {
+        let top = self.verts.len() - 1;
+        if top == 0 {
+            return None;
+        }
+        let (a, b) = (self.verts[top], self.verts[top - 1]);
+        let sloped_against = a.t != b.t && (b.t > a.t) == rising;
+        let nonempty = if rising { a.p < b.p } else { b.m < a.m };
+        (sloped_against && nonempty).then(|| self.sloped_law(top, rising))
     }
 
     /// The law for `tb_n`: the cached one when it holds there, else a fresh walk (cached).
@@ -760,17 +904,73 @@ impl WrapRegion {
             }
             let rising = off > 0.0;
             let cached = self.laws[usize::from(rising)].get();
-            if cached.generation == self.generation && cached.kind == LawKind::Sloped {
-                if let Some(t) = cached
-                    .solve_series(target_m, self.modulus_n)
-                    .and_then(|t| cached.accept(t))
-                {
-                    return Some((t, cached));
-                }
+            if let Some(t) = self.root_on_cached(&cached, target_m) {
+                return Some((t, cached));
             }
-            return self.tension_for_elongation_search(target_m, span_per_n, rising, guess_n);
+            return self.series_miss(target_m, rising, &cached, guess_n);
         }
         self.solve_for_elongation_any(target_m, span_per_n, guess_n)
+    }
+
+    /// [`Self::solve_for_elongation`] for the series span, the tension alone: the
+    /// right-hand side's solve, which never commits, so no law leaves it.
+    #[inline(always)]
+    pub(crate) fn tension_series(&self, target_m: f64) -> Option<f64> {
+        let off = target_m - self.stuck_m;
+        if off.abs() <= self.stuck_band_m {
+            return Some(self.committed_n);
+        }
+        let rising = off > 0.0;
+        let cached = self.laws[usize::from(rising)].get();
+        if let Some(t) = self.root_on_cached(&cached, target_m) {
+            return Some(t);
+        }
+        self.series_miss(target_m, rising, &cached, f64::NAN)
+            .map(|(t, _)| t)
+    }
+
+    /// The series span's root on the cached law `cached` of its direction, when that law
+    /// is current, sloped and holds there.
+    #[inline(always)]
+    fn root_on_cached(&self, cached: &WrapLaw, target_m: f64) -> Option<f64> {
+        if cached.generation == self.generation && cached.kind == LawKind::Sloped {
+            cached
+                .solve_series(target_m, self.modulus_n)
+                .and_then(|t| cached.accept(t))
+        } else {
+            None
+        }
+    }
+
+    /// The series span's solve when the cached law `cached` of direction `rising` does
+    /// not give the root: the top segment's law after a commit the other way, then the
+    /// search.
+    #[cold]
+    #[inline(never)]
+    fn series_miss(
+        &self,
+        target_m: f64,
+        rising: bool,
+        cached: &WrapLaw,
+        guess_n: f64,
+    ) -> Option<(f64, WrapLaw)> {
+        if cached.generation != self.generation {
+            // The first solve this way since the last commit, which went the other way:
+            // most such roots lie on the top segment, the last slip zone. The search
+            // would start on the law at its guess; where that is this one, its first
+            // step is taken here without the walk, so the answer is the search's own.
+            let guess = self.search_guess(target_m, self.series_span_per_n, rising, guess_n);
+            if let Some(back) = self.reversal_law(rising).filter(|l| l.covers(guess)) {
+                self.laws[usize::from(rising)].set(back);
+                if let Some(t) = back
+                    .solve_series(target_m, self.modulus_n)
+                    .and_then(|t| back.accept(t))
+                {
+                    return Some((t, back));
+                }
+            }
+        }
+        self.tension_for_elongation_search(target_m, self.series_span_per_n, rising, guess_n)
     }
 
     /// [`Self::solve_for_elongation`] for any series span and any kind of law.
@@ -836,7 +1036,6 @@ impl WrapRegion {
         let (ea, pre, mu) = (self.modulus_n, self.preload_n, self.mu);
         let (target, span) = (target_m * ea, span_per_n * ea);
         let series = span_per_n == self.series_span_per_n;
-        let top_t = self.committed_n;
         let root_on = |law: &WrapLaw, start: f64| {
             if series && law.kind == LawKind::Sloped {
                 law.solve_series(target_m, ea)
@@ -844,19 +1043,7 @@ impl WrapRegion {
                 law.solve(target, span, pre, mu, start)
             }
         };
-        let guess_n = if series && !guess_n.is_finite() {
-            top_t + (target_m - self.stuck_m) / span_per_n
-        } else {
-            guess_n
-        };
-        // A guess on the wrong side of the committed tension would pick the other branch.
-        let guess = if guess_n.is_finite() && guess_n > 0.0 && (guess_n > top_t) == rising {
-            guess_n
-        } else if rising {
-            top_t * (1.0 + 1e-9)
-        } else {
-            top_t * (1.0 - 1e-9)
-        };
+        let guess = self.search_guess(target_m, span_per_n, rising, guess_n);
         let mut at = guess;
         for _ in 0..3 {
             let law = self.law_at(at);
@@ -884,6 +1071,28 @@ impl WrapRegion {
         )
         .ok()
         .map(|t| (t, self.law_at(t)))
+    }
+
+    /// The boundary tension (N) [`Self::tension_for_elongation_search`] starts from for
+    /// elongation `target_m` (m) in direction `rising`: the caller's `guess_n`, or for the
+    /// series span the tangent at the committed state, on the side of the committed
+    /// tension the target lies.
+    #[inline]
+    fn search_guess(&self, target_m: f64, span_per_n: f64, rising: bool, guess_n: f64) -> f64 {
+        let top_t = self.committed_n;
+        let guess_n = if span_per_n == self.series_span_per_n && !guess_n.is_finite() {
+            top_t + (target_m - self.stuck_m) / span_per_n
+        } else {
+            guess_n
+        };
+        // A guess on the wrong side of the committed tension would pick the other branch.
+        if guess_n.is_finite() && guess_n > 0.0 && (guess_n > top_t) == rising {
+            guess_n
+        } else if rising {
+            top_t * (1.0 + 1e-9)
+        } else {
+            top_t * (1.0 - 1e-9)
+        }
     }
 
     /// `exp(mu*s*)` for the slip zone of a trial of length `s*` (at most the longest
@@ -1438,6 +1647,81 @@ mod tests {
             let off = (solved.stuck_m - stuck).abs();
             assert!(off <= 1e-3 * solved.stuck_band_m, "k {k}: {off:e}");
         }
+    }
+
+    /// A dithering series-span region (a held servo's cable) with occasional long moves,
+    /// as `(region, displacement)` after each commit of `steps`.
+    fn dithered(steps: usize, seed: u64, mut each: impl FnMut(&WrapRegion, f64)) {
+        let (rd, wd, rp, wp, span) = (0.1025, 0.9, 0.02, 2.5, 0.0777);
+        let mut region =
+            WrapRegion::with_regions(&[(rd, wd), (rp, wp)], MU, TPRE, G).with_series_span(span);
+        let span_per_n = span / G;
+        let mut rng = seed;
+        let mut target = 0.0;
+        for _ in 0..steps {
+            let size = if lcg(&mut rng) < 0.05 { 2e-4 } else { 1e-5 };
+            target += size * (lcg(&mut rng) - 0.5);
+            let (t, law) = region
+                .solve_for_elongation(target, span_per_n, f64::NAN)
+                .expect("a positive tension fits");
+            region.commit_fresh(t, &law);
+            each(&region, target);
+        }
+    }
+
+    #[test]
+    fn a_reversal_law_is_the_walk_of_every_tension_it_covers() {
+        // The top segment's law is built without a walk; it must be the very law the
+        // walk builds, field for field, wherever it claims to hold.
+        let mut built = 0;
+        dithered(4000, 5, |region, _| {
+            let top_t = region.committed_n;
+            for rising in [false, true] {
+                let Some(law) = region.reversal_law(rising) else {
+                    continue;
+                };
+                built += 1;
+                for f in [0.0, 0.3, 0.7, 1.0] {
+                    let tb = law.lo + f * (law.hi - law.lo);
+                    if !law.covers(tb) || (tb > top_t) != rising {
+                        continue;
+                    }
+                    assert_eq!(law, region.build_law(tb), "tb {tb} rising {rising}");
+                }
+            }
+        });
+        assert!(built > 3000, "only {built} reversal laws");
+    }
+
+    #[test]
+    fn the_tension_alone_is_the_solves_tension_bit_for_bit() {
+        // The right-hand side's solve and the commit's solve share every step; probe both
+        // on twin regions at displacements around the committed one, both ways and past
+        // the top segment, so that the cache and the searches are exercised too.
+        let (rd, wd, rp, wp, span) = (0.1025, 0.9, 0.02, 2.5, 0.0777);
+        let twin =
+            WrapRegion::with_regions(&[(rd, wd), (rp, wp)], MU, TPRE, G).with_series_span(span);
+        let mut other = twin.clone();
+        let span_per_n = span / G;
+        let mut rng = 17u64;
+        dithered(3000, 9, |region, target| {
+            // `other` follows the same commits, so both see the same memory.
+            other.verts.clone_from(&region.verts);
+            other.generation = region.generation;
+            other.refresh_committed();
+            for (a, b) in other.laws.iter().zip(&region.laws) {
+                a.set(b.get());
+            }
+            for _ in 0..4 {
+                let size = if lcg(&mut rng) < 0.2 { 4e-4 } else { 2e-5 };
+                let probe = target + size * (lcg(&mut rng) - 0.5);
+                let alone = region.tension_series(probe);
+                let solved = other
+                    .solve_for_elongation(probe, span_per_n, f64::NAN)
+                    .map(|(t, _)| t);
+                assert_eq!(alone.map(f64::to_bits), solved.map(f64::to_bits));
+            }
+        });
     }
 
     #[test]
