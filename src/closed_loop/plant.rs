@@ -14,7 +14,7 @@ use nalgebra::SVector;
 use ode_solvers::System;
 
 use super::params::{Amplifier, CableModel, ClosedLoopParams};
-use crate::physics::half::HalfSolution;
+use crate::physics::half::{CableHalf, HalfSolution};
 use crate::physics::EffectsParams;
 use crate::physics::{CableDrive, DriveFault, DriveParams, Half, HysteresisModel, LoadParams};
 
@@ -140,48 +140,39 @@ impl PlantCable {
 }
 
 /// Both halves of the hysteretic cable solved for displacement `d` (m) on the current
-/// memory. Exact: closed form on the stored segment each slip zone ended on last time,
-/// which holds for most of a period and across periods of monotone loading; the halves
-/// search from their committed state when it does not. Always inlined: the right-hand
-/// side keeps only the tensions, so the laws' copies vanish.
+/// memory, with the laws a commit needs. Exact: closed form on the stored segment each
+/// slip zone ended on last time, which holds for most of a period and across periods of
+/// monotone loading; the halves search from their committed state when it does not.
 #[inline(always)]
 fn hysteretic_solutions(
     drive: &CableDrive,
     d: f64,
 ) -> Result<(HalfSolution, HalfSolution), DriveFault> {
-    let slack = |half| DriveFault::Slack {
-        half,
-        torque_nm: 0.0,
-        needed_preload_n: drive.params().preload_n,
-    };
-    let u = drive
-        .upper()
-        .solve_for_elongation(d)
-        .ok_or_else(|| slack(Half::Upper))?;
-    let l = drive
-        .lower()
-        .solve_for_elongation(-d)
-        .ok_or_else(|| slack(Half::Lower))?;
-    Ok((u, l))
+    both_halves(drive, d, CableHalf::solve_for_elongation)
 }
 
 /// [`hysteretic_solutions`], the tensions alone `(Tu, Tl)`, N: the same solves, without
 /// the laws a commit needs, which the right-hand side would only copy.
 #[inline(always)]
 fn hysteretic_tensions(drive: &CableDrive, d: f64) -> Result<(f64, f64), DriveFault> {
+    both_halves(drive, d, CableHalf::tension_series)
+}
+
+/// `solve` on the upper half at elongation `d` (m) and on the lower at `-d`; a half
+/// without a positive tension goes slack.
+#[inline(always)]
+fn both_halves<T>(
+    drive: &CableDrive,
+    d: f64,
+    solve: impl Fn(&CableHalf, f64) -> Option<T>,
+) -> Result<(T, T), DriveFault> {
     let slack = |half| DriveFault::Slack {
         half,
         torque_nm: 0.0,
         needed_preload_n: drive.params().preload_n,
     };
-    let u = drive
-        .upper()
-        .tension_series(d)
-        .ok_or_else(|| slack(Half::Upper))?;
-    let l = drive
-        .lower()
-        .tension_series(-d)
-        .ok_or_else(|| slack(Half::Lower))?;
+    let u = solve(drive.upper(), d).ok_or_else(|| slack(Half::Upper))?;
+    let l = solve(drive.lower(), -d).ok_or_else(|| slack(Half::Lower))?;
     Ok((u, l))
 }
 
