@@ -14,7 +14,7 @@ use nalgebra::SVector;
 use ode_solvers::System;
 
 use super::params::{Amplifier, CableModel, ClosedLoopParams};
-use crate::physics::half::{CableHalf, HalfSolution};
+use crate::physics::half::HalfSolution;
 use crate::physics::EffectsParams;
 use crate::physics::{CableDrive, DriveFault, DriveParams, Half, HysteresisModel, LoadParams};
 
@@ -148,32 +148,31 @@ fn hysteretic_solutions(
     drive: &CableDrive,
     d: f64,
 ) -> Result<(HalfSolution, HalfSolution), DriveFault> {
-    both_halves(drive, d, CableHalf::solve_for_elongation)
+    let u = drive.upper().solve_for_elongation(d);
+    let u = u.ok_or_else(|| slack(drive, Half::Upper))?;
+    let l = drive.lower().solve_for_elongation(-d);
+    Ok((u, l.ok_or_else(|| slack(drive, Half::Lower))?))
 }
 
 /// [`hysteretic_solutions`], the tensions alone `(Tu, Tl)`, N: the same solves, without
-/// the laws a commit needs, which the right-hand side would only copy.
+/// the laws a commit needs, which the right-hand side would only copy. (One generic
+/// body for both was measured: the compiler then kept the solves out of line.)
 #[inline(always)]
 fn hysteretic_tensions(drive: &CableDrive, d: f64) -> Result<(f64, f64), DriveFault> {
-    both_halves(drive, d, CableHalf::tension_series)
+    let u = drive.upper().tension_series(d);
+    let u = u.ok_or_else(|| slack(drive, Half::Upper))?;
+    let l = drive.lower().tension_series(-d);
+    Ok((u, l.ok_or_else(|| slack(drive, Half::Lower))?))
 }
 
-/// `solve` on the upper half at elongation `d` (m) and on the lower at `-d`; a half
-/// without a positive tension goes slack.
-#[inline(always)]
-fn both_halves<T>(
-    drive: &CableDrive,
-    d: f64,
-    solve: impl Fn(&CableHalf, f64) -> Option<T>,
-) -> Result<(T, T), DriveFault> {
-    let slack = |half| DriveFault::Slack {
+/// A half of `drive` without a positive tension: it goes slack.
+#[cold]
+fn slack(drive: &CableDrive, half: Half) -> DriveFault {
+    DriveFault::Slack {
         half,
         torque_nm: 0.0,
         needed_preload_n: drive.params().preload_n,
-    };
-    let u = solve(drive.upper(), d).ok_or_else(|| slack(Half::Upper))?;
-    let l = solve(drive.lower(), -d).ok_or_else(|| slack(Half::Lower))?;
-    Ok((u, l))
+    }
 }
 
 /// Span tensions `(Tu, Tl)` of the linear cable at displacement `d` (m).
