@@ -713,19 +713,11 @@ impl WrapRegion {
     fn segment_law(&self, k: usize, rising: bool, tb_n: f64) -> WrapLaw {
         let (mu, pre) = (self.mu, self.preload_n);
         let sign = if rising { 1.0 } else { -1.0 };
-        let at_cut = if rising {
-            self.decay_at_cut
-        } else {
-            self.growth_at_cut
-        };
         let b = self.verts[k - 1];
         let a = self.verts[k];
-        let w_seg = self.weight(&b);
-        let slip_a = if !b.outer {
-            sign * self.weight_inner_m / mu
-        } else {
-            self.slip_coefficient(rising, at_cut, 0.0)
-        };
+        // The way and weight's shared coefficients, as every law of this segment has them.
+        let sc = self.sloped[usize::from(b.outer)][usize::from(rising)];
+        let (w_seg, slip_a) = (sc.w_seg, sc.a);
         let (lo, hi) = if rising { (a.p, b.p) } else { (b.m, a.m) };
         let base = b.tail - pre * self.weight_total_m;
         let law = WrapLaw {
@@ -756,7 +748,7 @@ impl WrapRegion {
             } else {
                 (tb_n, tb_n.next_up())
             };
-            let bt = -2.0 * sign * w_seg / mu;
+            let bt = sc.bt;
             WrapLaw {
                 kind: LawKind::Sloped,
                 bt,
