@@ -342,6 +342,42 @@ fn exclusion_turns_a_stuck_output_back_into_none() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A spike on the log's first or last samples, where only one side has neighbours: flagged
+/// as a spike on the output, on clean logs and under a hidden effect, and nothing else; a
+/// clean log so spiked reads `none` again once it is excluded.
+#[test]
+fn a_spike_at_either_end_of_the_log_is_flagged() {
+    for seed in 0..8u64 {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(700 + seed);
+        let sc = scenario(seed % 4 >= 2);
+        let effects = if seed % 2 == 0 {
+            Vec::new()
+        } else {
+            hidden(10 + seed)
+        };
+        let mut log = truth(&sc, &effects, 4600 + seed);
+        let n = log.t_s.len();
+        let len = rng.gen_range(1..=3usize);
+        let wrong = rng.gen_range(1e-3..1e-2) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+        let at_start = seed % 3 != 0;
+        let range = if at_start { 0..len } else { n - len..n };
+        for v in &mut log.theta_out_rad[range.clone()] {
+            *v = quant(*v + wrong, Q_OUT);
+        }
+        let (a, b) = (log.t_s[range.start], log.t_s[range.end - 1]);
+        let s = flagged(&log);
+        let what = format!("seed {seed}, {len} samples at {a:.3}-{b:.3} s: {s:?}");
+        assert_eq!(s.len(), 1, "{what}");
+        assert_eq!(s[0].channel, Channel::Output, "{what}");
+        assert!(s[0].reason.contains("spike"), "{what}");
+        assert!(s[0].start_s <= a && s[0].end_s >= b, "{what}");
+        if seed == 0 {
+            let (excluded, _, listed) = diagnose_both(&sc, &log, &opts());
+            assert_eq!((excluded.as_str(), listed), ("none", 1), "{what}");
+        }
+    }
+}
+
 /// Leave-one-out over two logs, one with a stuck output: the stretch is listed and its rows
 /// are not scored; kept on request.
 #[test]

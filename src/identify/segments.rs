@@ -981,9 +981,10 @@ fn output_departures(
 }
 
 /// Samples of residual `e` (rad) that are spikes: up to [`SPIKE_MAX_SAMPLES`] in a row,
-/// all off the straight path their neighbours on both sides agree on, the same way, by
-/// more than [`ROBUST_K`] robust deviations of that offset and [`SPIKE_STEPS`] encoder
-/// steps (`q_out`, rad), with the path around them straight ([`SPIKE_STRAIGHT`]).
+/// all off the straight path their neighbours agree on, the same way, by more than
+/// [`ROBUST_K`] robust deviations of that offset and [`SPIKE_STEPS`] encoder steps
+/// (`q_out`, rad), with the path around them straight ([`SPIKE_STRAIGHT`]). At the log's
+/// ends the path is the line through the samples on the one side there is.
 fn spikes_in(e: &[f64], q_out: f64) -> Vec<bool> {
     let n = e.len();
     let off_neighbours: Vec<f64> = (0..n)
@@ -998,33 +999,71 @@ fn spikes_in(e: &[f64], q_out: f64) -> Vec<bool> {
     let (sd, _) = robust(&off_neighbours);
     let ts = (ROBUST_K * sd).max(SPIKE_STEPS * q_out).max(1e-12);
     let mut spikes = vec![false; n];
-    for a in 2..n {
+    for a in 0..n {
         for len in 1..=SPIKE_MAX_SAMPLES {
             let b = a + len;
-            if b + 1 >= n {
+            if b > n {
                 break;
             }
-            let gap = (e[b] - e[a - 1]) / (len + 1) as f64;
-            let chord = |k: usize| e[a - 1] + gap * (k + 1 - a) as f64;
-            let devs = (a..b).map(|k| e[k] - chord(k));
-            let (lo, hi) = devs.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), d| {
-                (l.min(d), h.max(d))
-            });
-            // Every sample off the chord by more than the threshold, the same way.
-            let smallest = if lo > 0.0 { lo } else { -hi };
-            if smallest <= ts {
+            let Some((smallest, bend)) = off_path(e, a, b) else {
                 continue;
-            }
-            let bend = ((e[a - 1] - e[a - 2]) - gap)
-                .abs()
-                .max(((e[b + 1] - e[b]) - gap).abs())
-                * (len + 1) as f64;
-            if bend < SPIKE_STRAIGHT * smallest {
+            };
+            if smallest > ts && bend < SPIKE_STRAIGHT * smallest {
                 spikes[a..b].iter_mut().for_each(|s| *s = true);
             }
         }
     }
     spikes
+}
+
+/// For samples `a..b` of residual `e` (rad): the least offset off the straight path their
+/// neighbours agree on when every sample lies off it the same way (else zero), and how far
+/// that path bends over the stretch. Within the log the path is the chord between the
+/// samples either side, and its bend the larger change of slope at either end there is a
+/// sample to see it; at the log's first or last sample it is the line through the two
+/// samples on the other side, and its bend the change of slope at the third. `None`
+/// where the neighbours are too few to agree on a path.
+fn off_path(e: &[f64], a: usize, b: usize) -> Option<(f64, f64)> {
+    let n = e.len();
+    let span = (b - a + 1) as f64;
+    // The path's value at sample k is `at + slope * (k - from)`.
+    let (at, from, slope, bend) = if a >= 1 && b < n {
+        let slope = (e[b] - e[a - 1]) / span;
+        let left = (a >= 2).then(|| ((e[a - 1] - e[a - 2]) - slope).abs());
+        let right = (b + 1 < n).then(|| ((e[b + 1] - e[b]) - slope).abs());
+        let bend = match (left, right) {
+            (Some(l), Some(r)) => l.max(r),
+            (Some(s), None) | (None, Some(s)) => s,
+            (None, None) => return None,
+        };
+        (e[a - 1], a - 1, slope, bend)
+    } else if a == 0 && b + 2 < n {
+        let slope = e[b + 1] - e[b];
+        (e[b], b, slope, ((e[b + 2] - e[b + 1]) - slope).abs())
+    } else if b == n && a >= 3 {
+        let slope = e[a - 1] - e[a - 2];
+        (
+            e[a - 1],
+            a - 1,
+            slope,
+            ((e[a - 2] - e[a - 3]) - slope).abs(),
+        )
+    } else {
+        return None;
+    };
+    let (lo, hi) = (a..b)
+        .map(|k| e[k] - (at + slope * (k as f64 - from as f64)))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), d| {
+            (l.min(d), h.max(d))
+        });
+    let smallest = if lo > 0.0 {
+        lo
+    } else if hi < 0.0 {
+        -hi
+    } else {
+        0.0
+    };
+    Some((smallest, bend * span))
 }
 
 /// Widest play half-width tried for [`play_residual`], as a share of the input's range:
