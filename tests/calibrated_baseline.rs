@@ -260,3 +260,52 @@ fn a_carried_effect_at_another_size_is_found_and_named_with_how_to_refit_it() {
     assert!(!text.contains("Held at the calibrated size"), "{text}");
     assert!(!text.contains("(resized)"), "{text}");
 }
+
+/// tool4_05 with 0.3 rad/(N m) of its load added to the jaw's reading (put back on the
+/// jaw's 4000-count grid and six decimals, as the file is): the compliance is found at
+/// another size than calibrated, but this log pins it only together with its own encoder
+/// zero. The line that gives both sizes says so, as the parameter table does, instead of
+/// a `+-`; and since the residual is far from white, the table says its `+-` understate.
+#[test]
+fn a_resized_term_the_log_cannot_pin_has_no_spread_printed() {
+    use cable_servo::identify::{diagnose, DiagnoseOptions};
+    let path = repo().join("../shared/real-data/davinci/tool4_05.csv");
+    if !path.exists() {
+        eprintln!("skipped: {} is not beside the repository", path.display());
+        return;
+    }
+    let mut log = read_bench_log(&path).expect("log");
+    let q = std::f64::consts::TAU / 4000.0;
+    for (o, m) in log.theta_out_rad.iter_mut().zip(&log.load_nm) {
+        *o = (((*o + 0.3 * m) / q).round() * q * 1e6).round() / 1e6;
+    }
+    let d = diagnose(
+        &shipped_scenario(),
+        std::slice::from_ref(&log),
+        &DiagnoseOptions::default(),
+    )
+    .expect("diagnosis");
+    let text = cable_servo::report::diagnosis::summary_text(&d);
+    assert!(
+        d.resized.iter().any(|r| r.effect == "load_compliance"),
+        "{text}"
+    );
+    assert!(
+        d.not_identifiable
+            .iter()
+            .any(|n| n.name == "load_compliance"),
+        "{text}"
+    );
+    let line = text
+        .lines()
+        .find(|l| l.trim_start().starts_with("load_compliance: "))
+        .expect("the line of both sizes");
+    assert!(
+        line.contains("not identifiable: correlation") && !line.contains("+-"),
+        "{line}"
+    );
+    assert!(
+        text.contains("The +- assume a white residual. This one is not"),
+        "{text}"
+    );
+}

@@ -7,6 +7,10 @@ use std::path::{Path, PathBuf};
 use crate::identify::{Diagnosis, EffectName, IdentifyError};
 use crate::scenario::Scenario;
 
+/// Ljung-Box p-value below which the report says the residual is not white, so that its
+/// `+-` (which assume it is) understate the spread: 0.01.
+const WHITE_P: f64 = 0.01;
+
 fn wr(path: &Path, text: &str) -> Result<(), IdentifyError> {
     std::fs::write(path, text).map_err(|e| IdentifyError::Write {
         path: path.display().to_string(),
@@ -257,13 +261,22 @@ pub fn summary_text(d: &Diagnosis) -> String {
         u => format!("{} {u}", crate::compact(v)),
     };
     for r in &d.resized {
+        // The parameter table's judgement of the size, so the two never disagree.
+        let (spread, unpinned) = match d.not_identifiable.iter().find(|n| n.name == r.effect) {
+            Some(n) => (
+                sized(r.found, &r.unit),
+                format!("; not identifiable: {}", n.reason),
+            ),
+            None => (
+                format!("{} +- {}", crate::compact(r.found), sized(r.std, &r.unit)),
+                String::new(),
+            ),
+        };
         let _ = writeln!(
             s,
-            "  {}: {} calibrated, {} +- {} on the logs judged (one size for them all)",
+            "  {}: {} calibrated, {spread} on the logs judged (one size for them all){unpinned}",
             r.effect,
             sized(r.calibrated, &r.unit),
-            crate::compact(r.found),
-            sized(r.std, &r.unit),
         );
         if r.per_log.len() > 1 {
             let each: Vec<String> = r
@@ -404,6 +417,17 @@ pub fn summary_text(d: &Diagnosis) -> String {
         );
     }
     let _ = writeln!(s, "\nParameters (value +- 1 sigma):");
+    if let Some(w) = d
+        .residual_whiteness
+        .as_ref()
+        .filter(|w| w.p_value < WHITE_P)
+    {
+        let _ = writeln!(
+            s,
+            "  (The +- assume a white residual. This one is not (Ljung-Box p = {:.1e}): its errors come in runs, and the spread of a size refitted on another stretch of data can be several times its +-.)",
+            w.p_value
+        );
+    }
     for p in &d.params {
         match d.not_identifiable.iter().find(|n| n.name == p.name) {
             Some(n) => {
