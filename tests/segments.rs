@@ -187,6 +187,20 @@ fn hidden(seed: u64) -> Vec<(EffectName, f64)> {
     vec![(e, size_of(e, seed))]
 }
 
+/// Draw `seed` of the fault tests: a sine or a triangle scan (seeds 2 and 3 of every four
+/// are triangles), clean on even seeds, with a hidden effect on odd ones; its truth log
+/// drawn with noise seed `noise_seed`.
+fn drawn(seed: u64, noise_seed: u64) -> (Scenario, BenchLog) {
+    let sc = scenario(seed % 4 >= 2);
+    let effects = if seed.is_multiple_of(2) {
+        Vec::new()
+    } else {
+        hidden(10 + seed)
+    };
+    let log = truth(&sc, &effects, noise_seed);
+    (sc, log)
+}
+
 /// Thirty clean logs (sine and triangle scans; white, 1/f and random-walk noise,
 /// quantisation and outliers; twenty with a hidden effect): nothing flagged.
 #[test]
@@ -207,13 +221,7 @@ fn each_fault_is_flagged_on_its_channel_at_its_times() {
     for fault in FAULTS {
         for seed in 0..8u64 {
             let mut rng = rand::rngs::StdRng::seed_from_u64(seed * 31 + fault as u64);
-            let sc = scenario(seed % 4 >= 2);
-            let effects = if seed % 2 == 0 {
-                Vec::new()
-            } else {
-                hidden(10 + seed)
-            };
-            let mut log = truth(&sc, &effects, 4000 + seed);
+            let (sc, mut log) = drawn(seed, 4000 + seed);
             let t0 = rng.gen_range(8.0..20.0);
             let (channel, a, b) = inject(&mut log, fault, t0, sc.drive.ratio(), &mut rng);
             let s = flagged(&log);
@@ -349,13 +357,7 @@ fn exclusion_turns_a_stuck_output_back_into_none() {
 fn a_spike_at_either_end_of_the_log_is_flagged() {
     for seed in 0..8u64 {
         let mut rng = rand::rngs::StdRng::seed_from_u64(700 + seed);
-        let sc = scenario(seed % 4 >= 2);
-        let effects = if seed % 2 == 0 {
-            Vec::new()
-        } else {
-            hidden(10 + seed)
-        };
-        let mut log = truth(&sc, &effects, 4600 + seed);
+        let (sc, mut log) = drawn(seed, 4600 + seed);
         let n = log.t_s.len();
         let len = rng.gen_range(1..=3usize);
         let wrong = rng.gen_range(1e-3..1e-2) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
