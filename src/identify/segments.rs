@@ -1286,14 +1286,20 @@ fn stuck(
         .collect()
 }
 
-/// Median of `v` over each sample and `half` samples either side (fewer at the ends).
+/// Median of `v` over each sample and `half` samples either side; within `half` samples
+/// of an end, over the first or last `2 half + 1` samples.
 fn running_median(v: &[f64], half: usize) -> Vec<f64> {
     let n = v.len();
-    let mut w: Vec<f64> = Vec::with_capacity(2 * half + 1);
+    let width = (2 * half + 1).min(n);
+    let mut w: Vec<f64> = Vec::with_capacity(width);
     (0..n)
         .map(|i| {
+            // A window cut short at an end would be half a spike's samples and half the
+            // drive's: a spike of `half` samples on a log's first samples would be its
+            // median there, and read as travel.
+            let a = i.saturating_sub(half).min(n - width);
             w.clear();
-            w.extend_from_slice(&v[i.saturating_sub(half)..(i + half + 1).min(n)]);
+            w.extend_from_slice(&v[a..a + width]);
             let k = w.len() / 2;
             *w.select_nth_unstable_by(k, f64::total_cmp).1
         })
@@ -1629,6 +1635,23 @@ mod tests {
         }
     }
 
+    /// A scan of half sines of 5 s between dwells of 2 s at each turn, rad (5 rad at the
+    /// input).
+    fn dwell_scan(t: f64) -> f64 {
+        let cycle = t % 14.0;
+        let (u, top) = if cycle < 7.0 {
+            (cycle, 1.0)
+        } else {
+            (cycle - 7.0, -1.0)
+        };
+        let half = if u < 5.0 {
+            -(std::f64::consts::PI * u / 5.0).cos()
+        } else {
+            1.0
+        };
+        5.0 * top * half
+    }
+
     /// A scan with a 2 s dwell at each turn (a table the bench steps through): an output
     /// spike of three samples inside a dwell is the output's, and the input that holds
     /// there, as the motion says, is not stuck. Before, the spike counted as the output's
@@ -1640,21 +1663,7 @@ mod tests {
         let step_in = std::f64::consts::TAU / 65536.0;
         let step_out = std::f64::consts::TAU / 1_048_576.0;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-        // Half sines of 5 s between dwells of 2 s, at 100 Hz.
-        let motion = |t: f64| {
-            let cycle = t % 14.0;
-            let (u, top) = if cycle < 7.0 {
-                (cycle, 1.0)
-            } else {
-                (cycle - 7.0, -1.0)
-            };
-            let half = if u < 5.0 {
-                -(std::f64::consts::PI * u / 5.0).cos()
-            } else {
-                1.0
-            };
-            5.0 * top * half
-        };
+        let motion = dwell_scan;
         let t: Vec<f64> = (0..3000).map(|i| i as f64 * 0.01).collect();
         let xi: Vec<f64> = t.iter().map(|t| q(motion(*t), step_in)).collect();
         let mut xo: Vec<f64> = t
@@ -1679,6 +1688,61 @@ mod tests {
             s.iter().any(|s| s.start_s <= 6.0 && s.end_s >= 6.02),
             "the spike not flagged: {s:?}"
         );
+    }
+
+    /// The same scan recorded from inside one dwell to inside another: an output spike of
+    /// one to five samples on the record's first or last samples is the output's. Before,
+    /// the other channel's running median was cut short at the ends, so three or more
+    /// spiked samples were its median there and the input's dwell was flagged as "input
+    /// stuck while output moves", the spike not at all (an outside check: five of ten
+    /// such spikes at the start of the first da Vinci log, which starts at rest).
+    #[test]
+    fn an_output_spike_on_a_records_first_or_last_samples_is_the_outputs() {
+        use rand::{Rng, SeedableRng};
+        let step_in = std::f64::consts::TAU / 65536.0;
+        let step_out = std::f64::consts::TAU / 1_048_576.0;
+        let motion = dwell_scan;
+        // From 5.5 s, inside the dwell from 5 to 7 s, to 34.49 s, inside the one from 33
+        // to 35 s.
+        let t: Vec<f64> = (0..2900).map(|i| 5.5 + i as f64 * 0.01).collect();
+        let n = t.len();
+        let xi: Vec<f64> = t.iter().map(|t| q(motion(*t), step_in)).collect();
+        for seed in 0..4u64 {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let clean: Vec<f64> = t
+                .iter()
+                .map(|t| {
+                    q(
+                        0.195 * motion(*t) + 3e-6 * rng.gen_range(-1.0..1.0),
+                        step_out,
+                    )
+                })
+                .collect();
+            let s = detect(&log(t.clone(), xi.clone(), clean.clone()), "excluded");
+            assert!(s.is_empty(), "seed {seed}, clean: {s:?}");
+            for k in 1..=SPIKE_MAX_SAMPLES {
+                for at_end in [false, true] {
+                    let size =
+                        rng.gen_range(2e-3..2e-2) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+                    let mut xo = clean.clone();
+                    let spiked = if at_end { n - k..n } else { 0..k };
+                    for x in &mut xo[spiked.clone()] {
+                        *x += size;
+                    }
+                    let s = detect(&log(t.clone(), xi.clone(), xo), "excluded");
+                    let what = format!("seed {seed}, {k} samples, end {at_end}: {s:?}");
+                    assert!(
+                        s.iter().all(|s| s.channel == Channel::Output),
+                        "the input flagged: {what}"
+                    );
+                    let (a, b) = (t[spiked.start], t[spiked.end - 1]);
+                    assert!(
+                        s.iter().any(|s| s.start_s <= a && s.end_s >= b),
+                        "the spike not flagged: {what}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
