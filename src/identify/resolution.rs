@@ -48,21 +48,17 @@ pub fn encoder_step(v: &[f64]) -> f64 {
         return 0.0;
     }
     // A reading is on the grid when it lies a whole number of steps from the nearest
-    // repeated level: near, so that the step's own rounding does not add up.
+    // repeated level: near, so that the step's own rounding does not add up. (A grid was
+    // found on them, so there are at least ten.)
     let on_grid = values
         .iter()
-        .filter(|x| {
-            let i = repeated.partition_point(|r| r < *x);
-            let near = match (
-                i.checked_sub(1).map(|j| repeated[j]),
-                repeated.get(i).copied(),
-            ) {
-                (Some(lo), Some(hi)) if **x - lo > hi - **x => hi,
-                (Some(lo), _) => lo,
-                (None, Some(hi)) => hi,
-                (None, None) => return false,
-            };
-            let k = (**x - near) / q;
+        .filter(|&&x| {
+            let i = repeated
+                .partition_point(|r| *r < x)
+                .clamp(1, repeated.len() - 1);
+            let (lo, hi) = (repeated[i - 1], repeated[i]);
+            let near = if x - lo > hi - x { hi } else { lo };
+            let k = (x - near) / q;
             (k - k.round()).abs() < 0.05
         })
         .count();

@@ -1663,14 +1663,13 @@ mod tests {
         let step_in = std::f64::consts::TAU / 65536.0;
         let step_out = std::f64::consts::TAU / 1_048_576.0;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-        let motion = dwell_scan;
         let t: Vec<f64> = (0..3000).map(|i| i as f64 * 0.01).collect();
-        let xi: Vec<f64> = t.iter().map(|t| q(motion(*t), step_in)).collect();
+        let xi: Vec<f64> = t.iter().map(|t| q(dwell_scan(*t), step_in)).collect();
         let mut xo: Vec<f64> = t
             .iter()
             .map(|t| {
                 q(
-                    0.195 * motion(*t) + 3e-6 * rng.gen_range(-1.0..1.0),
+                    0.195 * dwell_scan(*t) + 3e-6 * rng.gen_range(-1.0..1.0),
                     step_out,
                 )
             })
@@ -1701,19 +1700,18 @@ mod tests {
         use rand::{Rng, SeedableRng};
         let step_in = std::f64::consts::TAU / 65536.0;
         let step_out = std::f64::consts::TAU / 1_048_576.0;
-        let motion = dwell_scan;
         // From 5.5 s, inside the dwell from 5 to 7 s, to 34.49 s, inside the one from 33
         // to 35 s.
         let t: Vec<f64> = (0..2900).map(|i| 5.5 + i as f64 * 0.01).collect();
         let n = t.len();
-        let xi: Vec<f64> = t.iter().map(|t| q(motion(*t), step_in)).collect();
+        let xi: Vec<f64> = t.iter().map(|t| q(dwell_scan(*t), step_in)).collect();
         for seed in 0..4u64 {
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
             let clean: Vec<f64> = t
                 .iter()
                 .map(|t| {
                     q(
-                        0.195 * motion(*t) + 3e-6 * rng.gen_range(-1.0..1.0),
+                        0.195 * dwell_scan(*t) + 3e-6 * rng.gen_range(-1.0..1.0),
                         step_out,
                     )
                 })
