@@ -265,7 +265,8 @@ fn a_carried_effect_at_another_size_is_found_and_named_with_how_to_refit_it() {
 /// jaw's 4000-count grid and six decimals, as the file is): the compliance is found at
 /// another size than calibrated, but this log pins it only together with its own encoder
 /// zero. The line that gives both sizes says so, as the parameter table does, instead of
-/// a `+-`; and since the residual is far from white, the table says its `+-` understate.
+/// a `+-`; and since the residual is far from white, the table says its `+-` allow for the
+/// residual's runs.
 #[test]
 fn a_resized_term_the_log_cannot_pin_has_no_spread_printed() {
     use cable_servo::identify::{diagnose, DiagnoseOptions};
@@ -305,7 +306,8 @@ fn a_resized_term_the_log_cannot_pin_has_no_spread_printed() {
         "{line}"
     );
     assert!(
-        text.contains("The +- assume a white residual. This one is not"),
+        text.contains("The +- allow for a residual that comes in runs")
+            && text.contains("this residual is not white"),
         "{text}"
     );
 }

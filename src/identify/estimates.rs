@@ -72,33 +72,28 @@ pub(crate) fn parameters(
             }
             NlParam::Effect(_) => continue,
         };
-        out.push(ParamEstimate {
-            name: n.0.name().into(),
-            value: v,
-            std: s,
-            unit: unit.into(),
-        });
+        out.push(ParamEstimate::new(n.0.name(), v, s, unit));
     }
     if let Some((i, c)) = lin(LinParam::ModulusScale) {
         let g = drive0.cable_modulus_n / c.max(1e-12);
         drive.cable_modulus_n = g;
-        out.push(ParamEstimate {
-            name: "cable_modulus_n".into(),
-            value: g,
-            std: std_of(cov, &[(i, g / c.max(1e-12))]),
-            unit: "N".into(),
-        });
+        out.push(ParamEstimate::new(
+            "cable_modulus_n",
+            g,
+            std_of(cov, &[(i, g / c.max(1e-12))]),
+            "N",
+        ));
     }
     let mut ic = drive0.ratio();
     if let Some((i, d)) = lin(LinParam::InverseRatio) {
         ic = 1.0 / (1.0 / ic + d);
         drive.pulley_radius_m = drive.drum_radius_m / ic;
-        out.push(ParamEstimate {
-            name: "ratio".into(),
-            value: ic,
-            std: std_of(cov, &[(i, ic * ic)]),
-            unit: "1".into(),
-        });
+        out.push(ParamEstimate::new(
+            "ratio",
+            ic,
+            std_of(cov, &[(i, ic * ic)]),
+            "1",
+        ));
     }
     let pair = |e: EffectName, scale: f64| -> Option<(f64, f64, f64, f64)> {
         let (i, a) = lin(LinParam::Effect(e, 0))?;
@@ -112,18 +107,8 @@ pub(crate) fn parameters(
     };
     // A runout is fitted as two quadrature terms; it is reported as amplitude and phase.
     let mut push_runout = |name: &str, (v, s, ph, sp): (f64, f64, f64, f64)| {
-        out.push(ParamEstimate {
-            name: name.into(),
-            value: v,
-            std: s,
-            unit: "1 (eccentricity/radius)".into(),
-        });
-        out.push(ParamEstimate {
-            name: format!("{name}_phase"),
-            value: ph,
-            std: sp,
-            unit: "rad".into(),
-        });
+        out.push(ParamEstimate::new(name, v, s, "1 (eccentricity/radius)"));
+        out.push(ParamEstimate::new(format!("{name}_phase"), ph, sp, "rad"));
         (v, ph)
     };
     if let Some(fit) = pair(EffectName::InputPulleyRunout, ic) {
@@ -147,12 +132,12 @@ pub(crate) fn parameters(
                 EffectName::EncoderScaleError => eff.encoder_scale_error = Some(v),
                 _ => eff.thermal_drift_rad_per_s = Some(v),
             }
-            out.push(ParamEstimate {
-                name: e.to_string(),
-                value: v,
-                std: std_of(cov, &[(i, 1.0)]),
-                unit: unit.into(),
-            });
+            out.push(ParamEstimate::new(
+                e.to_string(),
+                v,
+                std_of(cov, &[(i, 1.0)]),
+                unit,
+            ));
         }
     }
     for (k, p) in fit.lin.iter().enumerate() {
@@ -162,12 +147,12 @@ pub(crate) fn parameters(
             LinParam::PerLog(e, l) => (format!("{e}_per_log[{l}]"), e.unit()),
             _ => continue,
         };
-        out.push(ParamEstimate {
+        out.push(ParamEstimate::new(
             name,
-            value: fit.coef[k],
-            std: std_of(cov, &[(nn + k, 1.0)]),
-            unit: unit.into(),
-        });
+            fit.coef[k],
+            std_of(cov, &[(nn + k, 1.0)]),
+            unit,
+        ));
     }
     (out, drive, eff)
 }

@@ -288,30 +288,30 @@ pub(crate) fn parameters(
         let c: Vec<f64> = shape.iter().map(|x| x.1).collect();
         let g = shape_rms_gradient(&c);
         let grad: Vec<(usize, f64)> = shape.iter().zip(&g).map(|(a, b)| (a.0, *b)).collect();
-        out.push(super::ParamEstimate {
-            name: EffectName::AngleDependentRatio.to_string(),
-            value: shape_rms(&c),
-            std: std_of(&grad),
-            unit: EffectName::AngleDependentRatio.unit().into(),
-        });
+        out.push(super::ParamEstimate::new(
+            EffectName::AngleDependentRatio.to_string(),
+            shape_rms(&c),
+            std_of(&grad),
+            EffectName::AngleDependentRatio.unit(),
+        ));
         for (j, (i, v)) in shape.iter().enumerate() {
-            out.push(super::ParamEstimate {
-                name: format!("angle_dependent_ratio_P{}", j + 2),
-                value: *v,
-                std: std_of(&[(*i, 1.0)]),
-                unit: "rad".into(),
-            });
+            out.push(super::ParamEstimate::new(
+                format!("angle_dependent_ratio_P{}", j + 2),
+                *v,
+                std_of(&[(*i, 1.0)]),
+                "rad",
+            ));
         }
         eff.angle_dependent_ratio_coefs = Some(c);
         eff.angle_dependent_ratio_stroke_rad = Some([stroke.0, stroke.1]);
     }
     if let Some((i, v)) = coefs(EffectName::LoadCompliance).first() {
-        out.push(super::ParamEstimate {
-            name: EffectName::LoadCompliance.to_string(),
-            value: *v,
-            std: std_of(&[(*i, 1.0)]),
-            unit: EffectName::LoadCompliance.unit().into(),
-        });
+        out.push(super::ParamEstimate::new(
+            EffectName::LoadCompliance.to_string(),
+            *v,
+            std_of(&[(*i, 1.0)]),
+            EffectName::LoadCompliance.unit(),
+        ));
         eff.load_compliance_rad_per_nm = Some(*v);
     }
     let mem = coefs(EffectName::DistributedFrictionMemory);
@@ -326,12 +326,12 @@ pub(crate) fn parameters(
         let w: Vec<f64> = mem[..nt].iter().map(|x| x.1).collect();
         let v: Vec<f64> = mem[nt..].iter().map(|x| x.1).collect();
         if let Some((i, sw)) = slack {
-            out.push(super::ParamEstimate {
-                name: "friction_memory_slack_weight".into(),
-                value: sw,
-                std: std_of(&[(i, 1.0)]),
-                unit: "rad/rad".into(),
-            });
+            out.push(super::ParamEstimate::new(
+                "friction_memory_slack_weight",
+                sw,
+                std_of(&[(i, 1.0)]),
+                "rad/rad",
+            ));
             eff.friction_memory_slack_weight = Some(sw);
         }
         // Reported at the logs' mean torque magnitude: where the data pins it, whatever
@@ -354,41 +354,41 @@ pub(crate) fn parameters(
                     .map(|(a, r)| (a.0, *r * mean_load_factor)),
             )
             .collect();
-        out.push(super::ParamEstimate {
-            name: EffectName::DistributedFrictionMemory.to_string(),
-            value: at_mean * memory_amplitude(&w, thresholds)
+        out.push(super::ParamEstimate::new(
+            EffectName::DistributedFrictionMemory.to_string(),
+            at_mean * memory_amplitude(&w, thresholds)
                 + mean_load_factor * memory_amplitude(&v, thresholds),
-            std: std_of(&grad),
-            unit: EffectName::DistributedFrictionMemory.unit().into(),
-        });
+            std_of(&grad),
+            EffectName::DistributedFrictionMemory.unit(),
+        ));
         if !v.is_empty() {
             let grad: Vec<(usize, f64)> = mem[nt..]
                 .iter()
                 .zip(thresholds)
                 .map(|(a, r)| (a.0, *r))
                 .collect();
-            out.push(super::ParamEstimate {
-                name: "distributed_friction_memory_growth".into(),
-                value: memory_amplitude(&v, thresholds),
-                std: std_of(&grad),
-                unit: "rad/(N m)^p (lag growth with transmitted torque)".into(),
-            });
+            out.push(super::ParamEstimate::new(
+                "distributed_friction_memory_growth",
+                memory_amplitude(&v, thresholds),
+                std_of(&grad),
+                "rad/(N m)^p (lag growth with transmitted torque)",
+            ));
         }
         for ((i, v), r) in mem[..nt].iter().zip(thresholds) {
-            out.push(super::ParamEstimate {
-                name: format!("friction_memory_weight[r={r:.4} rad]"),
-                value: *v,
-                std: std_of(&[(*i, 1.0)]),
-                unit: "rad/rad".into(),
-            });
+            out.push(super::ParamEstimate::new(
+                format!("friction_memory_weight[r={r:.4} rad]"),
+                *v,
+                std_of(&[(*i, 1.0)]),
+                "rad/rad",
+            ));
         }
         for ((i, v), r) in mem[nt..].iter().zip(thresholds) {
-            out.push(super::ParamEstimate {
-                name: format!("friction_memory_load_weight[r={r:.4} rad]"),
-                value: *v,
-                std: std_of(&[(*i, 1.0)]),
-                unit: "rad/rad/(N m)^p".into(),
-            });
+            out.push(super::ParamEstimate::new(
+                format!("friction_memory_load_weight[r={r:.4} rad]"),
+                *v,
+                std_of(&[(*i, 1.0)]),
+                "rad/rad/(N m)^p",
+            ));
         }
         eff.friction_memory_load_weights_per_nm = (!v.is_empty()).then_some(v);
         eff.friction_memory_thresholds_rad = Some(thresholds[..w.len()].to_vec());

@@ -11,7 +11,7 @@ use serde::Serialize;
 use super::effects::{EffectName, IdentifyParams};
 use super::model::{self, Evaluator, Fitted, NlParam, Prepared, Spec};
 use super::startup::{self, StartCut, StartMode};
-use super::{extra_effects, play, BenchLog, IdentifyError, ParamEstimate};
+use super::{extra_effects, play, BenchLog, IdentifyError, ParamEstimate, ResidualRuns};
 use crate::physics::DriveParams;
 
 /// Shared parameters whose standard deviation exceeds this fraction of their value are
@@ -178,6 +178,13 @@ pub struct LooTable {
     pub rows: Vec<LooRow>,
     /// Shared parameters of the joint calibration over all logs, with 1-sigma.
     pub shared: Vec<ParamEstimate>,
+    /// How the joint calibration's residual comes in runs and how far that widened the
+    /// shared parameters' `+-` (`None` when no log holds a batch).
+    pub residual_runs: Option<ResidualRuns>,
+    /// Per shared parameter, how far the folds' calibrations (each without one log) scatter:
+    /// the jackknife standard deviation over the logs, a check on the `+-` that needs no
+    /// assumption about the residual (empty with fewer than three logs).
+    pub jackknife: Vec<JackknifeSpread>,
     /// Shared parameters the logs do not pin down (relative std above
     /// [`NOT_PINNED_REL_STD`]), with why.
     pub not_pinned: Vec<String>,
@@ -206,6 +213,44 @@ pub struct LooTable {
     pub drive: DriveParams,
     /// Effects of the joint calibration, as stored in a scenario.
     pub effects_params: super::effects::EffectsParams,
+}
+
+/// How far one shared parameter moves from fold to fold.
+#[derive(Clone, Debug, Serialize)]
+pub struct JackknifeSpread {
+    /// Parameter name, as in the shared table.
+    pub name: String,
+    /// Jackknife standard deviation over the logs, `sqrt((n - 1) / n sum (x_i - mean)^2)`
+    /// with `x_i` the fold without log `i`, in the parameter's unit: the spread of the
+    /// joint calibration that leaving out a log at a time shows.
+    pub std: f64,
+}
+
+/// The jackknife spread of each of `shared` over the folds' values of it (a parameter
+/// missing from a fold, or not a number there, gets none).
+fn jackknife_spread(shared: &[ParamEstimate], folds: &[&[ParamEstimate]]) -> Vec<JackknifeSpread> {
+    let n = folds.len();
+    if n < 3 {
+        return Vec::new();
+    }
+    shared
+        .iter()
+        .filter_map(|p| {
+            let xs: Vec<f64> = folds
+                .iter()
+                .map(|f| f.iter().find(|q| q.name == p.name).map(|q| q.value))
+                .collect::<Option<_>>()?;
+            if xs.iter().any(|x| !x.is_finite()) {
+                return None;
+            }
+            let m = xs.iter().sum::<f64>() / n as f64;
+            let ss: f64 = xs.iter().map(|x| (x - m).powi(2)).sum();
+            Some(JackknifeSpread {
+                name: p.name.clone(),
+                std: ((n - 1) as f64 / n as f64 * ss).sqrt(),
+            })
+        })
+        .collect()
 }
 
 /// One model calibrated with a log left out.
@@ -378,7 +423,8 @@ pub fn leave_one_out_with_segments(
         })
         .collect();
 
-    let fold = |k: usize| -> Result<(LooRow, Vec<f64>, Option<String>), IdentifyError> {
+    type FoldOut = (LooRow, (Vec<f64>, Vec<ParamEstimate>), Option<String>);
+    let fold = |k: usize| -> Result<FoldOut, IdentifyError> {
         let train: Vec<bool> = (0..n).map(|i| !ranges[k].contains(&i) && keep[i]).collect();
         let kept = |r: &[f64], g: &std::ops::Range<usize>| -> Vec<f64> {
             r[g.clone()]
@@ -422,7 +468,7 @@ pub fn leave_one_out_with_segments(
             .enumerate()
             .filter(|(j, _)| *j != k)
             .map(|(_, p)| p.torque.as_slice());
-        let (_, fold_drive, fold_effects) = as_scenario(
+        let (fold_params, fold_drive, fold_effects) = as_scenario(
             drive,
             &ext_nl,
             &ext_fit,
@@ -468,7 +514,7 @@ pub fn leave_one_out_with_segments(
                 pull_percent: 0.0,
                 as_new_log: as_new_log.as_ref().ok().cloned(),
             },
-            others,
+            (others, fold_params),
             as_new_log.err().map(|e| {
                 format!(
                     "{}: diagnosed alone against the calibration on the others, it failed: {e}",
@@ -479,7 +525,7 @@ pub fn leave_one_out_with_segments(
     };
     use rayon::prelude::*;
     let counter = crate::progress::Counter::new(prepared.len(), progress);
-    let folds: Vec<(LooRow, Vec<f64>, Option<String>)> = (0..prepared.len())
+    let folds: Vec<FoldOut> = (0..prepared.len())
         .into_par_iter()
         .map(|k| {
             let r = fold(k);
@@ -494,9 +540,10 @@ pub fn leave_one_out_with_segments(
     let f: Fitted = ev.fit(&all, None, 40)?;
     let nl = ev.nonlinear();
     let np = nl.len() + f.coef.len();
-    let cov = ev
-        .covariance(&f, &all)
-        .unwrap_or_else(|_| nalgebra::DMatrix::from_element(np, np, f64::NAN));
+    let (cov, runs) = match ev.identifiability_with_runs(&f, &all) {
+        Ok((a, runs)) => (a.cov, runs),
+        Err(_) => (nalgebra::DMatrix::from_element(np, np, f64::NAN), None),
+    };
     let (stroke, thresholds) = ev.stroke_and_thresholds();
     let (mut shared, joint_drive, eff) = as_scenario(
         drive,
@@ -506,6 +553,22 @@ pub fn leave_one_out_with_segments(
         (stroke, thresholds),
         prepared.iter().map(|l| l.torque.as_slice()),
     );
+    let residual_runs = runs.map(|r| {
+        let (in_runs, _, _) = as_scenario(
+            drive,
+            &nl,
+            &f,
+            &r.cov,
+            (stroke, thresholds),
+            prepared.iter().map(|l| l.torque.as_slice()),
+        );
+        ResidualRuns::widen(
+            &r,
+            &mut shared,
+            &in_runs,
+            super::mean_sample_interval(&prepared),
+        )
+    });
     shared.retain(|p| !p.name.starts_with("encoder_zero["));
     let not_pinned: Vec<String> = shared
         .iter()
@@ -537,10 +600,12 @@ pub fn leave_one_out_with_segments(
             rms(&v)
         })
         .collect();
+    let fold_params: Vec<&[ParamEstimate]> = folds.iter().map(|f| f.1 .1.as_slice()).collect();
+    let jackknife = jackknife_spread(&shared, &fold_params);
     let mut rows = Vec::with_capacity(folds.len());
     let mut pulling = Vec::new();
     let mut new_log_failures = Vec::new();
-    for (k, (mut row, without, failed)) in folds.into_iter().enumerate() {
+    for (k, (mut row, (without, _), failed)) in folds.into_iter().enumerate() {
         new_log_failures.extend(failed);
         let others = |v: &[f64]| -> f64 {
             let sum: f64 = v
@@ -605,6 +670,8 @@ pub fn leave_one_out_with_segments(
         effects: effects.iter().map(|e| e.to_string()).collect(),
         rows,
         shared,
+        residual_runs,
+        jackknife,
         not_pinned,
         on_bound,
         start_cuts,
@@ -772,8 +839,32 @@ pub fn loo_text(t: &LooTable) -> String {
         s,
         "\nShared parameters, joint calibration on every log (value +- 1 sigma):"
     );
+    if let Some(r) = &t.residual_runs {
+        let _ = writeln!(
+            s,
+            "  (The +- allow for a residual that comes in runs: correlated over about {} samples ({} s), each +- the larger of the white-residual one and one from batches of {} samples{}; widened by a median {:.2}x, at most {:.1}x.)",
+            crate::compact((r.correlation_samples * 10.0).round() / 10.0),
+            crate::compact(r.correlation_s),
+            r.batch_samples,
+            if r.batch_capped { ", cut at a quarter of the shortest log, so these still understate" } else { "" },
+            r.median_widening,
+            r.max_widening,
+        );
+    }
+    if !t.jackknife.is_empty() {
+        let _ = writeln!(
+            s,
+            "  (In brackets: the jackknife spread of the folds' calibrations, each without one log.)"
+        );
+    }
     for p in &t.shared {
-        let _ = writeln!(s, "  {}", shared_row(p));
+        let jack = t
+            .jackknife
+            .iter()
+            .find(|j| j.name == p.name)
+            .map(|j| format!(" [jackknife {}]", crate::compact(j.std)))
+            .unwrap_or_default();
+        let _ = writeln!(s, "  {}{jack}", shared_row(p));
     }
     for n in &t.not_pinned {
         let _ = writeln!(s, "  NOT PINNED: {n}");
@@ -812,7 +903,31 @@ fn shared_row(p: &ParamEstimate) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::{binned_structure, shared_row, ParamEstimate};
+    use super::{binned_structure, jackknife_spread, shared_row, ParamEstimate};
+
+    /// The jackknife of a mean is the standard error `s / sqrt(n)` exactly (`s` the sample
+    /// standard deviation): the folds' values are the means without one sample each.
+    #[test]
+    fn the_jackknife_of_a_mean_is_its_standard_error() {
+        let x = [2.0, 3.5, -1.0, 4.25, 0.5, 7.0, 3.0];
+        let n = x.len() as f64;
+        let sum: f64 = x.iter().sum();
+        let folds: Vec<Vec<ParamEstimate>> = x
+            .iter()
+            .map(|xi| vec![ParamEstimate::new("m", (sum - xi) / (n - 1.0), 0.0, "1")])
+            .collect();
+        let refs: Vec<&[ParamEstimate]> = folds.iter().map(|f| f.as_slice()).collect();
+        let shared = [
+            ParamEstimate::new("m", sum / n, 0.1, "1"),
+            ParamEstimate::new("absent", 1.0, 0.1, "1"),
+        ];
+        let j = jackknife_spread(&shared, &refs);
+        let mean = sum / n;
+        let s = (x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        assert_eq!(j.len(), 1, "{j:?}");
+        assert!((j[0].std / (s / n.sqrt()) - 1.0).abs() < 1e-12, "{j:?}");
+        assert!(jackknife_spread(&shared, &refs[..2]).is_empty());
+    }
 
     #[test]
     fn binned_structure_sees_a_function_of_the_signal_and_not_noise() {
@@ -861,11 +976,13 @@ mod tests {
 
     #[test]
     fn a_shared_value_its_uncertainty_exceeds_reads_as_not_identifiable() {
-        let p = |value: f64, std: f64| ParamEstimate {
-            name: "friction_memory_weight[r=0.0042 rad]".into(),
-            value,
-            std,
-            unit: "rad/rad".into(),
+        let p = |value: f64, std: f64| {
+            ParamEstimate::new(
+                "friction_memory_weight[r=0.0042 rad]",
+                value,
+                std,
+                "rad/rad",
+            )
         };
         let loose = shared_row(&p(3.98754e-2, 4.05e-2));
         assert!(!loose.contains("+-"), "{loose}");

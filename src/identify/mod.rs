@@ -972,11 +972,14 @@ pub fn diagnose_with_progress(
         .collect();
     let residual_whiteness = whiteness::ljung_box(&kept_resid, 10, 150);
     let np = nl_final.len() + ext_fit.coef.len();
-    let analysis = ev_final
-        .identifiability(&ext_fit, &split.full)
-        .unwrap_or_else(|_| identifiability::Analysis {
-            cov: nalgebra::DMatrix::from_element(np, np, f64::NAN),
-            unseen: vec![false; np],
+    let (analysis, runs) = ev_final
+        .identifiability_with_runs(&ext_fit, &split.full)
+        .unwrap_or_else(|_| {
+            let analysis = identifiability::Analysis {
+                cov: nalgebra::DMatrix::from_element(np, np, f64::NAN),
+                unseen: vec![false; np],
+            };
+            (analysis, None)
         });
     let cov = analysis.cov.clone();
     let ext_drive = with_base(&drive_for, &nl_final, &ext_fit.x);
@@ -988,6 +991,17 @@ pub fn diagnose_with_progress(
         ev_final.stroke_and_thresholds(),
         prepared.iter().map(|l| l.torque.as_slice()),
     );
+    let residual_runs = runs.map(|r| {
+        let (in_runs, _, _) = reported_parameters(
+            (&drive0, &ext_drive),
+            &nl_final,
+            &ext_fit,
+            &r.cov,
+            ev_final.stroke_and_thresholds(),
+            prepared.iter().map(|l| l.torque.as_slice()),
+        );
+        ResidualRuns::widen(&r, &mut params, &in_runs, mean_sample_interval(&prepared))
+    });
     // A carried effect found at another size was fitted as a change on top of the
     // calibrated size: the size reported and saved is the two together.
     let mut resized = Vec::new();
@@ -1239,6 +1253,7 @@ pub fn diagnose_with_progress(
         structure_ratio,
         unexplained_structure,
         residual_whiteness,
+        residual_runs,
         params,
         candidates: scores,
         play_operator,
@@ -1563,6 +1578,21 @@ pub(super) fn reported_parameters<'a>(
     (params, drive, eff)
 }
 
+/// Mean time between samples over the logs, s (0 for logs of one sample).
+pub(crate) fn mean_sample_interval(logs: &[Prepared]) -> f64 {
+    let (span, steps) =
+        logs.iter()
+            .fold((0.0, 0usize), |(s, n), l| match (l.t.first(), l.t.last()) {
+                (Some(a), Some(b)) if l.t.len() > 1 => (s + (b - a), n + l.t.len() - 1),
+                _ => (s, n),
+            });
+    if steps == 0 {
+        0.0
+    } else {
+        span / steps as f64
+    }
+}
+
 /// Standard deviations by which an effect's fitted size must stand off zero to be found:
 /// under two, its size is not told from zero (a clean 2 s gimbal log fitted a drum runout
 /// of 8.1e-5 +- 6.4e-5, and a 5 % held-out gain named it).
@@ -1634,7 +1664,7 @@ fn size_not_found(
                 e.to_string()
             };
             format!(
-                "{what} of {} +- {} not told from zero (under {} sigma)",
+                "{what} of {} +- {} not told from zero (under {} sigma of a white residual)",
                 crate::compact(p.value),
                 crate::compact(p.std),
                 crate::compact((sigmas * 100.0).round() / 100.0)

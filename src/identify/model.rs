@@ -1370,6 +1370,52 @@ impl<'a> Evaluator<'a> {
         f: &Fitted,
         mask: &[bool],
     ) -> Result<super::identifiability::Analysis, IdentifyError> {
+        let (j, _, s2) = self.jacobian(f, mask)?;
+        Ok(super::identifiability::analyse(&j, s2))
+    }
+
+    /// [`Evaluator::identifiability`] and, beside it, the covariance that holds when the
+    /// residual comes in runs ([`super::identifiability::long_run`]), each log's fitted
+    /// rows its own series.
+    pub fn identifiability_with_runs(
+        &mut self,
+        f: &Fitted,
+        mask: &[bool],
+    ) -> Result<
+        (
+            super::identifiability::Analysis,
+            Option<super::identifiability::Runs>,
+        ),
+        IdentifyError,
+    > {
+        let (j, resid, s2) = self.jacobian(f, mask)?;
+        let mut ranges = Vec::new();
+        let (mut start, mut row) = (0, 0);
+        for l in self.logs {
+            let n = mask[start..start + l.t.len()]
+                .iter()
+                .filter(|m| **m)
+                .count();
+            if n > 0 {
+                ranges.push(row..row + n);
+            }
+            row += n;
+            start += l.t.len();
+        }
+        let nr = j.nrows() as f64;
+        let dof_scale = nr / (nr - j.ncols() as f64).max(1.0);
+        let runs = super::identifiability::long_run(&j, &resid, &ranges, dof_scale);
+        Ok((super::identifiability::analyse(&j, s2), runs))
+    }
+
+    /// The Jacobian of the fit's prediction on the rows of `mask` (nonlinear columns by
+    /// finite differences at fixed linear coefficients, then the linear ones), the
+    /// residual on those rows, and its variance per degree of freedom.
+    fn jacobian(
+        &mut self,
+        f: &Fitted,
+        mask: &[bool],
+    ) -> Result<(DMatrix<f64>, Vec<f64>, f64), IdentifyError> {
         let nl = self.nonlinear();
         let d0 = self.design(&f.x)?;
         let p0 = Self::predict(&d0, &f.coef);
@@ -1403,7 +1449,9 @@ impl<'a> Evaluator<'a> {
         }
         let dof = (rows.len() as f64 - np as f64).max(1.0);
         let s2 = f.cost / dof;
-        Ok(super::identifiability::analyse(&j, s2))
+        let y = self.measured();
+        let resid = rows.iter().map(|i| y[*i] - p0[*i]).collect();
+        Ok((j, resid, s2))
     }
 }
 

@@ -152,26 +152,11 @@ pub fn cross_validate(
     }
     let rmse = (held.iter().map(|e| e * e).sum::<f64>() / held.len().max(1) as f64).sqrt();
     let mut params = vec![
-        ParamEstimate {
-            name: "play_half_width".into(),
-            value: full.x[0],
-            std: f64::NAN,
-            unit: "rad (output)".into(),
-        },
-        ParamEstimate {
-            name: "compliance".into(),
-            value: full.coef[logs.len()],
-            std: f64::NAN,
-            unit: "rad/(N m)".into(),
-        },
+        ParamEstimate::new("play_half_width", full.x[0], f64::NAN, "rad (output)"),
+        ParamEstimate::new("compliance", full.coef[logs.len()], f64::NAN, "rad/(N m)"),
     ];
     if fit_a {
-        params.push(ParamEstimate {
-            name: "ratio".into(),
-            value: 1.0 / full.x[1],
-            std: f64::NAN,
-            unit: "1".into(),
-        });
+        params.push(ParamEstimate::new("ratio", 1.0 / full.x[1], f64::NAN, "1"));
     }
     Ok(BaselineScore {
         name: "play_operator".into(),

@@ -77,11 +77,39 @@ pub struct ParamEstimate {
     pub name: String,
     /// Value.
     pub value: f64,
-    /// Standard deviation from `s^2 (J^T J)^-1` (quantisation makes residuals coloured, so
-    /// treat it as a lower bound).
+    /// Standard deviation, in the value's unit: the larger of `std_white` and the one that
+    /// holds when the residual comes in runs (see [`ResidualRuns`]); a real log's residual
+    /// is seldom white, and the white-residual figure then understates how far a size
+    /// refitted on other data moves.
     pub std: f64,
+    /// Standard deviation from `s^2 (J^T J)^-1`, which assumes a white residual; the size
+    /// gate of the search judges a candidate on it (see the guide).
+    pub std_white: f64,
     /// Unit.
     pub unit: String,
+}
+
+impl ParamEstimate {
+    /// A parameter with a white-residual standard deviation `std` (both fields alike until
+    /// [`ParamEstimate::widen`] takes the residual's runs into account).
+    pub fn new(name: impl Into<String>, value: f64, std: f64, unit: impl Into<String>) -> Self {
+        Self {
+            name: name.into(),
+            value,
+            std,
+            std_white: std,
+            unit: unit.into(),
+        }
+    }
+
+    /// `std` the larger of the white-residual figure and `runs_std`, the same parameter's
+    /// standard deviation from the covariance that holds for a residual in runs. A runs
+    /// figure that is not a number leaves the white one.
+    pub fn widen(&mut self, runs_std: f64) {
+        if runs_std.is_finite() && runs_std > self.std_white {
+            self.std = runs_std;
+        }
+    }
 }
 
 /// The scenario's calibrated model replayed on the logs as given: drive and every effect at
@@ -283,6 +311,70 @@ pub struct ResidualSignature {
     pub ratio_to_floor: f64,
 }
 
+/// How the final fit's residual comes in runs, and what that does to the parameters'
+/// `+-` ([`super::identifiability::long_run`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct ResidualRuns {
+    /// Integrated correlation time of the residual, samples: 1 for a white residual,
+    /// `(1 + rho) / (1 - rho)` for a first-order autoregression.
+    pub correlation_samples: f64,
+    /// The same at the logs' mean sample interval, s.
+    pub correlation_s: f64,
+    /// Batch of the long-run covariance, samples (about five correlation times).
+    pub batch_samples: usize,
+    /// Whether the batch was cut at a quarter of the shortest log: the residual is
+    /// correlated over so much of it that even the widened `+-` understate.
+    pub batch_capped: bool,
+    /// Median over the reported parameters of `std / std_white` (1: the runs change
+    /// nothing).
+    pub median_widening: f64,
+    /// Largest such ratio, and the parameter it belongs to.
+    pub max_widening: f64,
+    /// Parameter of [`ResidualRuns::max_widening`].
+    pub max_widening_parameter: String,
+}
+
+impl ResidualRuns {
+    /// Widen each of `params` by the same parameter's standard deviation in `in_runs` (the
+    /// table computed on the runs' covariance) and record how much that was.
+    pub(crate) fn widen(
+        runs: &super::identifiability::Runs,
+        params: &mut [ParamEstimate],
+        in_runs: &[ParamEstimate],
+        sample_interval_s: f64,
+    ) -> Self {
+        let mut ratios = Vec::new();
+        let (mut max_widening, mut max_widening_parameter) = (1.0, String::new());
+        for p in params.iter_mut() {
+            if let Some(q) = in_runs.iter().find(|q| q.name == p.name) {
+                p.widen(q.std);
+            }
+            if p.std_white > 0.0 && p.std_white.is_finite() && p.std.is_finite() {
+                let r = p.std / p.std_white;
+                if r > max_widening {
+                    (max_widening, max_widening_parameter) = (r, p.name.clone());
+                }
+                ratios.push(r);
+            }
+        }
+        ratios.sort_by(f64::total_cmp);
+        let median_widening = match ratios.len() {
+            0 => 1.0,
+            n if n % 2 == 1 => ratios[n / 2],
+            n => 0.5 * (ratios[n / 2 - 1] + ratios[n / 2]),
+        };
+        Self {
+            correlation_samples: runs.correlation_samples,
+            correlation_s: runs.correlation_samples * sample_interval_s,
+            batch_samples: runs.batch_samples,
+            batch_capped: runs.batch_capped,
+            median_widening,
+            max_widening,
+            max_widening_parameter,
+        }
+    }
+}
+
 /// Result of [`super::diagnose`].
 #[derive(Clone, Debug, Serialize)]
 pub struct Diagnosis {
@@ -316,6 +408,9 @@ pub struct Diagnosis {
     /// unmodelled resonance but also rejects about half of the clean, quantised logs, which
     /// is why it does not decide.
     pub residual_whiteness: Option<whiteness::Whiteness>,
+    /// How the final residual comes in runs and how far that widened the parameters' `+-`
+    /// (`None` when no log is long enough to hold a batch).
+    pub residual_runs: Option<ResidualRuns>,
     /// Calibrated base and effect parameters.
     pub params: Vec<ParamEstimate>,
     /// Every candidate tried.
