@@ -122,114 +122,158 @@ impl Scaled {
 /// time of 20 samples still holds 120 batches.
 pub const RUNS_BATCH_TAUS: f64 = 5.0;
 
-/// Longest batch, as a share of the shortest log: a residual correlated over most of a log
-/// leaves too few batches to estimate anything, and its `+-` is then a lower bound.
+/// Longest batch, as a share of the longest stretch of fitted rows: a residual correlated
+/// over most of a log leaves too few batches to estimate anything, and its `+-` is then a
+/// lower bound.
 pub const RUNS_MAX_BATCH_SHARE: f64 = 0.25;
+
+/// Stretches shorter than this many rows are left out of the correlation time (their
+/// autocovariance at any useful lag is mostly edge); their scores still count.
+pub const RUNS_MIN_STRETCH: usize = 32;
+
+/// Longest lag, samples, the correlation time is summed to: beyond it a residual that
+/// wanders like a random walk keeps raising the sum without end, and the covariance is
+/// said to understate ([`Runs::batch_capped`]).
+pub const RUNS_MAX_LAG: usize = 4096;
+
+/// Rows the autocovariance is estimated on at most (each stretch's first share), so that
+/// hours of logs cost seconds, not hours: 200 000 rows give the correlation time to a
+/// fraction of a per cent.
+pub const RUNS_MAX_ROWS: usize = 200_000;
 
 /// How a fit's residual comes in runs, and the covariance that holds for it.
 #[derive(Clone, Debug)]
 pub struct Runs {
     /// Covariance robust to a residual correlated in time (the sandwich `(J^T J)^-1 S
     /// (J^T J)^-1`, `S` the long-run covariance of the scores `J_t r_t` by overlapping batch
-    /// means within each log), in the parameters' own units.
+    /// means within each stretch of fitted rows), in the parameters' own units.
     pub cov: DMatrix<f64>,
     /// Integrated correlation time of the residual, samples (1 for a white residual; Sokal's
-    /// self-consistent window, pooled over the logs).
+    /// self-consistent window, pooled over the stretches).
     pub correlation_samples: f64,
     /// Batch length used, samples.
     pub batch_samples: usize,
-    /// Whether the batch was cut to [`RUNS_MAX_BATCH_SHARE`] of the shortest log, so the
-    /// covariance still understates what the runs do.
+    /// Whether the residual is correlated over more than the batch or the lag window can
+    /// hold (a batch cut to [`RUNS_MAX_BATCH_SHARE`] of the longest stretch below five
+    /// correlation times, or a window that reached [`RUNS_MAX_LAG`] or a quarter of the
+    /// longest stretch before closing), so the covariance still understates what the runs
+    /// do.
     pub batch_capped: bool,
 }
 
-/// Integrated correlation time `1 + 2 sum rho_l` of `runs` (each a log's residual, in
-/// time order), its autocovariance pooled over them, summed to the first lag `M` with `M
-/// >= 5 tau(M)` (Sokal's window) and never past a quarter of the shortest run.
-pub fn correlation_time(runs: &[&[f64]]) -> f64 {
-    let shortest = runs.iter().map(|r| r.len()).min().unwrap_or(0);
-    let total: usize = runs.iter().map(|r| r.len()).sum();
-    if shortest < 8 || total == 0 {
-        return 1.0;
+/// Integrated correlation time `1 + 2 sum rho_l` of `runs` (each a stretch of residual in
+/// time order; those under [`RUNS_MIN_STRETCH`] rows left out), its autocovariance pooled
+/// over them, summed to the first lag `M` with `M >= 5 tau(M)` (Sokal's window). Returns
+/// the time, samples, and whether the window had to stop before closing, at [`RUNS_MAX_LAG`]
+/// or a quarter of the longest stretch.
+pub fn correlation_time(runs: &[&[f64]]) -> (f64, bool) {
+    let usable: Vec<&[f64]> = runs
+        .iter()
+        .copied()
+        .filter(|r| r.len() >= RUNS_MIN_STRETCH)
+        .collect();
+    let total: usize = usable.iter().map(|r| r.len()).sum();
+    if total == 0 {
+        return (1.0, false);
     }
-    let centred: Vec<Vec<f64>> = runs
+    // Beyond RUNS_MAX_ROWS, each stretch's first share.
+    let share = (RUNS_MAX_ROWS as f64 / total as f64).min(1.0);
+    let centred: Vec<Vec<f64>> = usable
         .iter()
         .map(|r| {
-            let m = r.iter().sum::<f64>() / r.len() as f64;
+            let n = ((r.len() as f64 * share).ceil() as usize).clamp(2, r.len());
+            let r = &r[..n];
+            let m = r.iter().sum::<f64>() / n as f64;
             r.iter().map(|v| v - m).collect()
         })
         .collect();
+    let used: usize = centred.iter().map(|r| r.len()).sum();
+    let longest = centred.iter().map(|r| r.len()).max().unwrap_or(0);
     let gamma = |l: usize| -> f64 {
         centred
             .iter()
+            .filter(|r| r.len() > l)
             .map(|r| r.iter().zip(&r[l..]).map(|(a, b)| a * b).sum::<f64>())
             .sum::<f64>()
-            / total as f64
+            / used as f64
     };
     let g0 = gamma(0);
     if !(g0 > 0.0 && g0.is_finite()) {
-        return 1.0;
+        return (1.0, false);
     }
+    let max_lag = (longest / 4).min(RUNS_MAX_LAG);
     let mut tau = 1.0;
-    for l in 1..shortest / 4 {
+    for l in 1..=max_lag {
         tau += 2.0 * gamma(l) / g0;
         if l as f64 >= 5.0 * tau {
-            break;
+            return (tau.max(1.0), false);
         }
     }
-    tau.max(1.0)
+    (tau.max(1.0), max_lag >= 1)
 }
 
 /// The covariance of a fit whose residual `resid` comes in runs: `j`'s rows and `resid`
-/// in time order, `logs` the row ranges of each log (no batch spans two). `None` when no
-/// log is long enough to hold a batch.
+/// in time order, `stretches` the row ranges of each stretch of consecutive fitted rows
+/// (no batch spans two: a log's end, a cut or an excluded segment separates them). A
+/// stretch shorter than the batch counts as one batch of its own length. `None` when there
+/// are no rows.
 pub fn long_run(
     j: &DMatrix<f64>,
     resid: &[f64],
-    logs: &[std::ops::Range<usize>],
+    stretches: &[std::ops::Range<usize>],
     dof_scale: f64,
 ) -> Option<Runs> {
     let np = j.ncols();
-    let pieces: Vec<&[f64]> = logs.iter().map(|r| &resid[r.clone()]).collect();
-    let tau = correlation_time(&pieces);
-    let shortest = logs.iter().map(|r| r.len()).min()?;
-    let cap = ((RUNS_MAX_BATCH_SHARE * shortest as f64).floor() as usize).max(1);
+    let pieces: Vec<&[f64]> = stretches.iter().map(|r| &resid[r.clone()]).collect();
+    let (tau, window_cut) = correlation_time(&pieces);
+    let longest = stretches.iter().map(|r| r.len()).max().filter(|n| *n > 0)?;
+    let cap = ((RUNS_MAX_BATCH_SHARE * longest as f64).floor() as usize).max(1);
     let want = (RUNS_BATCH_TAUS * tau).ceil().max(1.0) as usize;
     let b = want.min(cap);
+    // A white residual needs batches of one row: the batch is cut short of what the runs
+    // need only when it is under five correlation times beyond the first row.
+    let needed = (RUNS_BATCH_TAUS * (tau - 1.0)).ceil().max(0.0) as usize + 1;
     let scaled = Scaled::new(j);
     let (inv, _) = scaled.pseudo_inverse();
+    let score = |row: usize, k: usize| scaled.js[(row, k)] * resid[row];
     // Overlapping batch means: S = sum over windows of (sum of b scores)(...)^T / b,
-    // scaled by n / (n - b + 1) for the windows a log's ends leave out.
+    // scaled by n / (windows b) for the windows a stretch's ends and the stride leave out.
+    // Windows start every eighth of a batch: nearly all of full overlap's precision at an
+    // eighth of its cost.
+    let stride = (b / 8).max(1);
     let mut s = DMatrix::<f64>::zeros(np, np);
-    let mut cum = vec![0.0; np];
-    let mut hist: Vec<Vec<f64>> = Vec::new();
-    for range in logs {
+    let mut d = vec![0.0; np];
+    let mut add = |d: &[f64], w: f64| {
+        for r in 0..np {
+            if d[r] == 0.0 {
+                continue;
+            }
+            for c in 0..np {
+                s[(r, c)] += w * d[r] * d[c];
+            }
+        }
+    };
+    for range in stretches {
         let n = range.len();
-        if n < b {
+        if n == 0 {
             continue;
         }
-        hist.clear();
-        hist.push(vec![0.0; np]);
-        cum.iter_mut().for_each(|c| *c = 0.0);
-        for row in range.clone() {
-            for (k, c) in cum.iter_mut().enumerate() {
-                *c += scaled.js[(row, k)] * resid[row];
-            }
-            hist.push(cum.clone());
+        let len = b.min(n);
+        for (k, dk) in d.iter_mut().enumerate() {
+            *dk = range.clone().take(len).map(|row| score(row, k)).sum();
         }
-        let windows = n - b + 1;
-        let w = n as f64 / (windows as f64 * b as f64);
-        let mut d = vec![0.0; np];
-        for t in 0..windows {
-            for (k, dk) in d.iter_mut().enumerate() {
-                *dk = hist[t + b][k] - hist[t][k];
-            }
-            for r in 0..np {
-                if d[r] == 0.0 {
-                    continue;
-                }
-                for c in 0..np {
-                    s[(r, c)] += w * d[r] * d[c];
+        let starts = (n - len) / stride + 1;
+        let w = n as f64 / (starts as f64 * len as f64);
+        for i in 0..starts {
+            add(&d, w);
+            if i + 1 < starts {
+                // Slide the window by `stride` rows: the rows that enter, less those that
+                // leave.
+                let t = range.start + i * stride;
+                for (k, dk) in d.iter_mut().enumerate() {
+                    for row in t..t + stride {
+                        *dk += score(row + len, k) - score(row, k);
+                    }
                 }
             }
         }
@@ -239,7 +283,7 @@ pub fn long_run(
         cov: scaled.unscale(cov),
         correlation_samples: tau,
         batch_samples: b,
-        batch_capped: want > cap,
+        batch_capped: window_cut || cap < needed,
     })
 }
 
@@ -346,7 +390,8 @@ mod runs_tests {
     fn the_correlation_time_of_an_autoregression_is_its_closed_form() {
         for (rho, seed) in [(0.0, 1), (0.5, 2), (0.8, 3), (0.95, 4)] {
             let e = ar1(200_000, rho, seed);
-            let tau = correlation_time(&[&e]);
+            let (tau, cut) = correlation_time(&[&e]);
+            assert!(!cut);
             let exact = (1.0 + rho) / (1.0 - rho);
             assert!(
                 (tau / exact - 1.0).abs() < 0.06,
@@ -356,7 +401,7 @@ mod runs_tests {
         // Split into logs, the same series gives the same time: no lag spans two logs.
         let e = ar1(200_000, 0.8, 5);
         let parts: Vec<&[f64]> = e.chunks(20_000).collect();
-        let tau = correlation_time(&parts);
+        let (tau, _) = correlation_time(&parts);
         assert!((tau / 9.0 - 1.0).abs() < 0.06, "{tau}");
     }
 
@@ -444,6 +489,44 @@ mod runs_tests {
         for r in ratio {
             assert!((0.9..1.1).contains(&r), "{ratio:?}");
         }
+    }
+
+    /// A stretch of a few rows (what an excluded segment leaves between two others) takes
+    /// no part in the correlation time and counts as one batch: it does not switch the
+    /// runs off for the long stretches beside it.
+    #[test]
+    fn a_short_stretch_does_not_switch_the_runs_off() {
+        let n = 6000;
+        let e = ar1(n, 0.9, 7);
+        let j = DMatrix::from_element(n, 1, 1.0);
+        let long = [0..2997, 2997..3003, 3003..n];
+        let alone = [0..2997, 3003..n];
+        let a = long_run(&j, &e, &long, 1.0).expect("runs");
+        let b = long_run(&j, &e, &alone, 1.0).expect("runs");
+        assert!((a.correlation_samples / 19.0 - 1.0).abs() < 0.25, "{a:?}");
+        assert_eq!(a.correlation_samples, b.correlation_samples);
+        assert!(!a.batch_capped, "{a:?}");
+        let rel = (a.cov[(0, 0)] / b.cov[(0, 0)]).sqrt();
+        assert!((rel - 1.0).abs() < 0.02, "{rel}");
+    }
+
+    /// A residual that wanders like a random walk has no correlation time: the window
+    /// stops at its limit and the covariance says it understates.
+    #[test]
+    fn a_wandering_residual_is_said_to_understate() {
+        let n = 20_000;
+        let mut x = 0.0;
+        let steps = ar1(n, 0.0, 8);
+        let walk: Vec<f64> = steps
+            .iter()
+            .map(|w| {
+                x += w;
+                x
+            })
+            .collect();
+        let j = DMatrix::from_element(n, 1, 1.0);
+        let r = long_run(&j, &walk, std::slice::from_ref(&(0..n)), 1.0).expect("runs");
+        assert!(r.batch_capped, "{r:?}");
     }
 
     #[test]

@@ -179,7 +179,7 @@ pub struct LooTable {
     /// Shared parameters of the joint calibration over all logs, with 1-sigma.
     pub shared: Vec<ParamEstimate>,
     /// How the joint calibration's residual comes in runs and how far that widened the
-    /// shared parameters' `+-` (`None` when no log holds a batch).
+    /// shared parameters' `+-` (`None` when the covariance could not be computed).
     pub residual_runs: Option<ResidualRuns>,
     /// Per shared parameter, how far the folds' calibrations (each without one log) scatter:
     /// the jackknife standard deviation over the logs, a check on the `+-` that needs no
@@ -553,6 +553,7 @@ pub fn leave_one_out_with_segments(
         (stroke, thresholds),
         prepared.iter().map(|l| l.torque.as_slice()),
     );
+    shared.retain(|p| !p.name.starts_with("encoder_zero["));
     let residual_runs = runs.map(|r| {
         let (in_runs, _, _) = as_scenario(
             drive,
@@ -569,7 +570,6 @@ pub fn leave_one_out_with_segments(
             super::mean_sample_interval(&prepared),
         )
     });
-    shared.retain(|p| !p.name.starts_with("encoder_zero["));
     let not_pinned: Vec<String> = shared
         .iter()
         .filter(|p| {
@@ -846,7 +846,7 @@ pub fn loo_text(t: &LooTable) -> String {
             crate::compact((r.correlation_samples * 10.0).round() / 10.0),
             crate::compact(r.correlation_s),
             r.batch_samples,
-            if r.batch_capped { ", cut at a quarter of the shortest log, so these still understate" } else { "" },
+            if r.batch_capped { ", cut at a quarter of the longest stretch of a log, so these still understate" } else { "" },
             r.median_widening,
             r.max_widening,
         );

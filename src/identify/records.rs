@@ -322,8 +322,8 @@ pub struct ResidualRuns {
     pub correlation_s: f64,
     /// Batch of the long-run covariance, samples (about five correlation times).
     pub batch_samples: usize,
-    /// Whether the batch was cut at a quarter of the shortest log: the residual is
-    /// correlated over so much of it that even the widened `+-` understate.
+    /// Whether the residual is correlated over more than a quarter of the longest stretch
+    /// of fitted rows can hold, or wanders without end: even the widened `+-` understate.
     pub batch_capped: bool,
     /// Median over the reported parameters of `std / std_white` (1: the runs change
     /// nothing).

@@ -474,7 +474,8 @@ pub fn summary_text(d: &Diagnosis) -> String {
 
 /// Widening of a `+-` by the residual's runs above which the report says so even when the
 /// Ljung-Box test passes: on white residuals the batch estimate alone scatters the largest
-/// widening up to about 1.1 (1.02 to 1.09 on synthetic logs).
+/// widening up to about 1.1 (1.02 to 1.07 on the guide's three synthetic logs, 1.09 on the
+/// clean log of `a_residual_in_runs_widens_the_uncertainties_and_says_so`).
 const RUNS_NOTE_WIDENING: f64 = 1.25;
 
 /// What the residual's runs did to the `+-`, in words, when the residual is not white or
@@ -511,7 +512,7 @@ fn runs_note(d: &Diagnosis) -> Option<String> {
         line.push_str(&format!("; {w}"));
     }
     if r.batch_capped {
-        line.push_str("; the residual is correlated over more than a quarter of a log, so even these understate how far a size refitted on other data moves");
+        line.push_str("; the residual is correlated over more than a quarter of the longest stretch of a log can hold, so even these understate how far a size refitted on other data moves");
     }
     line.push('.');
     Some(line)
