@@ -306,6 +306,21 @@ pub fn summary_text(d: &Diagnosis) -> String {
             d.meaning
         );
     }
+    // A cause is named on held-out error; its size is judged apart, and the table's
+    // judgement of it (the residual's runs allowed for) is said here, beside the name.
+    for c in d
+        .causes
+        .iter()
+        .filter(|c| !d.resized.iter().any(|r| &r.effect == *c))
+    {
+        if let Some(n) = d.not_identifiable.iter().find(|n| &n.name == c) {
+            let _ = writeln!(
+                s,
+                "  {c}: the held-out error needs it, but this size is not identifiable: {}",
+                n.reason
+            );
+        }
+    }
     if d.causes.len() > 1 && d.cause != "unexplained" {
         let named: Vec<String> = d
             .causes
