@@ -468,17 +468,23 @@ pub fn leave_one_out_with_segments(
             .enumerate()
             .filter(|(j, _)| *j != k)
             .map(|(_, p)| p.torque.as_slice());
-        let (fold_params, fold_drive, fold_effects) = as_scenario(
+        let no_cov = nalgebra::DMatrix::from_element(
+            ext_nl.len() + ext_fit.coef.len(),
+            ext_nl.len() + ext_fit.coef.len(),
+            f64::NAN,
+        );
+        let (_, fold_drive, fold_effects) =
+            as_scenario(drive, &ext_nl, &ext_fit, &no_cov, basis, train_torques);
+        // The jackknife compares the folds with the joint calibration: a size read at the
+        // mean torque is read at every log's mean, as the joint one is, so the spread is
+        // the fit's and not the shift of a fold's own mean torque.
+        let (fold_params, _, _) = as_scenario(
             drive,
             &ext_nl,
             &ext_fit,
-            &nalgebra::DMatrix::from_element(
-                ext_nl.len() + ext_fit.coef.len(),
-                ext_nl.len() + ext_fit.coef.len(),
-                f64::NAN,
-            ),
+            &no_cov,
             basis,
-            train_torques,
+            prepared.iter().map(|p| p.torque.as_slice()),
         );
         let as_new_log = new_log_score(
             &fold_drive,
