@@ -1370,13 +1370,13 @@ impl<'a> Evaluator<'a> {
         f: &Fitted,
         mask: &[bool],
     ) -> Result<super::identifiability::Analysis, IdentifyError> {
-        let (j, _, s2) = self.jacobian(f, mask)?;
+        let (j, _, _, s2) = self.jacobian(f, mask)?;
         Ok(super::identifiability::analyse(&j, s2))
     }
 
     /// [`Evaluator::identifiability`] and, beside it, the covariance that holds when the
-    /// residual comes in runs ([`super::identifiability::long_run`]), each log's fitted
-    /// rows its own series.
+    /// residual comes in runs ([`super::identifiability::long_run`]), each stretch of a log's
+    /// consecutive fitted rows its own series.
     pub fn identifiability_with_runs(
         &mut self,
         f: &Fitted,
@@ -1388,34 +1388,29 @@ impl<'a> Evaluator<'a> {
         ),
         IdentifyError,
     > {
-        let (j, resid, s2) = self.jacobian(f, mask)?;
-        let mut ranges = Vec::new();
-        let (mut start, mut row) = (0, 0);
-        for l in self.logs {
-            let n = mask[start..start + l.t.len()]
-                .iter()
-                .filter(|m| **m)
-                .count();
-            if n > 0 {
-                ranges.push(row..row + n);
-            }
-            row += n;
-            start += l.t.len();
-        }
+        let (j, rows, p0, s2) = self.jacobian(f, mask)?;
+        let y = self.measured();
+        let resid: Vec<f64> = rows.iter().map(|i| y[*i] - p0[*i]).collect();
+        let log_ends: Vec<usize> = self
+            .logs
+            .iter()
+            .scan(0, |end, l| {
+                *end += l.t.len();
+                Some(*end)
+            })
+            .collect();
         let nr = j.nrows() as f64;
         let dof_scale = nr / (nr - j.ncols() as f64).max(1.0);
-        let runs = super::identifiability::long_run(&j, &resid, &ranges, dof_scale);
+        let runs =
+            super::identifiability::long_run(&j, &resid, &stretches(&rows, &log_ends), dof_scale);
         Ok((super::identifiability::analyse(&j, s2), runs))
     }
 
     /// The Jacobian of the fit's prediction on the rows of `mask` (nonlinear columns by
-    /// finite differences at fixed linear coefficients, then the linear ones), the
-    /// residual on those rows, and its variance per degree of freedom.
-    fn jacobian(
-        &mut self,
-        f: &Fitted,
-        mask: &[bool],
-    ) -> Result<(DMatrix<f64>, Vec<f64>, f64), IdentifyError> {
+    /// finite differences at fixed linear coefficients, then the linear ones), those rows'
+    /// indices, the prediction on every row, and the residual's variance per degree of
+    /// freedom.
+    fn jacobian(&mut self, f: &Fitted, mask: &[bool]) -> Result<Jacobian, IdentifyError> {
         let nl = self.nonlinear();
         let d0 = self.design(&f.x)?;
         let p0 = Self::predict(&d0, &f.coef);
@@ -1449,9 +1444,39 @@ impl<'a> Evaluator<'a> {
         }
         let dof = (rows.len() as f64 - np as f64).max(1.0);
         let s2 = f.cost / dof;
-        let y = self.measured();
-        let resid = rows.iter().map(|i| y[*i] - p0[*i]).collect();
-        Ok((j, resid, s2))
+        Ok((j, rows, p0, s2))
+    }
+}
+
+/// [`Evaluator`]'s Jacobian on the fitted rows, those rows' indices, the prediction on
+/// every row, and the residual's variance per degree of freedom.
+type Jacobian = (DMatrix<f64>, Vec<usize>, Vec<f64>, f64);
+
+/// Stretches of consecutive fitted rows, as ranges of positions in `rows` (the fitted
+/// rows' indices over the stacked logs, ascending): a gap in the indices (a start cut or
+/// an excluded segment) or the end of a log (`log_ends`, each log's end index) closes one,
+/// so no batch of the runs covariance joins data not recorded together.
+fn stretches(rows: &[usize], log_ends: &[usize]) -> Vec<std::ops::Range<usize>> {
+    let mut out = Vec::new();
+    let mut start = 0;
+    for k in 1..=rows.len() {
+        let closes = k == rows.len() || rows[k] != rows[k - 1] + 1 || log_ends.contains(&rows[k]);
+        if closes {
+            out.push(start..k);
+            start = k;
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod stretch_tests {
+    #[test]
+    fn a_gap_or_a_logs_end_closes_a_stretch() {
+        // Two logs of 6 rows; rows 2 and 3 of the first excluded, the second whole.
+        let rows = [0, 1, 4, 5, 6, 7, 8, 9, 10, 11];
+        assert_eq!(super::stretches(&rows, &[6, 12]), vec![0..2, 2..4, 4..10]);
+        assert!(super::stretches(&[], &[6]).is_empty());
     }
 }
 
