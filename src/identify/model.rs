@@ -3,6 +3,7 @@
 //! linear ones projected out by least squares).
 
 use std::collections::HashMap;
+use std::sync::Arc;
 
 use nalgebra::DMatrix;
 
@@ -669,7 +670,9 @@ pub struct Evaluator<'a> {
     /// grid and its slack a wider first contact, which the logs cannot tell from the
     /// weights.
     several_loads: bool,
-    cache: HashMap<ReplayKey, Vec<Vec<f64>>>,
+    cache: HashMap<ReplayKey, Arc<Vec<Vec<f64>>>>,
+    /// `y` stacked over the logs, rad.
+    y_stacked: Vec<f64>,
 }
 
 /// One model evaluation: fixed part and linear columns, stacked over logs.
@@ -678,8 +681,11 @@ pub struct Design {
     pub target: Vec<f64>,
     /// Fixed part of the prediction.
     pub fixed: Vec<f64>,
-    /// Linear columns.
+    /// Linear columns, each over its rows `support` only (zero on every other row).
     pub cols: Vec<Vec<f64>>,
+    /// The rows each column covers (an encoder zero's: its own log's), in stacked row
+    /// indices.
+    pub support: Vec<std::ops::Range<usize>>,
     /// Their names.
     pub names: Vec<LinParam>,
     /// Largest `|M|^p` over the logs (p the friction memory's load exponent; 1 without
@@ -691,7 +697,7 @@ impl<'a> Evaluator<'a> {
     /// Set up; the measured error uses the reference ratio of `spec.drive`.
     pub fn new(spec: Spec, logs: &'a [Prepared]) -> Self {
         let ic = spec.drive.ratio();
-        let y = logs
+        let y: Vec<Vec<f64>> = logs
             .iter()
             .map(|l| {
                 l.th_out
@@ -701,6 +707,7 @@ impl<'a> Evaluator<'a> {
                     .collect()
             })
             .collect();
+        let y_stacked = y.iter().flatten().copied().collect();
         let max_torque = logs
             .iter()
             .flat_map(|l| l.torque.iter())
@@ -721,6 +728,7 @@ impl<'a> Evaluator<'a> {
             max_torque,
             several_loads,
             cache: HashMap::new(),
+            y_stacked,
         }
     }
 
@@ -800,29 +808,27 @@ impl<'a> Evaluator<'a> {
         v
     }
 
-    fn value(&self, x: &[f64], p: NlParam) -> Option<f64> {
-        self.nonlinear()
-            .iter()
+    /// The value of `p` in `x`, laid out as `nl` (from [`Self::nonlinear`]).
+    fn value(nl: &[(NlParam, f64, f64, f64)], x: &[f64], p: NlParam) -> Option<f64> {
+        nl.iter()
             .position(|n| n.0 == p)
             .and_then(|i| x.get(i).copied())
     }
 
     /// Base error (with nonlinear effects) per log for nonlinear parameters `x`.
-    fn base(&mut self, x: &[f64]) -> Result<Vec<Vec<f64>>, IdentifyError> {
+    fn base(&mut self, x: &[f64]) -> Result<Arc<Vec<Vec<f64>>>, IdentifyError> {
+        let nl = self.nonlinear();
         let mut drive = self.spec.drive.clone();
-        if let Some(mu) = self.value(x, NlParam::Mu) {
+        if let Some(mu) = Self::value(&nl, x, NlParam::Mu) {
             drive.friction_coefficient = mu;
         }
-        if let Some(p) = self.value(x, NlParam::Preload) {
+        if let Some(p) = Self::value(&nl, x, NlParam::Preload) {
             drive.preload_n = p;
         }
-        let mb = self
-            .value(x, NlParam::Effect(EffectName::BearingFriction))
-            .unwrap_or(0.0);
-        let rel = self
-            .value(x, NlParam::Effect(EffectName::PreloadRelaxation))
-            .unwrap_or(0.0);
-        let tc = self.value(x, NlParam::Effect(EffectName::CableTransport));
+        let mb = Self::value(&nl, x, NlParam::Effect(EffectName::BearingFriction)).unwrap_or(0.0);
+        let rel =
+            Self::value(&nl, x, NlParam::Effect(EffectName::PreloadRelaxation)).unwrap_or(0.0);
+        let tc = Self::value(&nl, x, NlParam::Effect(EffectName::CableTransport));
         let calibrated = self.spec.calibrated.as_ref();
         let key = [
             drive.friction_coefficient.to_bits(),
@@ -845,15 +851,19 @@ impl<'a> Evaluator<'a> {
             if self.cache.len() > 64 {
                 self.cache.clear();
             }
-            self.cache.insert(key, all);
+            self.cache.insert(key, Arc::new(all));
         }
-        let mut out = self.cache[&key].clone();
-        if let (Some(tc), None) = (tc, calibrated) {
-            for (e, l) in out.iter_mut().zip(self.logs) {
-                *e = transport_filter(e, &l.travel, tc);
-            }
-        }
-        Ok(out)
+        let cached = Arc::clone(&self.cache[&key]);
+        Ok(match (tc, calibrated) {
+            (Some(tc), None) => Arc::new(
+                cached
+                    .iter()
+                    .zip(self.logs)
+                    .map(|(e, l)| transport_filter(e, &l.travel, tc))
+                    .collect(),
+            ),
+            _ => cached,
+        })
     }
 
     /// Design for nonlinear parameters `x`.
@@ -891,14 +901,33 @@ impl<'a> Evaluator<'a> {
                 names.extend((0..nlogs).map(|k| LinParam::PerLog(*e, k)));
             }
         }
-        let mut cols = vec![Vec::with_capacity(n); names.len()];
+        let mut starts = vec![0];
+        for l in self.logs {
+            starts.push(starts[starts.len() - 1] + l.t.len());
+        }
+        let support: Vec<std::ops::Range<usize>> = names
+            .iter()
+            .map(|name| match name {
+                LinParam::Offset(k) | LinParam::PerLog(_, k) => starts[*k]..starts[*k + 1],
+                _ => 0..n,
+            })
+            .collect();
+        let mut cols: Vec<Vec<f64>> = support
+            .iter()
+            .map(|s| Vec::with_capacity(s.len()))
+            .collect();
         let mut fixed = Vec::with_capacity(n);
         let mut target = Vec::with_capacity(n);
         let (stroke, thresholds) = self.stroke_and_thresholds();
-        let load_exponent = self
-            .value(x, NlParam::Effect(EffectName::DistributedFrictionMemory))
-            .unwrap_or(1.0);
-        let law = |k: MemoryLaw, default: f64| self.value(x, NlParam::Memory(k)).unwrap_or(default);
+        let nl = self.nonlinear();
+        let load_exponent = Self::value(
+            &nl,
+            x,
+            NlParam::Effect(EffectName::DistributedFrictionMemory),
+        )
+        .unwrap_or(1.0);
+        let law =
+            |k: MemoryLaw, default: f64| Self::value(&nl, x, NlParam::Memory(k)).unwrap_or(default);
         let (growth, slack, taken_up) = (
             law(MemoryLaw::Growth, 0.0),
             law(MemoryLaw::Slack, 0.0),
@@ -918,63 +947,72 @@ impl<'a> Evaluator<'a> {
                 .then(|| {
                     use super::extra_effects as xe;
                     let mut c = xe::memory_law_columns(&l.th_in, &l.torque, &thresholds, growth);
+                    // `|M|^p` once per row: the scaled columns share it.
+                    let factor: Vec<f64> = l
+                        .torque
+                        .iter()
+                        .map(|m| m.abs().powf(load_exponent))
+                        .collect();
                     let scaled: Vec<Vec<f64>> = c
                         .iter()
-                        .map(|col| {
-                            col.iter()
-                                .zip(&l.torque)
-                                .map(|(v, m)| v * m.abs().powf(load_exponent))
-                                .collect()
-                        })
+                        .map(|col| col.iter().zip(&factor).map(|(v, f)| v * f).collect())
                         .collect();
                     c.extend(scaled);
                     c.push(xe::slack_column(&l.th_in, &l.torque, slack, taken_up));
                     c
                 });
-            for i in 0..l.t.len() {
-                let b = base[li][i];
-                let f = if self.spec.fit_g { 0.0 } else { b };
+            let nl = l.t.len();
+            for (b, y) in base[li][..nl].iter().zip(&self.y[li][..nl]) {
+                let f = if self.spec.fit_g { 0.0 } else { *b };
                 fixed.push(f);
-                target.push(self.y[li][i] - f);
-                for (c, name) in cols.iter_mut().zip(&names) {
-                    c.push(match name {
-                        LinParam::Offset(k) => {
-                            if *k == li {
-                                1.0
-                            } else {
-                                0.0
-                            }
+                target.push(y - f);
+            }
+            // Column by column: each is a copy, a constant or one expression over the log.
+            let zeros = |c: &mut Vec<f64>| c.resize(c.len() + nl, 0.0);
+            for (c, name) in cols.iter_mut().zip(&names) {
+                match name {
+                    LinParam::Offset(k) => {
+                        if *k == li {
+                            c.resize(nl, 1.0);
                         }
-                        LinParam::ModulusScale => b,
-                        LinParam::InverseRatio => l.th_in[i],
-                        LinParam::PerLog(e, k) => {
-                            if *k == li {
-                                single_column(*e, l, i)
-                            } else {
-                                0.0
-                            }
+                    }
+                    LinParam::ModulusScale => c.extend_from_slice(&base[li][..nl]),
+                    LinParam::InverseRatio => c.extend_from_slice(&l.th_in[..nl]),
+                    LinParam::PerLog(e, k) => {
+                        if *k == li {
+                            c.extend((0..nl).map(|i| single_column(*e, l, i)));
                         }
-                        LinParam::Effect(e, j) => match (e, j) {
-                            (EffectName::InputPulleyRunout, 0) => l.th_in[i].sin(),
-                            (EffectName::InputPulleyRunout, _) => l.th_in[i].cos(),
-                            (EffectName::OutputDrumRunout, 0) => l.th_out[i].sin(),
-                            (EffectName::OutputDrumRunout, _) => l.th_out[i].cos(),
-                            (
-                                EffectName::EncoderDelay
-                                | EffectName::EncoderScaleError
-                                | EffectName::ThermalDrift
-                                | EffectName::LoadCompliance,
-                                _,
-                            ) => single_column(*e, l, i),
-                            (EffectName::AngleDependentRatio, j) => {
-                                shape.as_ref().map_or(0.0, |c| c[*j][i])
-                            }
-                            (EffectName::DistributedFrictionMemory, j) => {
-                                memory.as_ref().map_or(0.0, |c| c[*j][i])
-                            }
-                            _ => 0.0,
+                    }
+                    LinParam::Effect(e, j) => match (e, j) {
+                        (EffectName::InputPulleyRunout, 0) => {
+                            c.extend(l.th_in[..nl].iter().map(|v| v.sin()))
+                        }
+                        (EffectName::InputPulleyRunout, _) => {
+                            c.extend(l.th_in[..nl].iter().map(|v| v.cos()))
+                        }
+                        (EffectName::OutputDrumRunout, 0) => {
+                            c.extend(l.th_out[..nl].iter().map(|v| v.sin()))
+                        }
+                        (EffectName::OutputDrumRunout, _) => {
+                            c.extend(l.th_out[..nl].iter().map(|v| v.cos()))
+                        }
+                        (
+                            EffectName::EncoderDelay
+                            | EffectName::EncoderScaleError
+                            | EffectName::ThermalDrift
+                            | EffectName::LoadCompliance,
+                            _,
+                        ) => c.extend((0..nl).map(|i| single_column(*e, l, i))),
+                        (EffectName::AngleDependentRatio, j) => match &shape {
+                            Some(s) => c.extend_from_slice(&s[*j][..nl]),
+                            None => zeros(c),
                         },
-                    });
+                        (EffectName::DistributedFrictionMemory, j) => match &memory {
+                            Some(m) => c.extend_from_slice(&m[*j][..nl]),
+                            None => zeros(c),
+                        },
+                        _ => zeros(c),
+                    },
                 }
             }
         }
@@ -988,6 +1026,7 @@ impl<'a> Evaluator<'a> {
             target,
             fixed,
             cols,
+            support,
             names,
             max_load_factor,
         })
@@ -1041,33 +1080,7 @@ impl<'a> Evaluator<'a> {
     /// side, which is what refitting the columns would give, at a fraction of the work.
     pub fn solve_linear(&self, d: &Design, mask: &[bool]) -> Option<Vec<f64>> {
         let p = d.names.len();
-        let mut ata = DMatrix::<f64>::zeros(p, p);
-        let mut aty = vec![0.0; p];
-        let mut row = vec![0.0; p];
-        for i in 0..d.target.len() {
-            if !mask[i] {
-                continue;
-            }
-            for (j, c) in d.cols.iter().enumerate() {
-                row[j] = c[i];
-            }
-            let y = d.target[i];
-            for a in 0..p {
-                let ra = row[a];
-                if ra == 0.0 {
-                    continue;
-                }
-                aty[a] += ra * y;
-                for b in a..p {
-                    ata[(a, b)] += ra * row[b];
-                }
-            }
-        }
-        for a in 0..p {
-            for b in 0..a {
-                ata[(a, b)] = ata[(b, a)];
-            }
-        }
+        let (ata, aty) = normal_equations(d, mask)?;
         let mut pinned: Vec<Option<f64>> = vec![None; p];
         // Each pass pins at least one more coefficient on its bound, so this ends.
         for _ in 0..3 + p {
@@ -1143,9 +1156,18 @@ impl<'a> Evaluator<'a> {
     /// Prediction of the measured error (relative to the reference ratio), stacked.
     pub fn predict(d: &Design, coef: &[f64]) -> Vec<f64> {
         let mut p = d.fixed.clone();
-        for (c, v) in d.cols.iter().zip(coef) {
-            for (pi, ci) in p.iter_mut().zip(c) {
+        for ((c, s), v) in d.cols.iter().zip(&d.support).zip(coef) {
+            // Off its rows a column adds the product with its zero, as a full one would
+            // (a prediction of -0 becomes +0).
+            let z = v * 0.0;
+            for pi in &mut p[..s.start] {
+                *pi += z;
+            }
+            for (pi, ci) in p[s.clone()].iter_mut().zip(c) {
                 *pi += v * ci;
+            }
+            for pi in &mut p[s.end..] {
+                *pi += z;
             }
         }
         p
@@ -1153,7 +1175,28 @@ impl<'a> Evaluator<'a> {
 
     /// Stacked measured error relative to the reference ratio.
     pub fn measured(&self) -> Vec<f64> {
-        self.y.iter().flatten().copied().collect()
+        self.y_stacked.clone()
+    }
+
+    /// Measured minus predicted on the rows of `mask`, in row order; each row's prediction
+    /// summed as [`Self::predict`] sums it.
+    fn masked_residual(d: &Design, coef: &[f64], y: &[f64], mask: &[bool]) -> Vec<f64> {
+        let rows: Vec<usize> = (0..d.fixed.len()).filter(|i| mask[*i]).collect();
+        let mut p: Vec<f64> = rows.iter().map(|i| d.fixed[*i]).collect();
+        for ((c, s), v) in d.cols.iter().zip(&d.support).zip(coef) {
+            let z = v * 0.0;
+            let (lo, hi) = support_positions(&rows, s);
+            for pk in &mut p[..lo] {
+                *pk += z;
+            }
+            for (pk, i) in p[lo..hi].iter_mut().zip(&rows[lo..hi]) {
+                *pk += v * c[*i - s.start];
+            }
+            for pk in &mut p[hi..] {
+                *pk += z;
+            }
+        }
+        rows.iter().zip(&p).map(|(i, pk)| y[*i] - pk).collect()
     }
 
     /// The least raise of the spec's drive, its preload (the friction coefficient's, when
@@ -1212,14 +1255,7 @@ impl<'a> Evaluator<'a> {
         let resid = |x: &[f64], me: &mut Self| -> Option<Vec<f64>> {
             let d = me.design(x).ok()?;
             let coef = me.solve_linear(&d, mask)?;
-            let p = Self::predict(&d, &coef);
-            let y = me.measured();
-            Some(
-                (0..y.len())
-                    .filter(|i| mask[*i])
-                    .map(|i| y[i] - p[i])
-                    .collect(),
-            )
+            Some(Self::masked_residual(&d, &coef, &me.y_stacked, mask))
         };
         // Coarse scan of a single effect parameter first: their costs are often multimodal
         // (transport length, friction torque hidden behind a stiffer cable).
@@ -1437,14 +1473,155 @@ impl<'a> Evaluator<'a> {
                 j[(r, k)] = (p[*i] - p0[*i]) / h;
             }
         }
-        for (c, col) in d0.cols.iter().enumerate() {
-            for (r, i) in rows.iter().enumerate() {
-                j[(r, nl.len() + c)] = col[*i];
+        for (c, (col, s)) in d0.cols.iter().zip(&d0.support).enumerate() {
+            let (lo, hi) = support_positions(&rows, s);
+            for (r, i) in rows.iter().enumerate().take(hi).skip(lo) {
+                j[(r, nl.len() + c)] = col[*i - s.start];
             }
         }
         let dof = (rows.len() as f64 - np as f64).max(1.0);
         let s2 = f.cost / dof;
         Ok((j, rows, p0, s2))
+    }
+}
+
+/// The positions in `rows` (ascending row indices) of the rows inside `s`, as a range
+/// `lo..hi`.
+fn support_positions(rows: &[usize], s: &std::ops::Range<usize>) -> (usize, usize) {
+    (
+        rows.partition_point(|i| *i < s.start),
+        rows.partition_point(|i| *i < s.end),
+    )
+}
+
+/// Rows per block of [`normal_equations`]: a block's rows, gathered row by row, stay in
+/// the first-level cache beside the block's accumulators.
+const NORMAL_BLOCK: usize = 256;
+
+/// `A'A` (upper triangle mirrored) and `A'y` of the design's columns and target on the
+/// rows of `mask`; `None` when a fitted row holds a value that is not finite or the sums
+/// overflow.
+///
+/// Each entry is the sum of its products in row order, as a plain loop over the rows
+/// forms it; a block of rows only gathers the columns that cover it and are not all zero
+/// on it (an encoder zero's column covers its own log), since a zero product leaves a
+/// running sum that started at +0 unchanged.
+fn normal_equations(d: &Design, mask: &[bool]) -> Option<(DMatrix<f64>, Vec<f64>)> {
+    let p = d.names.len();
+    let n = d.target.len();
+    let mut ata = DMatrix::<f64>::zeros(p, p);
+    let mut aty = vec![0.0; p];
+    let mut active = Vec::with_capacity(p);
+    let mut rows = Vec::with_capacity(NORMAL_BLOCK);
+    let mut buf = vec![0.0; NORMAL_BLOCK * p];
+    let mut acc = vec![0.0; p * p];
+    let mut acc_y = vec![0.0; p];
+    let mut ys = Vec::with_capacity(NORMAL_BLOCK);
+    // Blocks end where a column's rows begin or end, so each column covers a block whole
+    // or not at all.
+    let mut edges: Vec<usize> = d.support.iter().flat_map(|s| [s.start, s.end]).collect();
+    edges.push(n);
+    edges.sort_unstable();
+    edges.dedup();
+    let mut start = 0;
+    while start < n {
+        let edge = edges[edges.partition_point(|e| *e <= start)];
+        let end = (start + NORMAL_BLOCK).min(edge);
+        rows.clear();
+        rows.extend((start..end).filter(|i| mask[*i]));
+        if !rows.iter().all(|i| d.target[*i].is_finite()) {
+            return None;
+        }
+        active.clear();
+        active.extend((0..p).filter(|j| {
+            let s = &d.support[*j];
+            s.start <= start && end <= s.end && rows.iter().any(|i| d.cols[*j][*i - s.start] != 0.0)
+        }));
+        let m = active.len();
+        if m > 0 && !rows.is_empty() {
+            for (k, j) in active.iter().enumerate() {
+                let (c, s0) = (&d.cols[*j], d.support[*j].start);
+                for (t, i) in rows.iter().enumerate() {
+                    buf[t * m + k] = c[*i - s0];
+                }
+            }
+            for (a, ja) in active.iter().enumerate() {
+                acc_y[a] = aty[*ja];
+                for (b, jb) in active.iter().enumerate().skip(a) {
+                    acc[a * m + b] = ata[(*ja, *jb)];
+                }
+            }
+            ys.clear();
+            ys.extend(rows.iter().map(|i| d.target[*i]));
+            accumulate(&buf[..rows.len() * m], &ys, m, &mut acc, &mut acc_y);
+            for (a, ja) in active.iter().enumerate() {
+                aty[*ja] = acc_y[a];
+                for (b, jb) in active.iter().enumerate().skip(a) {
+                    ata[(*ja, *jb)] = acc[a * m + b];
+                }
+            }
+        }
+        start = end;
+    }
+    // A value that is not finite (or sums that overflow) leaves its own square's sum, on
+    // the diagonal, not finite.
+    if !(0..p).all(|a| ata[(a, a)].is_finite() && aty[a].is_finite()) {
+        return None;
+    }
+    for a in 0..p {
+        for b in 0..a {
+            ata[(a, b)] = ata[(b, a)];
+        }
+    }
+    Some((ata, aty))
+}
+
+/// Adds the rows of `buf` (row-major, `m` wide, one per entry of `ys`) to the upper
+/// triangle `acc` (row-major, `m` by `m`) and their products with `ys` to `acc_y`, each
+/// sum in row order. Two rows at a time: each entry gets the first row's product and then
+/// the second's, as two passes would add them, with one load and store of the entry.
+fn accumulate(buf: &[f64], ys: &[f64], m: usize, acc: &mut [f64], acc_y: &mut [f64]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx") {
+        // SAFETY: the processor has AVX (checked just above), all the function assumes.
+        unsafe { accumulate_avx(buf, ys, m, acc, acc_y) };
+        return;
+    }
+    accumulate_rows(buf, ys, m, acc, acc_y);
+}
+
+/// [`accumulate_rows`] compiled for AVX: four lanes where the baseline has two, each lane
+/// the same multiply and add (no fused multiply-add), so the sums are the same bits.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+unsafe fn accumulate_avx(buf: &[f64], ys: &[f64], m: usize, acc: &mut [f64], acc_y: &mut [f64]) {
+    accumulate_rows(buf, ys, m, acc, acc_y);
+}
+
+#[inline(always)]
+fn accumulate_rows(buf: &[f64], ys: &[f64], m: usize, acc: &mut [f64], acc_y: &mut [f64]) {
+    let mut pairs = buf.chunks_exact(2 * m).zip(ys.chunks_exact(2));
+    for (r, y) in &mut pairs {
+        let (r1, r2) = r.split_at(m);
+        for a in 0..m {
+            let (p, q) = (r1[a], r2[a]);
+            acc_y[a] = acc_y[a] + p * y[0] + q * y[1];
+            let row = &mut acc[a * m + a..(a + 1) * m];
+            for ((s, v1), v2) in row.iter_mut().zip(&r1[a..]).zip(&r2[a..]) {
+                *s = *s + p * v1 + q * v2;
+            }
+        }
+    }
+    if ys.len() % 2 == 1 {
+        let t = ys.len() - 1;
+        let (r, y) = (&buf[t * m..(t + 1) * m], ys[t]);
+        for a in 0..m {
+            let p = r[a];
+            acc_y[a] += p * y;
+            for (s, v) in acc[a * m + a..(a + 1) * m].iter_mut().zip(&r[a..]) {
+                *s += p * v;
+            }
+        }
     }
 }
 
@@ -1601,5 +1778,167 @@ mod row_tests {
             assert_eq!(flips(&unkept).len(), flips_unkept, "jump {jump}");
         }
         assert_eq!(direction(&v, Some(&[true; 3000]), floor, None), clean);
+    }
+}
+
+#[cfg(test)]
+mod normal_equation_tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// A design of `logs` logs: per-log zero columns over their own rows, dense columns with
+    /// runs of exact zeros (a memory column below its thresholds), values over six decades.
+    fn design(rng: &mut rand_chacha::ChaCha8Rng, logs: &[usize], dense: usize) -> Design {
+        let n: usize = logs.iter().sum();
+        let mut names = Vec::new();
+        let mut support = Vec::new();
+        let mut cols = Vec::new();
+        let mut start = 0;
+        for (k, len) in logs.iter().enumerate() {
+            names.push(LinParam::Offset(k));
+            support.push(start..start + len);
+            cols.push(vec![1.0; *len]);
+            start += len;
+        }
+        for j in 0..dense {
+            names.push(LinParam::Effect(EffectName::DistributedFrictionMemory, j));
+            support.push(0..n);
+            let scale = 10f64.powi(rng.gen_range(-4..3));
+            cols.push(
+                (0..n)
+                    .map(|i| {
+                        if (i / 37 + j) % 5 == 0 {
+                            0.0
+                        } else {
+                            scale * rng.gen_range(-1.0..1.0)
+                        }
+                    })
+                    .collect(),
+            );
+        }
+        let fixed: Vec<f64> = (0..n).map(|_| rng.gen_range(-1e-3..1e-3)).collect();
+        let target = (0..n).map(|_| rng.gen_range(-1e-2..1e-2)).collect();
+        Design {
+            target,
+            fixed,
+            cols,
+            support,
+            names,
+            max_load_factor: 1.0,
+        }
+    }
+
+    /// Column `j` over every row, zeros off its support.
+    fn full(d: &Design, j: usize) -> Vec<f64> {
+        let s = &d.support[j];
+        (0..d.target.len())
+            .map(|i| {
+                if s.contains(&i) {
+                    d.cols[j][i - s.start]
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_blocked_sums_are_the_plain_loops_bit_for_bit() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        for case in 0..40 {
+            let logs: Vec<usize> = (0..rng.gen_range(1..5))
+                .map(|_| rng.gen_range(1..700))
+                .collect();
+            let dense = rng.gen_range(0..9);
+            let d = design(&mut rng, &logs, dense);
+            let n = d.target.len();
+            let p = d.names.len();
+            let mask: Vec<bool> = (0..n)
+                .map(|i| case % 3 == 0 || rng.gen_bool(0.8) || i == 0)
+                .collect();
+            let cols: Vec<Vec<f64>> = (0..p).map(|j| full(&d, j)).collect();
+            // The plain loop over the rows, every column whole.
+            let mut ata = DMatrix::<f64>::zeros(p, p);
+            let mut aty = vec![0.0; p];
+            for i in (0..n).filter(|i| mask[*i]) {
+                for a in 0..p {
+                    aty[a] += cols[a][i] * d.target[i];
+                    for b in a..p {
+                        ata[(a, b)] += cols[a][i] * cols[b][i];
+                    }
+                }
+            }
+            for a in 0..p {
+                for b in 0..a {
+                    ata[(a, b)] = ata[(b, a)];
+                }
+            }
+            let (got, got_y) = normal_equations(&d, &mask).expect("finite design");
+            for a in 0..p {
+                assert_eq!(
+                    got_y[a].to_bits(),
+                    aty[a].to_bits(),
+                    "case {case}: A'y[{a}]"
+                );
+                for b in 0..p {
+                    assert_eq!(
+                        got[(a, b)].to_bits(),
+                        ata[(a, b)].to_bits(),
+                        "case {case}: A'A[{a},{b}]"
+                    );
+                }
+            }
+            // The prediction with every column whole.
+            let coef: Vec<f64> = (0..p).map(|_| rng.gen_range(-2.0..2.0)).collect();
+            let mut want = d.fixed.clone();
+            for (c, v) in cols.iter().zip(&coef) {
+                for (w, ci) in want.iter_mut().zip(c) {
+                    *w += v * ci;
+                }
+            }
+            let got = Evaluator::predict(&d, &coef);
+            assert!(
+                got.iter()
+                    .zip(&want)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "case {case}: prediction"
+            );
+            // The fit's residual on the fitted rows, from that prediction.
+            let y: Vec<f64> = (0..n).map(|_| rng.gen_range(-1e-2..1e-2)).collect();
+            let want: Vec<f64> = (0..n)
+                .filter(|i| mask[*i])
+                .map(|i| y[i] - want[i])
+                .collect();
+            let got = Evaluator::masked_residual(&d, &coef, &y, &mask);
+            assert!(
+                got.iter()
+                    .zip(&want)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "case {case}: residual"
+            );
+            assert_eq!(got.len(), want.len());
+        }
+    }
+
+    #[test]
+    fn a_value_that_is_not_finite_gives_no_normal_equations() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let mut d = design(&mut rng, &[300, 200], 4);
+            let mask = vec![true; 500];
+            assert!(normal_equations(&d, &mask).is_some());
+            d.cols[3][123] = bad;
+            assert!(normal_equations(&d, &mask).is_none(), "{bad} in a column");
+            // Off the fitted rows it does not count.
+            let mut off = mask.clone();
+            off[123] = false;
+            assert!(
+                normal_equations(&d, &off).is_some(),
+                "{bad} on a row not fitted"
+            );
+            d.cols[3][123] = 0.5;
+            d.target[7] = bad;
+            assert!(normal_equations(&d, &mask).is_none(), "{bad} in the target");
+        }
     }
 }

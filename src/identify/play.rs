@@ -34,7 +34,8 @@ struct PlayFit {
 fn evaluate(logs: &[Prepared], a: f64, r: f64) -> (Vec<f64>, Vec<Vec<f64>>) {
     let n: usize = logs.iter().map(|l| l.t.len()).sum();
     let mut target = Vec::with_capacity(n);
-    let mut cols = vec![Vec::with_capacity(n); logs.len() + 1];
+    // Not `vec![..; k]`: a cloned `Vec` does not keep its capacity.
+    let mut cols: Vec<Vec<f64>> = (0..=logs.len()).map(|_| Vec::with_capacity(n)).collect();
     for (k, l) in logs.iter().enumerate() {
         let x: Vec<f64> = l.th_in.iter().map(|t| a * t).collect();
         let p = play(&x, r);
