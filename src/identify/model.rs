@@ -660,8 +660,8 @@ pub struct Evaluator<'a> {
     pub spec: Spec,
     /// The logs.
     pub logs: &'a [Prepared],
-    /// Measured error relative to the reference ratio, per log, rad.
-    y: Vec<Vec<f64>>,
+    /// Measured error relative to the reference ratio, stacked over the logs, rad.
+    y: Vec<f64>,
     /// Largest transmitted torque magnitude over the logs, N m.
     max_torque: f64,
     /// Whether the logs were recorded at more than one load level (their mean torque
@@ -671,8 +671,6 @@ pub struct Evaluator<'a> {
     /// weights.
     several_loads: bool,
     cache: HashMap<ReplayKey, Arc<Vec<Vec<f64>>>>,
-    /// `y` stacked over the logs, rad.
-    y_stacked: Vec<f64>,
 }
 
 /// One model evaluation: fixed part and linear columns, stacked over logs.
@@ -697,17 +695,10 @@ impl<'a> Evaluator<'a> {
     /// Set up; the measured error uses the reference ratio of `spec.drive`.
     pub fn new(spec: Spec, logs: &'a [Prepared]) -> Self {
         let ic = spec.drive.ratio();
-        let y: Vec<Vec<f64>> = logs
+        let y = logs
             .iter()
-            .map(|l| {
-                l.th_out
-                    .iter()
-                    .zip(&l.th_in)
-                    .map(|(o, i)| o - i / ic)
-                    .collect()
-            })
+            .flat_map(|l| l.th_out.iter().zip(&l.th_in).map(|(o, i)| o - i / ic))
             .collect();
-        let y_stacked = y.iter().flatten().copied().collect();
         let max_torque = logs
             .iter()
             .flat_map(|l| l.torque.iter())
@@ -728,7 +719,6 @@ impl<'a> Evaluator<'a> {
             max_torque,
             several_loads,
             cache: HashMap::new(),
-            y_stacked,
         }
     }
 
@@ -962,7 +952,10 @@ impl<'a> Evaluator<'a> {
                     c
                 });
             let nl = l.t.len();
-            for (b, y) in base[li][..nl].iter().zip(&self.y[li][..nl]) {
+            for (b, y) in base[li][..nl]
+                .iter()
+                .zip(&self.y[starts[li]..starts[li + 1]])
+            {
                 let f = if self.spec.fit_g { 0.0 } else { *b };
                 fixed.push(f);
                 target.push(y - f);
@@ -1155,37 +1148,18 @@ impl<'a> Evaluator<'a> {
 
     /// Prediction of the measured error (relative to the reference ratio), stacked.
     pub fn predict(d: &Design, coef: &[f64]) -> Vec<f64> {
-        let mut p = d.fixed.clone();
-        for ((c, s), v) in d.cols.iter().zip(&d.support).zip(coef) {
-            // Off its rows a column adds the product with its zero, as a full one would
-            // (a prediction of -0 becomes +0).
-            let z = v * 0.0;
-            for pi in &mut p[..s.start] {
-                *pi += z;
-            }
-            for (pi, ci) in p[s.clone()].iter_mut().zip(c) {
-                *pi += v * ci;
-            }
-            for pi in &mut p[s.end..] {
-                *pi += z;
-            }
-        }
-        p
+        let rows: Vec<usize> = (0..d.fixed.len()).collect();
+        Self::predict_rows(d, coef, &rows)
     }
 
-    /// Stacked measured error relative to the reference ratio.
-    pub fn measured(&self) -> Vec<f64> {
-        self.y_stacked.clone()
-    }
-
-    /// Measured minus predicted on the rows of `mask`, in row order; each row's prediction
-    /// summed as [`Self::predict`] sums it.
-    fn masked_residual(d: &Design, coef: &[f64], y: &[f64], mask: &[bool]) -> Vec<f64> {
-        let rows: Vec<usize> = (0..d.fixed.len()).filter(|i| mask[*i]).collect();
+    /// The prediction on `rows` (ascending), each row summed over the columns in order,
+    /// a column adding its product with zero off its support as a whole column would (so a
+    /// prediction of -0 becomes +0 the same way).
+    fn predict_rows(d: &Design, coef: &[f64], rows: &[usize]) -> Vec<f64> {
         let mut p: Vec<f64> = rows.iter().map(|i| d.fixed[*i]).collect();
         for ((c, s), v) in d.cols.iter().zip(&d.support).zip(coef) {
             let z = v * 0.0;
-            let (lo, hi) = support_positions(&rows, s);
+            let (lo, hi) = support_positions(rows, s);
             for pk in &mut p[..lo] {
                 *pk += z;
             }
@@ -1196,6 +1170,19 @@ impl<'a> Evaluator<'a> {
                 *pk += z;
             }
         }
+        p
+    }
+
+    /// Stacked measured error relative to the reference ratio.
+    pub fn measured(&self) -> Vec<f64> {
+        self.y.clone()
+    }
+
+    /// Measured minus predicted on the rows of `mask`, in row order; each row's prediction
+    /// summed as [`Self::predict`] sums it.
+    fn masked_residual(d: &Design, coef: &[f64], y: &[f64], mask: &[bool]) -> Vec<f64> {
+        let rows: Vec<usize> = (0..d.fixed.len()).filter(|i| mask[*i]).collect();
+        let p = Self::predict_rows(d, coef, &rows);
         rows.iter().zip(&p).map(|(i, pk)| y[*i] - pk).collect()
     }
 
@@ -1255,7 +1242,7 @@ impl<'a> Evaluator<'a> {
         let resid = |x: &[f64], me: &mut Self| -> Option<Vec<f64>> {
             let d = me.design(x).ok()?;
             let coef = me.solve_linear(&d, mask)?;
-            Some(Self::masked_residual(&d, &coef, &me.y_stacked, mask))
+            Some(Self::masked_residual(&d, &coef, &me.y, mask))
         };
         // Coarse scan of a single effect parameter first: their costs are often multimodal
         // (transport length, friction torque hidden behind a stiffer cable).
@@ -1538,7 +1525,8 @@ fn normal_equations(d: &Design, mask: &[bool]) -> Option<(DMatrix<f64>, Vec<f64>
             s.start <= start && end <= s.end && rows.iter().any(|i| d.cols[*j][*i - s.start] != 0.0)
         }));
         let m = active.len();
-        if m > 0 && !rows.is_empty() {
+        // A block without fitted rows has no active column.
+        if m > 0 {
             for (k, j) in active.iter().enumerate() {
                 let (c, s0) = (&d.cols[*j], d.support[*j].start);
                 for (t, i) in rows.iter().enumerate() {
