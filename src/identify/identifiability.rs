@@ -159,6 +159,12 @@ pub struct Runs {
     /// longest stretch before closing), so the covariance still understates what the runs
     /// do.
     pub batch_capped: bool,
+    /// Covariance from the scatter of the logs' summed scores ([`between_logs`]), in the
+    /// parameters' own units, when at least [`BETWEEN_LOGS_MIN`] logs have fitted rows.
+    pub between_logs: Option<DMatrix<f64>>,
+    /// Logs with fitted rows that [`Runs::between_logs`] was formed over (0 when it was
+    /// not).
+    pub logs: usize,
 }
 
 /// Integrated correlation time `1 + 2 sum rho_l` of `runs` (each a stretch of residual in
@@ -284,7 +290,58 @@ pub fn long_run(
         correlation_samples: tau,
         batch_samples: b,
         batch_capped: window_cut || cap < needed,
+        between_logs: None,
+        logs: 0,
     })
+}
+
+/// Fewest logs with fitted rows the scatter between them is taken from: the logs' summed
+/// scores sum to zero along every freely fitted direction, so `g` logs give `g - 1`
+/// degrees of freedom, and below four of them the spread of a spread is more than a third
+/// of itself.
+pub const BETWEEN_LOGS_MIN: usize = 5;
+
+/// The covariance that holds when the model's error differs from log to log (a law that
+/// misses how the load moves a term, a log's own drift), not only from sample to sample:
+/// the sandwich `(J^T J)^-1 S (J^T J)^-1` with `S = g / (g - 1) sum_k s_k s_k^T`, `s_k`
+/// the summed scores `J_t r_t` of log `k` over its fitted rows (`logs`, row ranges of `j`
+/// and `resid`), `g` the logs with any (Liang and Zeger's covariance clustered by log, with
+/// the usual small-sample factor). It is the jackknife that leaves out one log at a time
+/// taken to first order, so a parameter that only the differences between logs pin (how a
+/// width follows the load, with one load per log) gets a `+-` from how far the logs
+/// disagree on it, where the batches of [`long_run`] count every run of every log as a
+/// fresh look. To first order it still understates where one log alone reaches what the
+/// others do not (its leverage; the refitted jackknife of the leave-one-out shows that),
+/// and its rank is at most `g - 1`: beside the others it can only widen. A first-order
+/// form that leaves each log out exactly, `(J^T J - J_k^T J_k)^+ J_k^T r_k`, was tried
+/// and not kept: where one log alone sees a parameter (the slack, seen only by the
+/// lightest load), leaving it out makes the rest nearly singular, and the `+-` ran to
+/// hundreds of times a value on its bound. `None` when fewer than [`BETWEEN_LOGS_MIN`]
+/// logs have rows.
+pub fn between_logs(
+    j: &DMatrix<f64>,
+    resid: &[f64],
+    logs: &[std::ops::Range<usize>],
+    dof_scale: f64,
+) -> Option<DMatrix<f64>> {
+    let groups: Vec<&std::ops::Range<usize>> = logs.iter().filter(|r| !r.is_empty()).collect();
+    let g = groups.len();
+    if g < BETWEEN_LOGS_MIN {
+        return None;
+    }
+    let scaled = Scaled::new(j);
+    let (inv, _) = scaled.pseudo_inverse();
+    let np = j.ncols();
+    let mut s = DMatrix::<f64>::zeros(np, np);
+    for range in groups {
+        let rows = scaled.js.rows(range.start, range.len());
+        let r = nalgebra::DVector::from_column_slice(&resid[range.start..range.end]);
+        let score = rows.transpose() * r;
+        s += &score * score.transpose();
+    }
+    let scale = g as f64 / (g - 1) as f64 * dof_scale;
+    let cov = &inv * (s * scale) * &inv;
+    Some(scaled.unscale(cov))
 }
 
 /// Whether a parameter's value may well be zero without saying anything of how well it is
@@ -540,6 +597,88 @@ mod runs_tests {
         assert!(runs.batch_capped, "{runs:?}");
         assert_eq!(runs.batch_samples, 100);
         assert!(long_run(&j, &resid, &[], 1.0).is_none());
+    }
+
+    /// Eleven logs, each with its own encoder zero, share a slope on a regressor that is
+    /// white in time and scaled by the log's load; each log's true slope is the shared one
+    /// plus its own deviation. Within a log the residual is white, so neither the white nor
+    /// the runs `+-` can see the deviations; the scatter between the logs does, and gives
+    /// the refits' actual scatter.
+    fn logs_that_disagree(deviation: f64, draws: u64) -> ([f64; 3], f64) {
+        let (g, n) = (11usize, 2000usize);
+        let loads: Vec<f64> = (0..g).map(|k| 0.5 + k as f64 / (g - 1) as f64).collect();
+        let logs: Vec<std::ops::Range<usize>> = (0..g).map(|k| k * n..(k + 1) * n).collect();
+        let (mut fits, mut var) = (Vec::new(), [0.0; 3]);
+        for seed in 0..draws {
+            let noise = ar1(g * n, 0.0, 3000 + seed);
+            let regressor = ar1(g * n, 0.0, 7000 + seed);
+            let own = ar1(g, 0.0, 11_000 + seed);
+            let j = DMatrix::from_fn(g * n, g + 1, |r, c| {
+                if c < g {
+                    f64::from(u8::from(r / n == c))
+                } else {
+                    loads[r / n] * regressor[r]
+                }
+            });
+            let y: Vec<f64> = (0..g * n)
+                .map(|r| {
+                    0.1 * (r / n) as f64 + (2.0 + deviation * own[r / n]) * j[(r, g)] + noise[r]
+                })
+                .collect();
+            let x = ols(&j, &y);
+            let resid: Vec<f64> = (0..g * n)
+                .map(|r| y[r] - x[r / n] - x[g] * j[(r, g)])
+                .collect();
+            let dof = (g * n - g - 1) as f64;
+            let s2 = resid.iter().map(|v| v * v).sum::<f64>() / dof;
+            let scale = (g * n) as f64 / dof;
+            let white = analyse(&j, s2);
+            let runs = long_run(&j, &resid, &logs, scale).expect("runs");
+            let between = between_logs(&j, &resid, &logs, scale).expect("eleven logs");
+            for (v, c) in var.iter_mut().zip([&white.cov, &runs.cov, &between]) {
+                *v += c[(g, g)] / draws as f64;
+            }
+            fits.push(x[g]);
+        }
+        let m = fits.iter().sum::<f64>() / draws as f64;
+        let scatter = fits.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (draws - 1) as f64;
+        (var, scatter)
+    }
+
+    #[test]
+    fn the_scatter_between_logs_gives_the_refits_scatter_when_the_logs_disagree() {
+        let ([white, runs, between], scatter) = logs_that_disagree(0.05, 300);
+        let r = |v: f64| (v / scatter).sqrt();
+        assert!(
+            (0.8..1.2).contains(&r(between)),
+            "between +- {} of the scatter",
+            r(between)
+        );
+        assert!(r(runs) < 0.5, "runs +- {}", r(runs));
+        assert!(r(white) < 0.5, "white +- {}", r(white));
+    }
+
+    #[test]
+    fn logs_that_agree_keep_their_white_uncertainty() {
+        let ([white, _, between], scatter) = logs_that_disagree(0.0, 200);
+        let r = (between / white).sqrt();
+        assert!((0.85..1.15).contains(&r), "between +- {r} of the white one");
+        let w = (white / scatter).sqrt();
+        assert!((0.85..1.15).contains(&w), "white +- {w} of the scatter");
+    }
+
+    #[test]
+    fn too_few_logs_give_no_scatter_between_them() {
+        let j = DMatrix::from_element(40, 1, 1.0);
+        let e = ar1(40, 0.0, 5);
+        let four: Vec<std::ops::Range<usize>> = (0..4).map(|k| k * 10..(k + 1) * 10).collect();
+        assert!(between_logs(&j, &e, &four, 1.0).is_none());
+        let five: Vec<std::ops::Range<usize>> = (0..5).map(|k| k * 8..(k + 1) * 8).collect();
+        assert!(between_logs(&j, &e, &five, 1.0).is_some());
+        // An empty log is no log.
+        let mut padded = four.clone();
+        padded.push(40..40);
+        assert!(between_logs(&j, &e, &padded, 1.0).is_none());
     }
 }
 

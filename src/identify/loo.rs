@@ -561,18 +561,21 @@ pub fn leave_one_out_with_segments(
     );
     shared.retain(|p| !p.name.starts_with("encoder_zero["));
     let residual_runs = runs.map(|r| {
-        let (in_runs, _, _) = as_scenario(
-            drive,
-            &nl,
-            &f,
-            &r.cov,
-            (stroke, thresholds),
-            prepared.iter().map(|l| l.torque.as_slice()),
-        );
+        let table = |cov: &nalgebra::DMatrix<f64>| {
+            as_scenario(
+                drive,
+                &nl,
+                &f,
+                cov,
+                (stroke, thresholds),
+                prepared.iter().map(|l| l.torque.as_slice()),
+            )
+            .0
+        };
         ResidualRuns::widen(
             &r,
             &mut shared,
-            &in_runs,
+            table,
             super::mean_sample_interval(&prepared),
         )
     });
@@ -848,11 +851,13 @@ pub fn loo_text(t: &LooTable) -> String {
     if let Some(r) = &t.residual_runs {
         let _ = writeln!(
             s,
-            "  (The +- allow for a residual that comes in runs: correlated over about {} samples ({} s), each +- the larger of the white-residual one and one from batches of {} samples{}; widened by a median {:.2}x, at most {:.1}x.)",
+            "  (The +- allow for a residual that comes in runs: correlated over about {} samples ({} s), each +- {}; widened by a median {:.2}x, at most {:.1}x.)",
             crate::compact((r.correlation_samples * 10.0).round() / 10.0),
             crate::compact(r.correlation_s),
-            r.batch_samples,
-            if r.batch_capped { ", cut at a quarter of the longest stretch of a log, so these still understate" } else { "" },
+            super::records::uncertainty_sources(
+                r,
+                if r.batch_capped { ", cut at a quarter of the longest stretch of a log, so these still understate" } else { "" },
+            ),
             r.median_widening,
             r.max_widening,
         );

@@ -992,15 +992,19 @@ pub fn diagnose_with_progress(
         prepared.iter().map(|l| l.torque.as_slice()),
     );
     let residual_runs = runs.map(|r| {
-        let (in_runs, _, _) = reported_parameters(
-            (&drive0, &ext_drive),
-            &nl_final,
-            &ext_fit,
-            &r.cov,
-            ev_final.stroke_and_thresholds(),
-            prepared.iter().map(|l| l.torque.as_slice()),
-        );
-        ResidualRuns::widen(&r, &mut params, &in_runs, mean_sample_interval(&prepared))
+        let basis = ev_final.stroke_and_thresholds();
+        let table = |cov: &nalgebra::DMatrix<f64>| {
+            reported_parameters(
+                (&drive0, &ext_drive),
+                &nl_final,
+                &ext_fit,
+                cov,
+                basis,
+                prepared.iter().map(|l| l.torque.as_slice()),
+            )
+            .0
+        };
+        ResidualRuns::widen(&r, &mut params, table, mean_sample_interval(&prepared))
     });
     // A carried effect found at another size was fitted as a change on top of the
     // calibrated size: the size reported and saved is the two together.

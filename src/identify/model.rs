@@ -1425,7 +1425,25 @@ impl<'a> Evaluator<'a> {
         let nr = j.nrows() as f64;
         let dof_scale = nr / (nr - j.ncols() as f64).max(1.0);
         let runs =
-            super::identifiability::long_run(&j, &resid, &stretches(&rows, &log_ends), dof_scale);
+            super::identifiability::long_run(&j, &resid, &stretches(&rows, &log_ends), dof_scale)
+                .map(|mut r| {
+                    let mut start = 0;
+                    let per_log: Vec<std::ops::Range<usize>> = log_ends
+                        .iter()
+                        .map(|end| {
+                            let stop = rows.partition_point(|i| i < end);
+                            let range = start..stop;
+                            start = stop;
+                            range
+                        })
+                        .collect();
+                    r.between_logs =
+                        super::identifiability::between_logs(&j, &resid, &per_log, dof_scale);
+                    if r.between_logs.is_some() {
+                        r.logs = per_log.iter().filter(|g| !g.is_empty()).count();
+                    }
+                    r
+                });
         Ok((super::identifiability::analyse(&j, s2), runs))
     }
 

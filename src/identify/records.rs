@@ -102,11 +102,11 @@ impl ParamEstimate {
         }
     }
 
-    /// `std` the larger of the white-residual figure and `runs_std`, the same parameter's
-    /// standard deviation from the covariance that holds for a residual in runs. A runs
-    /// figure that is not a number leaves the white one.
+    /// `std` the larger of itself (at first the white-residual figure) and `runs_std`, the
+    /// same parameter's standard deviation from a covariance that holds for a residual in
+    /// runs or for logs that disagree. A figure that is not a number leaves `std` as it is.
     pub fn widen(&mut self, runs_std: f64) {
-        if runs_std.is_finite() && runs_std > self.std_white {
+        if runs_std.is_finite() && runs_std > self.std {
             self.std = runs_std;
         }
     }
@@ -332,22 +332,48 @@ pub struct ResidualRuns {
     pub max_widening: f64,
     /// Parameter of [`ResidualRuns::max_widening`].
     pub max_widening_parameter: String,
+    /// Logs whose disagreement also bounds each `+-` from below (the scatter of their
+    /// summed scores, see the guide); 0 when fewer than five logs have fitted rows and
+    /// only the runs within a log count.
+    pub between_logs: usize,
+}
+
+/// What each `+-` is the larger of, in words, for a report: "the larger of the
+/// white-residual one and one from batches of N samples", with `capped` after the batches,
+/// and the logs' disagreement as a third when it took part ([`ResidualRuns::between_logs`]).
+pub fn uncertainty_sources(r: &ResidualRuns, capped: &str) -> String {
+    if r.between_logs == 0 {
+        format!(
+            "the larger of the white-residual one and one from batches of {} samples{capped}",
+            r.batch_samples
+        )
+    } else {
+        format!(
+            "the largest of the white-residual one, one from batches of {} samples{capped} and one from how far the {} logs disagree (the scatter of their summed scores, as a jackknife over the logs sees it)",
+            r.batch_samples, r.between_logs
+        )
+    }
 }
 
 impl ResidualRuns {
-    /// Widen each of `params` by the same parameter's standard deviation in `in_runs` (the
-    /// table computed on the runs' covariance) and record how much that was.
+    /// Widen each of `params` by the same parameter's standard deviation in the table
+    /// `table` builds on the runs' covariance and on the covariance between logs (when
+    /// there is one), and record how much that was.
     pub(crate) fn widen(
         runs: &super::identifiability::Runs,
         params: &mut [ParamEstimate],
-        in_runs: &[ParamEstimate],
+        table: impl Fn(&nalgebra::DMatrix<f64>) -> Vec<ParamEstimate>,
         sample_interval_s: f64,
     ) -> Self {
+        let in_runs = table(&runs.cov);
+        let in_between = runs.between_logs.as_ref().map(&table);
         let mut ratios = Vec::new();
         let (mut max_widening, mut max_widening_parameter) = (1.0, String::new());
         for p in params.iter_mut() {
-            if let Some(q) = in_runs.iter().find(|q| q.name == p.name) {
-                p.widen(q.std);
+            for table in std::iter::once(&in_runs).chain(in_between.as_ref()) {
+                if let Some(q) = table.iter().find(|q| q.name == p.name) {
+                    p.widen(q.std);
+                }
             }
             if p.std_white > 0.0 && p.std_white.is_finite() && p.std.is_finite() {
                 let r = p.std / p.std_white;
@@ -371,6 +397,7 @@ impl ResidualRuns {
             median_widening,
             max_widening,
             max_widening_parameter,
+            between_logs: if in_between.is_some() { runs.logs } else { 0 },
         }
     }
 }

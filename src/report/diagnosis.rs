@@ -515,10 +515,10 @@ fn runs_note(d: &Diagnosis) -> Option<String> {
         return None;
     }
     let mut line = format!(
-        "The +- allow for a residual that comes in runs: correlated over about {} samples ({} s), so each +- is the larger of the white-residual one and one from batches of {} samples; that widened them by a median {:.2}x, at most {:.1}x ({})",
+        "The +- allow for a residual that comes in runs: correlated over about {} samples ({} s), so each +- is {}; that widened them by a median {:.2}x, at most {:.1}x ({})",
         crate::compact((r.correlation_samples * 10.0).round() / 10.0),
         crate::compact(r.correlation_s),
-        r.batch_samples,
+        crate::identify::uncertainty_sources(r, ""),
         r.median_widening,
         r.max_widening,
         if r.max_widening_parameter.is_empty() { "none" } else { &r.max_widening_parameter },
