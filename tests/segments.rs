@@ -946,3 +946,57 @@ fn a_share_of_readings_off_the_grid_flags_nothing() {
         }
     }
 }
+
+/// The encoder step read off the truth's logs is their encoders' count, on each of twelve
+/// logs (clean and with each effect of the library hidden) of eight draws, sine and
+/// triangle scans, with the gimbal's fine encoders (2^16 and 2^20 counts) and the da
+/// Vinci's coarse ones (8192 and 4000): the thresholds counted in encoder steps and the
+/// quantisation floor rest on it. Their outliers lie off the grid of the levels, so the
+/// fallbacks decide: a triangle scan whose levels read twice or more were every other
+/// count of the coarse input read two steps (24 logs, 0 before the fallbacks), and three
+/// thermal drifts' fine outputs 0.
+#[test]
+fn the_encoder_step_of_the_truth_logs_is_their_count() {
+    use cable_servo::identify::resolution::encoder_step;
+    let effects: Vec<Option<EffectName>> = std::iter::once(None)
+        .chain(
+            EffectName::ALL
+                .iter()
+                .chain(EffectName::EXTENDED.iter())
+                .copied()
+                .map(Some),
+        )
+        .collect();
+    let mut wrong = Vec::new();
+    let mut n = 0;
+    for (counts_in, counts_out) in [(65536.0, 1_048_576.0), (8192.0, 4000.0)] {
+        let o = support::truth::TruthOptions {
+            input_counts_per_rev: counts_in,
+            output_counts_per_rev: counts_out,
+            ..support::truth::TruthOptions::default()
+        };
+        for e in &effects {
+            for seed in 0..8u64 {
+                let sc = scenario(seed % 2 == 1);
+                let hidden: Vec<(EffectName, f64)> =
+                    e.map(|e| (e, size_of(e, seed))).into_iter().collect();
+                let log = support::truth::truth_log(&sc, &hidden, 5000 + seed, &o)
+                    .expect("truth")
+                    .log;
+                let steps = (
+                    encoder_step(&log.theta_in_rad) / (TAU / counts_in),
+                    encoder_step(&log.theta_out_rad) / (TAU / counts_out),
+                );
+                n += 1;
+                if (steps.0 - 1.0).abs() > 1e-6 || (steps.1 - 1.0).abs() > 1e-6 {
+                    wrong.push(format!("{counts_in} counts, {e:?}, seed {seed}: {steps:?}"));
+                }
+            }
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "{} of {n} read wrong: {wrong:#?}",
+        wrong.len()
+    );
+}
