@@ -284,7 +284,8 @@ pub struct IdentifyParams {
     pub min_gain_percent: f64,
     /// Fraction of the structured residual variance (above the noise floor) an effect must
     /// explain to be named (0.5 typical); keeps unrelated structure from being forced onto
-    /// the nearest name.
+    /// the nearest name. A carried effect tried at another size names no new cause and is
+    /// not held to it.
     /// Allowed: 0 to 1.
     #[serde(default = "default_explained")]
     pub min_explained_fraction: f64,

@@ -702,10 +702,13 @@ pub fn diagnose_with_progress(
             })
             .collect();
         // Whether a candidate qualifies, and its row in the candidate table.
+        // `resized`: every effect judged is a carried one at another size, which names
+        // no new cause and is not held to the share of the structure explained.
         let judge = |name: String,
                      rmse: f64,
                      fit: &Fitted,
-                     not_sized: Option<String>|
+                     not_sized: Option<String>,
+                     resized: bool|
          -> (bool, CandidateScore) {
             let gain = 100.0 * (1.0 - rmse / current);
             let excess = (current * current - floor * floor).max(1e-30);
@@ -723,7 +726,7 @@ pub fn diagnose_with_progress(
                 "gain below threshold".to_string()
             } else if gain_mrad < ident.min_gain_mrad {
                 "gain below identify.min_gain_mrad".to_string()
-            } else if explained < ident.min_explained_fraction {
+            } else if explained < ident.min_explained_fraction && !resized {
                 "explains too little of the structure".to_string()
             } else if let Some(why) = not_sized {
                 format!("{SIZE_VERDICT}{why}")
@@ -755,7 +758,7 @@ pub fn diagnose_with_progress(
                 }
             };
             let significant = not_sized.is_none();
-            let (ok, row) = judge(label(e), rmse, &fit, not_sized);
+            let (ok, row) = judge(label(e), rmse, &fit, not_sized, resizable(e));
             if rmse < current && admissible(&fit, floor) && significant {
                 helpful.push((e, rmse));
             }
@@ -813,7 +816,8 @@ pub fn diagnose_with_progress(
                         continue;
                     }
                 };
-                let (mut ok, mut row) = judge(name, rmse, &fit, not_sized);
+                let (mut ok, mut row) =
+                    judge(name, rmse, &fit, not_sized, resizable(a) && resizable(b));
                 // Each of the two must earn its place beside the other: the pair gains the
                 // threshold over either alone. (Two angle-periodic shapes that each gained
                 // under 3 % on a clean 0.4 Hz scan passed together at 3.5 %.)
