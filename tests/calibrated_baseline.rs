@@ -322,8 +322,9 @@ fn a_resized_term_the_log_cannot_pin_has_no_spread_printed() {
 
 /// tool4_05 with its link 0.2 rad/(N m) more compliant than calibrated (6 %; the jaw's
 /// reading put back on its 4000-count grid and six decimals): the resized compliance
-/// takes the held-out error from 2.51 to 2.19 mrad, a seventh of what stands above the
-/// noise floor of 0.50 mrad on this log, where the model's own error is four floors.
+/// takes the held-out error from 2.51 to 2.19 mrad and explains a quarter of the variance
+/// above the noise floor of 0.50 mrad on this log, where the model's own error is four
+/// floors.
 /// A carried effect at another size names no new cause and is not held to the share of
 /// the structure explained, which refused it. The log as shipped is not resized.
 #[test]
