@@ -28,13 +28,7 @@ pub fn encoder_step(v: &[f64]) -> f64 {
             .max(values[0].abs())
             .max(values[values.len() - 1].abs());
     // The distinct levels, each with how many readings it holds.
-    let mut levels: Vec<(f64, usize)> = Vec::new();
-    for x in &values {
-        match levels.last_mut() {
-            Some((kept, count)) if (*x - *kept).abs() <= tol => *count += 1,
-            _ => levels.push((*x, 1)),
-        }
-    }
+    let levels = counted(&values, tol);
     let all: Vec<f64> = levels.iter().map(|l| l.0).collect();
     let q = level_grid(&all, tol);
     if q > 0.0 {
@@ -87,6 +81,10 @@ pub fn encoder_step(v: &[f64]) -> f64 {
     step_of_differences(v, tol, unit)
 }
 
+/// How many different whole numbers of a step the successive differences must take for
+/// [`step_of_differences`] to read the step off them.
+const LEAST_MULTIPLES: usize = 5;
+
 /// The step read off the differences between successive readings of `v` (in time order),
 /// where the levels do not give it: a scan that sweeps its encoder reads each level about
 /// once, so that with a stretch off the grid too few levels repeat. The difference of two
@@ -97,10 +95,6 @@ pub fn encoder_step(v: &[f64]) -> f64 {
 /// is the coarsest of which at least half of the differences that are not zero are a
 /// whole number (a held reading fits any grid), at least five different ones, and over
 /// twenty times the decimal `unit` the readings are written in. 0 when none is.
-/// How many different whole numbers of a step the successive differences must take for
-/// [`step_of_differences`] to read the step off them.
-const LEAST_MULTIPLES: usize = 5;
-
 fn step_of_differences(v: &[f64], tol: f64, unit: f64) -> f64 {
     let mut d: Vec<f64> = v
         .windows(2)
@@ -111,13 +105,7 @@ fn step_of_differences(v: &[f64], tol: f64, unit: f64) -> f64 {
         return 0.0;
     }
     d.sort_by(|a, b| a.total_cmp(b));
-    let mut distinct: Vec<(f64, usize)> = Vec::new();
-    for x in &d {
-        match distinct.last_mut() {
-            Some((kept, count)) if (*x - *kept).abs() <= tol => *count += 1,
-            _ => distinct.push((*x, 1)),
-        }
-    }
+    let mut distinct = counted(&d, tol);
     distinct.retain(|l| l.1 >= 2);
     // A fast scan's differences are tens of steps; the step is then the spacing of the
     // repeated differences (the smallest few of the spacings are candidates too).
@@ -160,18 +148,12 @@ fn step_of_differences(v: &[f64], tol: f64, unit: f64) -> f64 {
             if 2 * loose.len() < d.len() {
                 return None;
             }
-            let refined = |near: &[(f64, f64)]| {
-                let (kx, kk) = near
-                    .iter()
-                    .fold((0.0, 0.0), |(kx, kk), (k, x)| (kx + k * x, kk + k * k));
-                kx / kk
-            };
             // Narrowed in steps, so that the differences off the grid the first window
             // holds do not pull the step (by 1.6e-6 of it, on a scan's input two fifths off
             // the grid).
-            let mut q = refined(&loose);
+            let mut q = least_squares_step(&loose);
             for share in [0.01, 0.002] {
-                q = refined(&whole(q, share * q));
+                q = least_squares_step(&whole(q, share * q));
             }
             // The whole numbers must be many, or a ramp at one speed would give the step of
             // its travel per sample.
@@ -186,13 +168,39 @@ fn step_of_differences(v: &[f64], tol: f64, unit: f64) -> f64 {
                     0.0
                 }
             };
-            let q = refined(&whole(q, exact));
+            let q = least_squares_step(&whole(q, exact));
             (share(q) >= 0.5).then(|| {
                 let q = finest_that_fits(q, unit, share);
-                refined(&whole(q, exact))
+                least_squares_step(&whole(q, exact))
             })
         })
         .unwrap_or(0.0)
+}
+
+/// The distinct values of the sorted `v`, each with how many of them lie within `tol` of
+/// its first.
+fn counted(v: &[f64], tol: f64) -> Vec<(f64, usize)> {
+    let mut out: Vec<(f64, usize)> = Vec::new();
+    for x in v {
+        match out.last_mut() {
+            Some((kept, count)) if (*x - *kept).abs() <= tol => *count += 1,
+            _ => out.push((*x, 1)),
+        }
+    }
+    out
+}
+
+/// The step (rad) that best fits differences `(k, x)` as `k` steps each, by least squares;
+/// 0 when there are none (no difference then fits it).
+fn least_squares_step(fits: &[(f64, f64)]) -> f64 {
+    let (kx, kk) = fits
+        .iter()
+        .fold((0.0, 0.0), |(kx, kk), (k, x)| (kx + k * x, kk + k * k));
+    if kk > 0.0 {
+        kx / kk
+    } else {
+        0.0
+    }
 }
 
 /// The step `q` (rad) found to fit at least half of the readings, or its half, third or
@@ -277,9 +285,6 @@ mod tests {
         (x / q).round() * q
     }
 
-    /// Triangle scan at constant speed, 37.3 steps per sample, turning points between
-    /// samples (as on a bench): every sample-to-sample difference is 37 or 38 steps, yet
-    /// the levels visited over the passes lie on the one-step grid.
     /// Levels read twice or more that are all even counts, the odd ones read once, and a
     /// few readings off the grid that break the spacings of all the levels: twice the
     /// step fits the even readings (three quarters of them), the step itself nearly all.
@@ -296,6 +301,9 @@ mod tests {
         assert!((est / q - 1.0).abs() < 1e-6, "step {est} vs {q}");
     }
 
+    /// Triangle scan at constant speed, 37.3 steps per sample, turning points between
+    /// samples (as on a bench): every sample-to-sample difference is 37 or 38 steps, yet
+    /// the levels visited over the passes lie on the one-step grid.
     #[test]
     fn constant_speed_triangle_gives_the_step_not_the_travel() {
         let q = 2.0 * std::f64::consts::PI / 65536.0;
