@@ -35,6 +35,8 @@ pub(crate) struct HalfSolution {
     /// Span tension, N.
     pub tension_n: f64,
     law: WrapLaw,
+    /// The elongation it was solved for, m.
+    elongation_m: f64,
 }
 
 /// A cable half: free span of length `span_m`, a wrap on the drum and a wrap on the pulley.
@@ -163,7 +165,11 @@ impl CableHalf {
     pub(crate) fn solve_for_elongation(&self, elongation_m: f64) -> Option<HalfSolution> {
         self.wrap
             .solve_for_elongation(elongation_m, self.wrap.series_span_per_n(), f64::NAN)
-            .map(|(tension_n, law)| HalfSolution { tension_n, law })
+            .map(|(tension_n, law)| HalfSolution {
+                tension_n,
+                law,
+                elongation_m,
+            })
     }
 
     /// [`Self::solve_for_elongation`], the tension alone (N): the plant's right-hand
@@ -184,7 +190,8 @@ impl CableHalf {
     #[inline]
     pub(crate) fn commit_solution(&mut self, solution: &HalfSolution) {
         if self.remembers {
-            self.wrap.commit_fresh(solution.tension_n, &solution.law);
+            self.wrap
+                .commit_solved(solution.tension_n, &solution.law, solution.elongation_m);
         }
     }
 

@@ -381,6 +381,11 @@ pub struct WrapRegion {
     stuck_m: f64,
     stuck_band_m: f64,
     committed_n: f64,
+    /// The elongation (m) the last commit was solved for, or NaN when it was committed
+    /// from a tension: within rounding of `stuck_m`, and known to the plant well before
+    /// the commit's own arithmetic has produced `stuck_m`, so a solve can pick its
+    /// direction's law from it first (see [`Self::tension_series`]).
+    solved_for_m: f64,
     /// `integral_0^wrap weight ds`, m rad: the preload's share of a whole profile's
     /// integral, which the stored tails leave out.
     weight_total_m: f64,
@@ -477,6 +482,7 @@ impl WrapRegion {
             stuck_m: 0.0,
             stuck_band_m: 0.0,
             committed_n: preload_n,
+            solved_for_m: f64::NAN,
             weight_total_m: weight_inner_m * cut_rad + weight_outer_m * (wrap_rad - cut_rad),
             slip_weight_per_mu: (weight_inner_m * cut_rad + weight_outer_m * (wrap_rad - cut_rad))
                 / mu,
@@ -576,6 +582,7 @@ impl WrapRegion {
         let top = self.verts[self.verts.len() - 1];
         let span = self.series_span_m;
         self.committed_n = top.t;
+        self.solved_for_m = f64::NAN;
         self.stuck_m = (span * (top.t - pre) + top.tail - pre * self.weight_total_m) * per_ea;
         self.stuck_band_m = self.stuck_band(top.t, span) * per_ea;
     }
@@ -908,12 +915,23 @@ impl WrapRegion {
     /// right-hand side's solve, which never commits, so no law leaves it.
     #[inline(always)]
     pub(crate) fn tension_series(&self, target_m: f64) -> Option<f64> {
+        // The law is first chosen by the side of the elongation the last commit was
+        // solved for: right after a commit its `stuck_m` is still being computed, and a
+        // choice made from it would hold the whole solve back. The exact test below
+        // confirms the choice (the two sides differ only within rounding), so the answer
+        // is the one the exact test alone gives.
+        let early = target_m > self.solved_for_m;
+        let cached = self.laws[usize::from(early)].get();
         let off = target_m - self.stuck_m;
         if off.abs() <= self.stuck_band_m {
             return Some(self.committed_n);
         }
         let rising = off > 0.0;
-        let cached = self.laws[usize::from(rising)].get();
+        let cached = if rising == early {
+            cached
+        } else {
+            self.laws[usize::from(rising)].get()
+        };
         if let Some(t) = self.root_on_cached(&cached, target_m) {
             return Some(t);
         }
@@ -1143,6 +1161,13 @@ impl WrapRegion {
     #[inline]
     pub(crate) fn commit_current(&mut self, trial: &WrapTrial) {
         self.commit_fresh(trial.tb_n, &trial.law);
+    }
+
+    /// [`Self::commit_fresh`] of a solve for the series span's elongation `target_m` (m).
+    #[inline]
+    pub(crate) fn commit_solved(&mut self, tb: f64, law: &WrapLaw, target_m: f64) {
+        self.commit_fresh(tb, law);
+        self.solved_for_m = target_m;
     }
 
     /// Commit boundary tension `tb` (N) on `law`, which must hold there and be built on
@@ -1656,7 +1681,8 @@ mod tests {
             let (t, law) = region
                 .solve_for_elongation(target, span_per_n, f64::NAN)
                 .expect("a positive tension fits");
-            region.commit_fresh(t, &law);
+            // As the plant commits: the solve's own elongation is kept beside the profile.
+            region.commit_solved(t, &law, target);
             each(&region, target);
         }
     }
@@ -1689,7 +1715,11 @@ mod tests {
     fn the_tension_alone_is_the_solves_tension_bit_for_bit() {
         // The right-hand side's solve and the commit's solve share every step; probe both
         // on twin regions at displacements around the committed one, both ways and past
-        // the top segment, so that the cache and the searches are exercised too.
+        // the top segment, so that the cache and the searches are exercised too. The
+        // right-hand side's region knows the elongation its last commit was solved for
+        // and picks its law from it first; the twin does not, so the probes within
+        // rounding of that elongation, where the first pick can be the wrong side, check
+        // that the pick never changes the answer.
         let (rd, wd, rp, wp, span) = (0.1025, 0.9, 0.02, 2.5, 0.0777);
         let twin =
             WrapRegion::with_regions(&[(rd, wd), (rp, wp)], MU, TPRE, G).with_series_span(span);
@@ -1704,14 +1734,34 @@ mod tests {
             for (a, b) in other.laws.iter().zip(&region.laws) {
                 a.set(b.get());
             }
-            for _ in 0..4 {
-                let size = if lcg(&mut rng) < 0.2 { 4e-4 } else { 2e-5 };
-                let probe = target + size * (lcg(&mut rng) - 0.5);
+            assert_eq!(region.solved_for_m.to_bits(), target.to_bits());
+            let near = [
+                target,
+                target.next_up(),
+                target.next_down(),
+                region.stuck_m + region.stuck_band_m,
+                (region.stuck_m + region.stuck_band_m).next_up(),
+                region.stuck_m - region.stuck_band_m,
+                (region.stuck_m - region.stuck_band_m).next_down(),
+            ];
+            for k in 0..4 + near.len() {
+                let probe = near.get(k).copied().unwrap_or_else(|| {
+                    let size = if lcg(&mut rng) < 0.2 { 4e-4 } else { 2e-5 };
+                    target + size * (lcg(&mut rng) - 0.5)
+                });
                 let alone = region.tension_series(probe);
                 let solved = other
                     .solve_for_elongation(probe, span_per_n, f64::NAN)
                     .map(|(t, _)| t);
                 assert_eq!(alone.map(f64::to_bits), solved.map(f64::to_bits));
+                // A first pick on the wrong side (the elongation kept beside the profile
+                // put on either side of every probe) must be caught by the exact test.
+                for wrong in [f64::NEG_INFINITY, f64::INFINITY] {
+                    let mut misled = region.clone();
+                    misled.solved_for_m = wrong;
+                    let got = misled.tension_series(probe);
+                    assert_eq!(got.map(f64::to_bits), solved.map(f64::to_bits));
+                }
             }
         });
     }
