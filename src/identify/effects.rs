@@ -18,8 +18,9 @@ pub enum EffectName {
     EncoderDelay,
     /// Output encoder reads `(1+s)` times the angle; value `s` (1e-4 to 5e-3).
     EncoderScaleError,
-    /// Preload decays linearly in time at a rate given as fraction per second (1e-3 to 2e-2 /s
-    /// during settling).
+    /// Preload changes linearly in time at a rate given as fraction of the initial preload
+    /// per second, either sign: positive when it decays (1e-3 to 2e-2 /s during settling),
+    /// negative when it rises through the record (a tensioner still taking up).
     PreloadRelaxation,
     /// Coulomb torque at the drum bearing that the load sensor does not see, N m (0.01 to
     /// 0.5 of the brake torque).
@@ -172,7 +173,7 @@ impl EffectName {
             EffectName::OutputDrumRunout => "output drum eccentric: error periodic in output angle",
             EffectName::EncoderDelay => "one encoder lags the other: error proportional to velocity",
             EffectName::EncoderScaleError => "output encoder scale wrong: error proportional to angle",
-            EffectName::PreloadRelaxation => "preload decays during the record: backlash grows with time",
+            EffectName::PreloadRelaxation => "preload changes steadily during the record: backlash grows (preload falling) or shrinks (rising) with time",
             EffectName::BearingFriction => "unmeasured Coulomb torque at the drum: jumps larger than the measured load explains",
             EffectName::CableTransport => "cable creep over the wraps: error keeps evolving after a reversal instead of jumping once",
             EffectName::ThermalDrift => "slow drift of the error with time, independent of motion",
@@ -185,8 +186,8 @@ impl EffectName {
 
 impl EffectName {
     /// Which way a signed effect of size `value` went, in words (`None` for effects whose
-    /// size has no sign: runouts carry theirs in a phase; frictions, lags and transport
-    /// are magnitudes).
+    /// size has no sign: runouts carry theirs in a phase; the ratio shape's terms are a
+    /// shape, not a direction; frictions, lags and transport are magnitudes).
     pub fn direction(self, value: f64) -> Option<&'static str> {
         let up = value > 0.0;
         match self {
@@ -204,6 +205,11 @@ impl EffectName {
                 "the output encoder reads more than the angle turned"
             } else {
                 "the output encoder reads less than the angle turned"
+            }),
+            EffectName::PreloadRelaxation => Some(if up {
+                "the preload falls through the record: the backlash grows with time"
+            } else {
+                "the preload rises through the record: the backlash shrinks with time"
             }),
             EffectName::ThermalDrift => Some(if up {
                 "the output drifts forward (+theta_out) with time"

@@ -1628,7 +1628,7 @@ pub fn size_sigmas(judged: usize) -> f64 {
 /// Why the effects `new` of a fit are not found, when one is not: a size within `sigmas`
 /// standard deviations of zero ([`size_sigmas`]) or along a direction the logs do not
 /// see, or a size fitted onto the bound that means none of the effect (a cable transport
-/// over the least travel allowed, a bearing friction or preload relaxation of zero), where
+/// over the least travel allowed, a bearing friction of zero), where
 /// the logs push it to less than the model can hold. `None`: every new effect stands off
 /// zero. The sizes are read as the report reads them ([`estimates::parameters`]), on the
 /// fit `fit` of the model `spec` over the rows `mask`.

@@ -343,9 +343,9 @@ pub fn replay(drive: &DriveParams, torque: &[f64]) -> Result<Vec<f64>, (usize, S
 /// rate low; the chord's error falls with the square of the knot spacing.
 pub const RELAXATION_KNOTS: usize = 4;
 
-/// [`replay`] with the preload falling linearly from `drive.preload_n` at rate `rate_per_s`
-/// (1/s of the initial preload, `preload_relaxation`), over sample times `t_s` of a record
-/// `duration_s` long.
+/// [`replay`] with the preload changing linearly from `drive.preload_n` at rate
+/// `rate_per_s` (1/s of the initial preload, `preload_relaxation`): falling when positive,
+/// rising when negative, over sample times `t_s` of a record `duration_s` long.
 pub fn relaxing_replay(
     drive: &DriveParams,
     torque: &[f64],
@@ -354,7 +354,8 @@ pub fn relaxing_replay(
     rate_per_s: f64,
 ) -> Result<Vec<f64>, (usize, String)> {
     let mut e = replay(drive, torque)?;
-    if !(rate_per_s > 0.0 && duration_s > 0.0) {
+    let changes = rate_per_s != 0.0 && rate_per_s.is_finite();
+    if !changes || duration_s.is_nan() || duration_s <= 0.0 {
         return Ok(e);
     }
     let k = RELAXATION_KNOTS;
@@ -542,10 +543,11 @@ pub fn is_linear(e: EffectName) -> bool {
 }
 
 /// The bound that means none of effect `e` (a cable transport over the least travel
-/// allowed, 1e-4 rad; a bearing friction or preload relaxation of zero) when the fit `x`
-/// (layout `nl`) sits on it, within a millionth of the parameter's range: the logs pushed
-/// it to less than the model can hold, so the effect is not found. `None` for an effect
-/// sized by a linear column (fitted with its sign, never held at a bound) or off the bound.
+/// allowed, 1e-4 rad; a bearing friction of zero) when the fit `x` (layout `nl`) sits on
+/// it, within a millionth of the parameter's range: the logs pushed it to less than the
+/// model can hold, so the effect is not found. `None` for an effect sized by a linear
+/// column, or fitted with either sign (a preload relaxation, whose none lies inside its
+/// range and whose lower bound is a rising preload), or off the bound.
 pub fn at_none_bound(nl: &[(NlParam, f64, f64, f64)], x: &[f64], e: EffectName) -> Option<f64> {
     if is_linear(e) {
         return None;
@@ -553,6 +555,7 @@ pub fn at_none_bound(nl: &[(NlParam, f64, f64, f64)], x: &[f64], e: EffectName) 
     nl.iter()
         .zip(x)
         .find(|(n, _)| n.0 == NlParam::Effect(e))
+        .filter(|(n, _)| n.1 >= 0.0)
         .filter(|(n, v)| (**v - n.1).abs() <= 1e-6 * (n.2 - n.1))
         .map(|(n, _)| n.1)
 }
@@ -754,8 +757,11 @@ impl<'a> Evaluator<'a> {
         let cap = 2.0 * s.drive.preload_n * s.drive.drum_radius_m;
         for e in &s.effects {
             match e {
+                // Either sign: a preload that rises through the record (a tensioner
+                // still taking up, a frame that warms and stretches the cable) follows the
+                // same law as one that relaxes, and a bound at zero never finds it.
                 EffectName::PreloadRelaxation => {
-                    v.push((NlParam::Effect(*e), 0.0, 0.6 / tmax, 0.05 / tmax))
+                    v.push((NlParam::Effect(*e), -0.6 / tmax, 0.6 / tmax, 0.05 / tmax))
                 }
                 EffectName::BearingFriction => {
                     v.push((NlParam::Effect(*e), 0.0, 0.4 * cap, 0.02 * cap))
@@ -1272,10 +1278,19 @@ impl<'a> Evaluator<'a> {
             } else {
                 7
             };
-            for g in 0..ns {
+            // A parameter of either sign is scanned out to each bound from zero alike, so
+            // the scan does not decide its sign before the fit does.
+            let sides = if n.1 < 0.0 { 2 } else { 1 };
+            for g in 0..sides * ns {
+                let (side, g) = (g / ns, g % ns);
+                if side == 1 && g == 0 {
+                    continue;
+                }
                 let f = g as f64 / (ns - 1) as f64;
                 let v = if n.1 > 0.0 {
                     n.1 * (n.2 / n.1).powf(f)
+                } else if side == 1 {
+                    n.1 * f * f
                 } else {
                     n.2 * f * f
                 };
@@ -1711,6 +1726,19 @@ mod bound_tests {
             at_none_bound(&nl, &[10.0, 0.5, 0.0], EffectName::PreloadRelaxation),
             None
         );
+        // Fitted with either sign: its lower bound is the fastest rise, not none.
+        let relax = NlParam::Effect(EffectName::PreloadRelaxation);
+        let signed = [
+            (NlParam::Preload, 10.0, 1000.0, 100.0),
+            (relax, -0.02, 0.02, 0.0),
+        ];
+        for v in [-0.02, 0.0, 0.02] {
+            assert_eq!(
+                at_none_bound(&signed, &[10.0, v], EffectName::PreloadRelaxation),
+                None,
+                "{v}"
+            );
+        }
         assert_eq!(
             at_none_bound(&nl, &[10.0, 0.5, 0.0], EffectName::LoadCompliance),
             None

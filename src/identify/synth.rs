@@ -437,6 +437,7 @@ mod tests {
             "input_pulley_runout=0.003",
             "load_compliance=-5e-4",
             "encoder_delay=0.002",
+            "preload_relaxation=-0.01",
         ] {
             assert!(parse_effect_arg(arg).is_ok(), "{arg}");
         }

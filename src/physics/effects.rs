@@ -36,8 +36,9 @@ pub struct EffectsParams {
     /// Unit: 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub encoder_scale_error: Option<f64>,
-    /// Preload loss rate, fraction per second.
-    /// Allowed: 0 to 1.
+    /// Preload loss rate, fraction of the initial preload per second: positive, the preload
+    /// falls through the record (relaxation); negative, it rises.
+    /// Allowed: -1 to 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub preload_relaxation_per_s: Option<f64>,
     /// Unmeasured Coulomb torque at the drum, N m.
@@ -173,7 +174,7 @@ impl EffectsParams {
         check(
             "preload_relaxation_per_s",
             self.preload_relaxation_per_s,
-            0.0,
+            -1.0,
             1.0,
         )?;
         check("bearing_friction_nm", self.bearing_friction_nm, 0.0, 1e4)?;
