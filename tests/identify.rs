@@ -1276,6 +1276,84 @@ fn an_effect_whose_size_is_not_told_from_zero_is_not_found() {
     );
 }
 
+/// A drive that is a deadband and nothing else: the output is a play operator of the input
+/// (half width 5 % of the stroke, between two of the friction memory's thresholds), with
+/// white noise and the output encoder's quantisation. The play operator fitted to the log
+/// is the truth, so no extension of the cable model can beat it held out: the effects the
+/// search finds are kept in `causes`, but the verdict says "not established" and the
+/// JSON's cause is `unexplained`, on a sine and a triangle scan.
+#[test]
+fn an_extension_the_play_operator_beats_is_not_established() {
+    use cable_servo::identify::{synthesize, SynthOptions};
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    for (seed, triangle) in [(21u64, false), (22, true)] {
+        let sc = scenario(triangle);
+        let mut log = synthesize(&sc, &[], seed, &SynthOptions::default()).unwrap();
+        let ic = sc.drive.drum_radius_m / sc.drive.pulley_radius_m;
+        let (lo, hi) = log
+            .theta_in_rad
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(*v), b.max(*v))
+            });
+        let r = 0.05 * (hi - lo) / ic;
+        let q = std::f64::consts::TAU / 1_048_576.0;
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        let noise = Normal::new(0.0, 1e-6).unwrap();
+        let mut y = log.theta_in_rad[0] / ic;
+        for (out, x) in log.theta_out_rad.iter_mut().zip(&log.theta_in_rad) {
+            y = y.clamp(x / ic - r, x / ic + r);
+            *out = ((y + noise.sample(&mut rng)) / q).round() * q;
+        }
+        let d = diagnose(&sc, &[log], &DiagnoseOptions::default()).unwrap();
+        let play = d
+            .play_operator
+            .as_ref()
+            .expect("the play operator is fitted");
+        eprintln!(
+            "seed {seed}: causes {:?}, extended {:.4} mrad, play operator {:.4}, base {:.4}, floor {:.4}",
+            d.causes, d.rmse_extended_mrad, play.rmse_heldout_mrad, d.rmse_base_mrad, d.noise_floor_mrad
+        );
+        // The path under test: an extension was found, and it loses to the deadband.
+        assert!(!d.causes.is_empty(), "seed {seed}: nothing found");
+        assert!(
+            play.rmse_heldout_mrad < d.rmse_extended_mrad,
+            "seed {seed}: {} against {}",
+            play.rmse_heldout_mrad,
+            d.rmse_extended_mrad
+        );
+        assert_eq!(d.beats_play_operator, Some(false), "seed {seed}");
+        assert_eq!(d.cause, "unexplained", "seed {seed}: {:?}", d.causes);
+        let text = cable_servo::report::diagnosis::summary_text(&d);
+        let verdict = text
+            .lines()
+            .find(|l| l.starts_with("CAUSE:"))
+            .unwrap_or_else(|| panic!("seed {seed}: no verdict in\n{text}"));
+        assert!(
+            verdict.starts_with("CAUSE: not established") && verdict.contains("play operator"),
+            "seed {seed}: {verdict}"
+        );
+        // The effects appear only as what the extended model held, never as the cause
+        // with its meaning.
+        for c in &d.causes {
+            let e: EffectName = c.parse().unwrap();
+            assert!(
+                !verdict.contains(e.meaning()) && !verdict.starts_with(&format!("CAUSE: {c}")),
+                "seed {seed}: {verdict}"
+            );
+        }
+        let dir = tempfile::tempdir().unwrap();
+        cable_servo::report::diagnosis::write_diagnosis(dir.path(), &d, None).unwrap();
+        let json: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join("diagnosis.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(json["cause"], "unexplained", "seed {seed}");
+        assert_eq!(json["beats_play_operator"], false, "seed {seed}");
+    }
+}
+
 /// A log whose input and output never move (the load cell still reading) is refused by
 /// name, not judged: before, it got a verdict over a noise floor of 0.0000 mrad.
 #[test]
