@@ -301,6 +301,7 @@ fn a_drive_whose_free_travel_narrows_with_the_load_is_one_drive() {
     let shared = |name: &str| {
         t.shared
             .iter()
+            .map(|s| &s.estimate)
             .find(|p| p.name == name)
             .map(|p| p.value)
             .unwrap_or_else(|| panic!("{name} not calibrated"))

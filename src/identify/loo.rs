@@ -18,6 +18,93 @@ use crate::physics::DriveParams;
 /// flagged as not pinned down by the logs.
 pub const NOT_PINNED_REL_STD: f64 = 0.5;
 
+/// A shared parameter of the joint calibration over every log, with what the folds (each
+/// calibrated without one log) say of it.
+#[derive(Clone, Debug, Serialize)]
+pub struct SharedParam {
+    /// The estimate; its `std` is the reported 1-sigma, in the parameter's unit: the larger
+    /// of [`SharedParam::std_fit`] and [`SharedParam::jackknife_std`] (a value held on its
+    /// bound keeps the fit's).
+    #[serde(flatten)]
+    pub estimate: ParamEstimate,
+    /// The joint calibration's own 1-sigma, in the parameter's unit: the largest of the
+    /// white-residual one, the runs' and, with five or more logs, the logs' disagreement
+    /// as a linear view of the fit sees it.
+    pub std_fit: f64,
+    /// Jackknife spread of the folds' values, in the parameter's unit, as in
+    /// [`LooTable::jackknife`] (`None` with fewer than three logs, or where a fold lacks it).
+    pub jackknife_std: Option<f64>,
+    /// Why the logs do not identify the parameter, in words (`None` when they do, or when
+    /// it is held on its bound): the folds scatter by more than its value (the logs
+    /// disagree on it), or its uncertainty exceeds its value.
+    pub not_identifiable: Option<String>,
+}
+
+impl SharedParam {
+    /// `estimate` from the joint calibration judged with the folds' jackknife spread
+    /// `jackknife` (its unit).
+    pub fn judge(mut estimate: ParamEstimate, jackknife: Option<f64>) -> Self {
+        let std_fit = estimate.std;
+        // Exactly zero is a term its bound holds (a weight kept non-negative), and no
+        // spread at all one the fit does not move: neither is an estimate to widen.
+        let held = std_fit == 0.0 || estimate.value == 0.0;
+        // The reported +- is the larger of the fit's and the jackknife's. The fit's comes
+        // from a linear view of one optimum; the folds are the calibration itself redone
+        // without each log, so where the law is nonlinear in the logs (a threshold growth
+        // that leans on the lightest and heaviest log) they show a scatter the linear view
+        // does not, and an uncertainty smaller than how far the answer moves when one log
+        // is dropped would be claimed precision the logs do not give. The jackknife is not
+        // the only figure because it can be too small the other way: folds that start
+        // where the optimum is flat need not move off their start at all. Taking the
+        // larger errs towards calling a parameter unpinned, the safe side for a user
+        // deciding whether to trust a size.
+        if !held {
+            if let Some(j) = jackknife {
+                estimate.widen(j);
+            }
+        }
+        // A value whose natural size is zero (a runout's phase) is not judged against it.
+        let natural = super::identifiability::zero_is_natural(&estimate.name);
+        let v = estimate.value.abs();
+        let apart = jackknife.filter(|j| !natural && *j > v).map(|j| {
+            format!(
+                "the logs disagree on it (the folds, each calibrated without one log, scatter by {}, more than its value)",
+                crate::compact(j)
+            )
+        });
+        let not_identifiable = if held {
+            None
+        } else if !std_fit.is_finite() || (!natural && std_fit > v) {
+            let exceeds = format!(
+                "its uncertainty ({}) exceeds its value",
+                crate::compact(std_fit)
+            );
+            Some(match apart {
+                Some(a) => format!("{exceeds}, and {a}"),
+                None => exceeds,
+            })
+        } else {
+            apart.map(|a| {
+                format!(
+                    "{a}, where the joint fit alone gives +- {}",
+                    crate::compact(std_fit)
+                )
+            })
+        };
+        Self {
+            estimate,
+            std_fit,
+            jackknife_std: jackknife,
+            not_identifiable,
+        }
+    }
+
+    /// Whether the joint calibration held it on its bound (no `+-` reported).
+    fn held(&self) -> bool {
+        self.std_fit == 0.0 || self.estimate.value == 0.0
+    }
+}
+
 /// One log left out.
 #[derive(Clone, Debug, Serialize)]
 pub struct LooRow {
@@ -176,8 +263,9 @@ pub struct LooTable {
     pub effects: Vec<String>,
     /// One row per log, in input order.
     pub rows: Vec<LooRow>,
-    /// Shared parameters of the joint calibration over all logs, with 1-sigma.
-    pub shared: Vec<ParamEstimate>,
+    /// Shared parameters of the joint calibration over all logs, with 1-sigma and whether
+    /// the logs identify them.
+    pub shared: Vec<SharedParam>,
     /// How the joint calibration's residual comes in runs and how far that widened the
     /// shared parameters' `+-` (`None` when the covariance could not be computed).
     pub residual_runs: Option<ResidualRuns>,
@@ -186,7 +274,7 @@ pub struct LooTable {
     /// assumption about the residual (empty with fewer than three logs).
     pub jackknife: Vec<JackknifeSpread>,
     /// Shared parameters the logs do not pin down (relative std above
-    /// [`NOT_PINNED_REL_STD`]), with why.
+    /// [`NOT_PINNED_REL_STD`], the folds' spread included), with why.
     pub not_pinned: Vec<String>,
     /// Shared nonlinear parameters of the joint calibration that ended on a bound.
     pub on_bound: Vec<String>,
@@ -249,6 +337,40 @@ fn jackknife_spread(shared: &[ParamEstimate], folds: &[&[ParamEstimate]]) -> Vec
                 name: p.name.clone(),
                 std: ((n - 1) as f64 / n as f64 * ss).sqrt(),
             })
+        })
+        .collect()
+}
+
+/// The shared parameters the logs do not pin down (relative std above
+/// [`NOT_PINNED_REL_STD`]), each in words with why.
+fn not_pinned(shared: &[SharedParam]) -> Vec<String> {
+    shared
+        .iter()
+        .filter(|s| {
+            let p = &s.estimate;
+            // Weights pinned at zero by their bound carry no information either way.
+            let at_bound = p.name.starts_with("friction_memory_") && p.value == 0.0;
+            let pinned = p.std.is_finite() && p.std <= NOT_PINNED_REL_STD * p.value.abs();
+            !at_bound && !pinned
+        })
+        .map(|s| {
+            let p = &s.estimate;
+            // Named where the folds' spread is what leaves it unpinned.
+            let disagree = match s.jackknife_std {
+                Some(j) if !s.held() && s.std_fit <= NOT_PINNED_REL_STD * p.value.abs() => {
+                    format!(
+                        "; the logs disagree on it: the folds, each calibrated without one log, scatter by {}, {:.1} times the joint fit's +- of {}",
+                        crate::compact(j),
+                        j / s.std_fit,
+                        crate::compact(s.std_fit)
+                    )
+                }
+                _ => String::new(),
+            };
+            format!(
+                "{} = {:.4e} +- {:.2e} {}: not pinned down by these logs{disagree}",
+                p.name, p.value, p.std, p.unit
+            )
         })
         .collect()
 }
@@ -579,21 +701,6 @@ pub fn leave_one_out_with_segments(
             super::mean_sample_interval(&prepared),
         )
     });
-    let not_pinned: Vec<String> = shared
-        .iter()
-        .filter(|p| {
-            // Weights pinned at zero by their bound carry no information either way.
-            let at_bound = p.name.starts_with("friction_memory_") && p.value == 0.0;
-            let pinned = p.std.is_finite() && p.std <= NOT_PINNED_REL_STD * p.value.abs();
-            !at_bound && !pinned
-        })
-        .map(|p| {
-            format!(
-                "{} = {:.4e} +- {:.2e} {}: not pinned down by these logs",
-                p.name, p.value, p.std, p.unit
-            )
-        })
-        .collect();
     // How much each log pulls the shared model away from the others: their in-sample
     // error with it in the calibration against without it.
     let (joint_resid, _) = ev.residual(&f, &all)?;
@@ -611,6 +718,14 @@ pub fn leave_one_out_with_segments(
         .collect();
     let fold_params: Vec<&[ParamEstimate]> = folds.iter().map(|f| f.1 .1.as_slice()).collect();
     let jackknife = jackknife_spread(&shared, &fold_params);
+    let shared: Vec<SharedParam> = shared
+        .into_iter()
+        .map(|p| {
+            let j = jackknife.iter().find(|j| j.name == p.name).map(|j| j.std);
+            SharedParam::judge(p, j)
+        })
+        .collect();
+    let not_pinned = not_pinned(&shared);
     let mut rows = Vec::with_capacity(folds.len());
     let mut pulling = Vec::new();
     let mut new_log_failures = Vec::new();
@@ -865,15 +980,13 @@ pub fn loo_text(t: &LooTable) -> String {
     if !t.jackknife.is_empty() {
         let _ = writeln!(
             s,
-            "  (In brackets: the jackknife spread of the folds' calibrations, each without one log.)"
+            "  (In brackets: the jackknife spread of the folds' calibrations, each without one log; each +- is the larger of the joint fit's and it, and a value it exceeds is not identifiable: the logs disagree on it.)"
         );
     }
     for p in &t.shared {
-        let jack = t
-            .jackknife
-            .iter()
-            .find(|j| j.name == p.name)
-            .map(|j| format!(" [jackknife {}]", crate::compact(j.std)))
+        let jack = p
+            .jackknife_std
+            .map(|j| format!(" [jackknife {}]", crate::compact(j)))
             .unwrap_or_default();
         let _ = writeln!(s, "  {}{jack}", shared_row(p));
     }
@@ -893,20 +1006,15 @@ pub fn loo_text(t: &LooTable) -> String {
 }
 
 /// One row of the shared-parameter table: the value with its 1-sigma where the logs pin
-/// it; where its uncertainty exceeds it, or it was held on its bound, that in words
-/// instead of a `+-` that would read as an estimate.
-fn shared_row(p: &ParamEstimate) -> String {
+/// it; where they do not ([`SharedParam::not_identifiable`]), or it was held on its bound,
+/// that in words instead of a `+-` that would read as an estimate.
+fn shared_row(s: &SharedParam) -> String {
+    let p = &s.estimate;
     let head = format!("{:<34} {:>13.5e}", p.name, p.value);
-    // Exactly zero is a term its bound holds (a weight kept non-negative): the fit does
-    // not need it, which is no failure to pin it.
-    if p.std == 0.0 || p.value == 0.0 {
+    if s.held() {
         format!("{head}    {}; held on its bound, not fitted freely", p.unit)
-    } else if !p.std.is_finite() || p.std > p.value.abs() {
-        format!(
-            "{head}    {}; not identifiable: its uncertainty ({}) exceeds its value",
-            p.unit,
-            crate::compact(p.std)
-        )
+    } else if let Some(why) = &s.not_identifiable {
+        format!("{head}    {}; not identifiable: {why}", p.unit)
     } else {
         format!("{head} +- {:<10.2e} {}", p.std, p.unit)
     }
@@ -914,7 +1022,7 @@ fn shared_row(p: &ParamEstimate) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::{binned_structure, jackknife_spread, shared_row, ParamEstimate};
+    use super::{binned_structure, jackknife_spread, shared_row, ParamEstimate, SharedParam};
 
     /// The jackknife of a mean is the standard error `s / sqrt(n)` exactly (`s` the sample
     /// standard deviation): the folds' values are the means without one sample each.
@@ -988,11 +1096,14 @@ mod tests {
     #[test]
     fn a_shared_value_its_uncertainty_exceeds_reads_as_not_identifiable() {
         let p = |value: f64, std: f64| {
-            ParamEstimate::new(
-                "friction_memory_weight[r=0.0042 rad]",
-                value,
-                std,
-                "rad/rad",
+            SharedParam::judge(
+                ParamEstimate::new(
+                    "friction_memory_weight[r=0.0042 rad]",
+                    value,
+                    std,
+                    "rad/rad",
+                ),
+                None,
             )
         };
         let loose = shared_row(&p(3.98754e-2, 4.05e-2));
@@ -1006,5 +1117,57 @@ mod tests {
             );
         }
         assert!(shared_row(&p(3.98754e-2, 4.05e-3)).contains("+-"));
+    }
+
+    /// A value the folds scatter by more than itself is not identifiable, the logs
+    /// disagreeing on it, even where the joint fit's own `+-` is well under it; its `+-`
+    /// is the jackknife's. One the folds agree on keeps the fit's `+-`, and a value held on
+    /// its bound or with a natural zero is not judged against its size.
+    #[test]
+    fn a_value_the_folds_scatter_by_more_than_itself_is_not_identifiable() {
+        let growth = |jack: Option<f64>| {
+            SharedParam::judge(
+                ParamEstimate::new("friction_memory_threshold_growth", 4.16, 0.99, "1/(N m)"),
+                jack,
+            )
+        };
+        let apart = growth(Some(7.8));
+        assert_eq!(apart.std_fit, 0.99);
+        assert_eq!(apart.estimate.std, 7.8);
+        let why = apart.not_identifiable.clone().unwrap_or_default();
+        assert!(why.starts_with("the logs disagree on it"), "{apart:?}");
+        let row = shared_row(&apart);
+        assert!(
+            !row.contains("+-  ") && row.contains("the logs disagree"),
+            "{row}"
+        );
+        let listed = super::not_pinned(std::slice::from_ref(&apart));
+        assert!(
+            listed.len() == 1 && listed[0].contains("the logs disagree on it"),
+            "{listed:?}"
+        );
+        for jack in [None, Some(0.5), Some(3.0)] {
+            let agreed = growth(jack);
+            assert!(agreed.not_identifiable.is_none(), "{agreed:?}");
+            assert!(shared_row(&agreed).contains("+-"), "{agreed:?}");
+            assert_eq!(agreed.estimate.std, jack.unwrap_or(0.0).max(0.99));
+        }
+        let both = SharedParam::judge(ParamEstimate::new("preload_n", 28.3, 67.6, "N"), Some(72.7));
+        let why = both.not_identifiable.clone().unwrap_or_default();
+        assert!(
+            why.starts_with("its uncertainty (67.6)") && why.contains("the logs disagree"),
+            "{both:?}"
+        );
+        let held = SharedParam::judge(
+            ParamEstimate::new("friction_memory_weight[r=0.0042 rad]", 0.0, 0.0, "rad/rad"),
+            Some(0.01),
+        );
+        assert!(held.not_identifiable.is_none() && held.estimate.std == 0.0);
+        let phase = SharedParam::judge(
+            ParamEstimate::new("input_pulley_runout_phase", 0.01, 0.001, "rad"),
+            Some(0.2),
+        );
+        assert!(phase.not_identifiable.is_none(), "{phase:?}");
+        assert_eq!(phase.estimate.std, 0.2);
     }
 }
