@@ -16,160 +16,8 @@ use cable_servo::identify::{diagnose, effect_value, BenchLog, DiagnoseOptions, E
 use cable_servo::scenario::Scenario;
 use rand::{Rng, SeedableRng};
 use std::f64::consts::TAU;
+use support::faults::{faulted_log, inject, quant, Fault, FAULTS, Q_OUT};
 use support::rates::{opts, opts_every, opts_library, scenario, size_of, truth};
-
-/// The truth's encoder steps (65536 and 2^20 counts per revolution), rad.
-const Q_IN: f64 = TAU / 65536.0;
-const Q_OUT: f64 = TAU / 1_048_576.0;
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Fault {
-    /// The input jerked by about 1 rad and back within 0.2 s, the output following through
-    /// a 20 ms lag.
-    Jerk,
-    /// The output reading jumps to a wrong value (or holds its last one) for 0.5 to 2 s.
-    OutputStuck,
-    /// The input reading holds its last value for 0.5 to 2 s.
-    InputStuck,
-    /// The input reading leaves its sine by 0.05 to 0.2 rad over 0.5 to 1.5 s (the output
-    /// does not follow).
-    Departure,
-    /// The output reading jumps by 0.02 to 0.1 rad for 0.1 to 0.5 s and back (a glitch of
-    /// its encoder), the input not moving with it.
-    OutputJump,
-    /// The input jumps by 1 to 2 rad within 0.05 to 0.15 s (faster than 1.5 times the scan's
-    /// peak speed) and stays there, the output following through a 20 ms lag: every later
-    /// sample is off the motion fitted before.
-    JumpThatStays,
-    /// One to four output samples 1 to 10 mrad off (170 to 1700 encoder steps).
-    OutputSpike,
-}
-
-const FAULTS: [Fault; 7] = [
-    Fault::Jerk,
-    Fault::OutputStuck,
-    Fault::InputStuck,
-    Fault::Departure,
-    Fault::OutputJump,
-    Fault::JumpThatStays,
-    Fault::OutputSpike,
-];
-
-fn quant(v: f64, q: f64) -> f64 {
-    (v / q).round() * q
-}
-
-/// Inject `fault` starting at `t0` (s); returns its channel and its span (s).
-fn inject(
-    log: &mut BenchLog,
-    fault: Fault,
-    t0: f64,
-    ic: f64,
-    rng: &mut impl Rng,
-) -> (Channel, f64, f64) {
-    let n = log.t_s.len();
-    let a = log
-        .t_s
-        .iter()
-        .position(|t| *t >= t0)
-        .expect("fault inside the log");
-    let dt = log.t_s[1] - log.t_s[0];
-    let bump = |t: f64, width: f64| 0.5 * (1.0 - (TAU * (t - t0) / width).cos());
-    match fault {
-        Fault::Jerk => {
-            let width = 0.2;
-            let amp = rng.gen_range(0.8..1.2) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-            let alpha = 1.0 - (-dt / 0.02f64).exp();
-            let mut lagged = 0.0;
-            for i in a..n {
-                let t = log.t_s[i];
-                let u = if t <= t0 + width {
-                    amp * bump(t, width)
-                } else {
-                    0.0
-                };
-                log.theta_in_rad[i] += quant(u, Q_IN);
-                lagged += alpha * (u - lagged);
-                log.theta_out_rad[i] += quant(lagged / ic, Q_OUT);
-            }
-            (Channel::Input, t0, t0 + width)
-        }
-        Fault::OutputStuck => {
-            let dur = rng.gen_range(0.5..2.0);
-            let wrong = if rng.gen_bool(0.5) {
-                0.0
-            } else {
-                rng.gen_range(0.02..0.1) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 }
-            };
-            let held = quant(log.theta_out_rad[a] + wrong, Q_OUT);
-            let b = a + (dur / dt).round() as usize;
-            for v in &mut log.theta_out_rad[a..b] {
-                *v = held;
-            }
-            (Channel::Output, t0, log.t_s[b - 1])
-        }
-        Fault::InputStuck => {
-            let dur = rng.gen_range(0.5..2.0);
-            let held = log.theta_in_rad[a];
-            let b = a + (dur / dt).round() as usize;
-            for v in &mut log.theta_in_rad[a..b] {
-                *v = held;
-            }
-            (Channel::Input, t0, log.t_s[b - 1])
-        }
-        Fault::Departure => {
-            let width = rng.gen_range(0.5..1.5);
-            let amp = rng.gen_range(0.05..0.2) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-            for i in a..n {
-                let t = log.t_s[i];
-                if t <= t0 + width {
-                    log.theta_in_rad[i] += quant(amp * bump(t, width), Q_IN);
-                }
-            }
-            (Channel::Input, t0, t0 + width)
-        }
-        Fault::JumpThatStays => {
-            let width = rng.gen_range(0.05..0.15);
-            let amp = rng.gen_range(1.0..2.0) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-            // Whole input steps, so that the readings after it are those of a drive shifted
-            // by exactly that much.
-            let amp = quant(amp, Q_IN);
-            let alpha = 1.0 - (-dt / 0.02f64).exp();
-            let mut lagged = 0.0;
-            for i in a..n {
-                let t = log.t_s[i];
-                let u = if t <= t0 + width {
-                    amp * 0.5 * (1.0 - (std::f64::consts::PI * (t - t0) / width).cos())
-                } else {
-                    amp
-                };
-                let before = log.theta_in_rad[i];
-                log.theta_in_rad[i] = quant(before + u, Q_IN);
-                lagged += alpha * (u - lagged);
-                let out = log.theta_out_rad[i];
-                log.theta_out_rad[i] = quant(out + lagged / ic, Q_OUT);
-            }
-            (Channel::Input, t0, t0 + width)
-        }
-        Fault::OutputSpike => {
-            let len = rng.gen_range(1..=4usize);
-            let wrong = rng.gen_range(1e-3..1e-2) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-            for v in &mut log.theta_out_rad[a..a + len] {
-                *v = quant(*v + wrong, Q_OUT);
-            }
-            (Channel::Output, t0, log.t_s[a + len - 1])
-        }
-        Fault::OutputJump => {
-            let dur = rng.gen_range(0.1..0.5);
-            let wrong = rng.gen_range(0.02..0.1) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-            let b = a + (dur / dt).round() as usize;
-            for v in &mut log.theta_out_rad[a..b] {
-                *v = quant(*v + wrong, Q_OUT);
-            }
-            (Channel::Output, t0, log.t_s[b - 1])
-        }
-    }
-}
 
 /// Segments of a log after its start-up cut, as the diagnosis sees them.
 fn flagged(log: &BenchLog) -> Vec<Segment> {
@@ -438,22 +286,6 @@ fn hidden_effect_is_still_named_under_a_fault() {
     }
 }
 
-/// A log of the independent truth with `effects` (scenario from the seed's parity) and
-/// `fault` injected at a time drawn from the seed; returns the scenario, the log and the
-/// fault's start, s.
-fn faulted_log(
-    effects: &[(EffectName, f64)],
-    fault: Fault,
-    seed: u64,
-) -> (Scenario, BenchLog, f64) {
-    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-    let sc = scenario(seed % 2 == 1);
-    let mut log = truth(&sc, effects, seed);
-    let t0 = rng.gen_range(8.0..20.0);
-    inject(&mut log, fault, t0, sc.drive.ratio(), &mut rng);
-    (sc, log, t0)
-}
-
 /// Every fault kind on top of every effect of the library (one draw each, the fault at a
 /// random time, the effect at a size of its realistic range): with the stretch excluded the
 /// effect is named in every one of the 40 cases. Bearing friction under a stuck input was
@@ -506,7 +338,7 @@ fn bearing_friction_flips_at_the_reversals_under_input_faults() {
     for fault in [Fault::InputStuck, Fault::Jerk] {
         for seed in 7300..7306u64 {
             let v = size_of(e, seed);
-            let (sc, log, t0) = faulted_log(&[(e, v)], fault, seed);
+            let (sc, log, (_, t0, _)) = faulted_log(&[(e, v)], fault, seed);
             let d = diagnose(&sc, std::slice::from_ref(&log), &opts()).expect("diagnosis");
             let est = effect_value(&d, e);
             if d.cause != e.as_str() || est.is_none_or(|x| (x - v).abs() > 0.1 * v) {
@@ -660,7 +492,7 @@ fn the_multi_wrap_effects_are_named_after_an_input_jerk() {
     for (k, e) in EffectName::EXTENDED.iter().enumerate() {
         for rep in 0..2u64 {
             let seed = 9000 + 10 * k as u64 + Fault::Jerk as u64 + 100 * rep;
-            let (sc, log, t0) = faulted_log(&[(*e, size_of(*e, seed))], Fault::Jerk, seed);
+            let (sc, log, (_, t0, _)) = faulted_log(&[(*e, size_of(*e, seed))], Fault::Jerk, seed);
             let d = diagnose(&sc, std::slice::from_ref(&log), &opts_every()).expect("diagnosis");
             let what = format!(
                 "{e} seed {seed}, jerk at {t0:.2} s: {}, {:.5} mrad against a floor of {:.5}",
@@ -691,7 +523,7 @@ fn a_clean_log_under_an_input_jerk_is_none() {
     let mut answers = Vec::new();
     for rep in 0..6u64 {
         let seed = 9500 + Fault::Jerk as u64 + 100 * rep;
-        let (sc, log, t0) = faulted_log(&[], Fault::Jerk, seed);
+        let (sc, log, (_, t0, _)) = faulted_log(&[], Fault::Jerk, seed);
         let d = diagnose(&sc, std::slice::from_ref(&log), &opts()).expect("diagnosis");
         answers.push(format!(
             "seed {seed}, jerk at {t0:.2} s: {}, {:.5} mrad against a floor of {:.5}",

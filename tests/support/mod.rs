@@ -1,4 +1,5 @@
 //! Helpers shared by the integration tests and benchmarks.
 
+pub mod faults;
 pub mod rates;
 pub mod truth;
