@@ -93,76 +93,36 @@ effect_tests! {
     finds_distributed_friction_memory => EffectName::DistributedFrictionMemory;
 }
 
-/// A link that gives way with the load (negative compliance: it adds to the spans' own
-/// stretch) is found and sized as well as a drive stiffer than the cable model, and the
-/// report says which way it went.
-#[test]
-fn finds_load_compliance_of_either_sign() {
-    let e = EffectName::LoadCompliance;
-    let mut named = 0;
-    for seed in 0..SEEDS_EXTENDED {
-        let sign = if seed % 2 == 0 { -1.0 } else { 1.0 };
-        let v = sign * support::rates::size_of(e, seed + 100);
-        let sc = scenario(seed % 4 >= 2);
-        let log = truth(&sc, &[(e, v)], 100 + seed);
-        let d = diagnose(&sc, &[log], &opts_every()).expect("diagnosis");
-        let est = effect_value(&d, e);
-        eprintln!("compliance {v:.3e} seed {seed}: {} {est:?}", d.cause);
-        if d.cause != e.as_str() {
-            continue;
-        }
-        named += 1;
-        let est = est.expect("a named effect has a size");
-        assert!(
-            (est - v).abs() <= size_tolerance(e) * v.abs(),
-            "seed {seed}: {est:e} for {v:e}"
-        );
-        let said = d
-            .directions
-            .iter()
-            .find(|x| x.effect == e.as_str())
-            .expect("direction of the compliance");
-        let want = if v < 0.0 {
-            "gives way with the load"
-        } else {
-            "stiffer"
-        };
-        assert!(said.meaning.contains(want), "{v:e}: {}", said.meaning);
-    }
-    let (rate, _) = claimed_rates(e);
-    assert!(
-        named >= (rate * SEEDS_EXTENDED as f64).ceil() as usize,
-        "named {named}/{SEEDS_EXTENDED}"
-    );
-}
-
-/// A preload that rises through the record (the backlash shrinking with time) is found and
-/// sized as one that relaxes is, and the report says which way it went; with the rate
-/// bounded at zero the rising one could not be fitted at all. Eight draws, the signs
-/// alternating, half of them within a factor 2 of the smallest size. A rising preload shows
-/// less than a falling one of the same rate (the backlash is convex in the preload: over a
-/// 30 s record 0.5 %/s raises it 15 % and shrinks the backlash less than a 15 % fall grows
-/// it), and at the smallest sizes its signature can stay within the noise: one miss is
-/// allowed, and it must be `none`, never another name (24 rising draws: 23 named, the
-/// miss at 5.2e-3 /s whose base model left 1.03 noise floors).
-#[test]
-fn finds_preload_relaxation_of_either_sign() {
-    let e = EffectName::PreloadRelaxation;
-    let draws = 8;
+/// Draws `0..draws` of the signed effect `e`, the signs alternating (negative on even
+/// seeds), half of them within a factor 2 of the smallest size: each one named must be
+/// sized within the effect's tolerance and its report must say which way it went
+/// (`words.0` for a negative size, `words.1` for a positive one); `on_miss` judges a draw
+/// that names something else. Returns how many were named.
+fn signed_draws(
+    e: EffectName,
+    draws: u64,
+    options: &DiagnoseOptions,
+    words: (&str, &str),
+    on_miss: impl Fn(u64, f64, &cable_servo::identify::Diagnosis),
+) -> u64 {
     let mut named = 0;
     for seed in 0..draws {
         let sign = if seed % 2 == 0 { -1.0 } else { 1.0 };
         let v = sign * support::rates::size_of(e, seed + 100);
         let sc = scenario(seed % 4 >= 2);
         let log = truth(&sc, &[(e, v)], 100 + seed);
-        let d = diagnose(&sc, &[log], &opts()).expect("diagnosis");
+        let d = diagnose(&sc, &[log], options).expect("diagnosis");
         let est = effect_value(&d, e);
         eprintln!(
-            "preload relaxation {v:.3e} seed {seed}: {} {est:?} base {:.4} ext {:.4} floor {:.4}",
-            d.cause, d.rmse_base_mrad, d.rmse_extended_mrad, d.noise_floor_mrad
+            "{} {v:.3e} seed {seed}: {} {est:?} base {:.4} ext {:.4} floor {:.4}",
+            e.as_str(),
+            d.cause,
+            d.rmse_base_mrad,
+            d.rmse_extended_mrad,
+            d.noise_floor_mrad
         );
         if d.cause != e.as_str() {
-            assert_eq!(d.cause, "none", "seed {seed}, {v:e}: {:?}", d.causes);
+            on_miss(seed, v, &d);
             continue;
         }
         named += 1;
@@ -175,14 +135,44 @@ fn finds_preload_relaxation_of_either_sign() {
             .directions
             .iter()
             .find(|x| x.effect == e.as_str())
-            .expect("direction of the preload's change");
-        let want = if v < 0.0 {
-            "preload rises"
-        } else {
-            "preload falls"
-        };
+            .expect("the direction of a signed effect");
+        let want = if v < 0.0 { words.0 } else { words.1 };
         assert!(said.meaning.contains(want), "{v:e}: {}", said.meaning);
     }
+    named
+}
+
+/// A link that gives way with the load (negative compliance: it adds to the spans' own
+/// stretch) is found and sized as well as a drive stiffer than the cable model, and the
+/// report says which way it went.
+#[test]
+fn finds_load_compliance_of_either_sign() {
+    let e = EffectName::LoadCompliance;
+    let words = ("gives way with the load", "stiffer");
+    let named = signed_draws(e, SEEDS_EXTENDED, &opts_every(), words, |_, _, _| {});
+    let (rate, _) = claimed_rates(e);
+    assert!(
+        named >= (rate * SEEDS_EXTENDED as f64).ceil() as u64,
+        "named {named}/{SEEDS_EXTENDED}"
+    );
+}
+
+/// A preload that rises through the record (the backlash shrinking with time) is found and
+/// sized as one that relaxes is, and the report says which way it went; with the rate
+/// bounded at zero the rising one could not be fitted at all. Eight draws. A rising preload
+/// shows less than a falling one of the same rate (the backlash is convex in the preload:
+/// over a 30 s record 0.5 %/s raises it 15 % and shrinks the backlash less than a 15 % fall
+/// grows it), and at the smallest sizes its signature can stay within the noise: one miss
+/// is allowed, and it must be `none`, never another name (24 rising draws: 23 named, the
+/// miss at 5.2e-3 /s whose base model left 1.03 noise floors).
+#[test]
+fn finds_preload_relaxation_of_either_sign() {
+    let e = EffectName::PreloadRelaxation;
+    let draws = 8;
+    let words = ("preload rises", "preload falls");
+    let named = signed_draws(e, draws, &opts(), words, |seed, v, d| {
+        assert_eq!(d.cause, "none", "seed {seed}, {v:e}: {:?}", d.causes);
+    });
     assert!(named + 1 >= draws, "named {named}/{draws}");
 }
 
