@@ -16,7 +16,7 @@ use cable_servo::identify::{diagnose, effect_value, BenchLog, DiagnoseOptions, E
 use cable_servo::scenario::Scenario;
 use rand::{Rng, SeedableRng};
 use std::f64::consts::TAU;
-use support::faults::{faulted_log, inject, quant, Fault, FAULTS, Q_OUT};
+use support::faults::{faulted_log, hold_input, inject, quant, Fault, FAULTS, Q_OUT};
 use support::rates::{opts, opts_every, opts_library, scenario, size_of, truth};
 
 /// Segments of a log after its start-up cut, as the diagnosis sees them.
@@ -393,6 +393,52 @@ fn a_stuck_reading_that_still_reads_noise_is_flagged() {
         assert!(start <= ta && start >= ta - PAD_S - 0.15, "start: {what}");
         assert!(end >= tb && end <= tb + PAD_S + 0.15, "end: {what}");
     }
+}
+
+/// The input reading held across a reversal of the triangle scan (from 0.2 to 0.9 s
+/// before the turn to 0.2 to 1 s after it), on clean logs and with a hidden effect: the
+/// held stretch is flagged as stuck and nothing more than 1 s from it is. Before, the
+/// motion was fitted through the held stretch with rounder turnarounds, every other
+/// reversal then lay a few tenths of a rad off it, all were left out of the refit
+/// together, and each was flagged as a departure (1 s around every reversal of the log).
+#[test]
+fn an_input_held_across_a_triangle_reversal_is_all_that_is_flagged() {
+    let sc = scenario(true);
+    let mut wrong = Vec::new();
+    for seed in 0..8u64 {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(9100 + seed);
+        let effects = if seed.is_multiple_of(2) {
+            Vec::new()
+        } else {
+            hidden(10 + seed)
+        };
+        let mut log = truth(&sc, &effects, 9100 + seed);
+        // The scan reverses every 5 s from 2.5 s.
+        let turn = 2.5 + 5.0 * f64::from(rng.gen_range(2..4u8));
+        let (before, after) = (rng.gen_range(0.2..0.9), rng.gen_range(0.2..1.0));
+        let a = turn - before;
+        let b = hold_input(&mut log, a, before + after);
+        let s = flagged(&log);
+        let held = s.iter().any(|g| {
+            g.channel == Channel::Input
+                && g.start_s <= a
+                && g.end_s >= b
+                && g.reason.contains("stuck")
+        });
+        let away: Vec<&Segment> = s
+            .iter()
+            .filter(|g| g.end_s < a - 1.0 || g.start_s > b + 1.0)
+            .collect();
+        if !held || !away.is_empty() {
+            wrong.push(format!(
+                "seed {seed} ({effects:?}), held {a:.2}-{b:.2} s: {:?}",
+                s.iter()
+                    .map(|g| format!("{:.2}-{:.2} s {}", g.start_s, g.end_s, g.reason))
+                    .collect::<Vec<_>>()
+            ));
+        }
+    }
+    assert!(wrong.is_empty(), "{wrong:#?}");
 }
 
 /// `log` cut to the rows from `from_s` to `to_s` (times kept).

@@ -71,6 +71,14 @@ pub const JUMP_SEARCH_SPEED: f64 = 1.2;
 /// shifts are taken out (the robust spread's ratio) for the shifts to be kept.
 pub const JUMP_FIT_GAIN: f64 = 0.5;
 
+/// Stretches far off the motion whose peak distance reaches this share of the farthest
+/// one's are left out of its fit together; the nearer wait for the refit without them.
+pub const TRIM_WORST: f64 = 0.5;
+
+/// Most refits of the motion per share of its amplitude it is trimmed at (the last leaves
+/// out every stretch still far off).
+pub const TRIM_STAGES: usize = 4;
+
 /// Most refits of the motion through an input whose lasting jumps were taken out.
 pub const JUMP_REFITS: usize = 4;
 
@@ -804,33 +812,58 @@ fn departures_from(
     // 0.1 %, and the robust threshold) are left out of the fit, with their padding, and the
     // motion refitted: a fault then does not bend the motion it is judged against, while
     // the motion's own shape (its turnarounds, which a bent fit also misses, by less) stays
-    // in the fit. A refit is kept only when it fits its rows better.
-    for share in [0.01, 0.003, 0.001] {
-        let r = resid(&m);
-        let (sr, mr) = robust(&r);
-        let gross = (ROBUST_K * sr).max(share * m.amplitude()).max(10.0 * q_in);
-        let far: Vec<usize> = (0..n).filter(|i| (r[*i] - mr).abs() > gross).collect();
-        if far.is_empty() {
-            continue;
-        }
-        let before = use_row.clone();
-        use_row = vec![true; n];
-        for i in far {
-            for u in &mut use_row[i.saturating_sub(pad)..(i + pad + 1).min(n)] {
-                *u = false;
-            }
-        }
-        let rows: Vec<usize> = (0..n).filter(|i| use_row[*i]).collect();
-        let cost = |mm: &Motion| {
-            rows.iter()
-                .map(|&i| (x[i] - mm.at(t[i])).powi(2))
-                .sum::<f64>()
-        };
-        match fit_motion(t, x, &rows) {
-            Some(m2) if cost(&m2) <= cost(&m) => m = m2,
-            _ => {
-                use_row = before;
+    // in the fit. A refit is kept only when it fits its rows better. The stretches go out
+    // worst first ([`TRIM_WORST`], up to [`TRIM_STAGES`] refits a share): a fault bends
+    // the fit at every like part of the motion, and left out with it those parts would
+    // take the shape they pin out of the refit (an input held across one reversal of a
+    // triangle scan, 0.9 to 2 rad off, rounded the fitted turnarounds so that each of the
+    // other reversals lay 0.16 to 0.45 rad off; with all of them out the turnaround
+    // fraction was left to the ramps, and every reversal read as a departure; taken out
+    // alone, the refit found the scan's own 0.2).
+    'shares: for share in [0.01, 0.003, 0.001] {
+        let mut out = vec![false; n];
+        for stage in 0..TRIM_STAGES {
+            let r = resid(&m);
+            let (sr, mr) = robust(&r);
+            let gross = (ROBUST_K * sr).max(share * m.amplitude()).max(10.0 * q_in);
+            let far_flag: Vec<bool> = (0..n)
+                .map(|i| !out[i] && (r[i] - mr).abs() > gross)
+                .collect();
+            let far: Vec<(usize, usize, f64)> = runs(&far_flag, 1)
+                .into_iter()
+                .map(|(a, b)| {
+                    let peak = r[a..b].iter().fold(0.0f64, |p, v| p.max((v - mr).abs()));
+                    (a, b, peak)
+                })
+                .collect();
+            let Some(worst) = far.iter().map(|f| f.2).reduce(f64::max) else {
                 break;
+            };
+            // The last stage takes whatever is still far.
+            let least = if stage + 1 == TRIM_STAGES {
+                0.0
+            } else {
+                TRIM_WORST * worst
+            };
+            let mut next = out.clone();
+            for &(a, b, _) in far.iter().filter(|f| f.2 >= least) {
+                for u in &mut next[a.saturating_sub(pad)..(b + pad).min(n)] {
+                    *u = true;
+                }
+            }
+            let rows: Vec<usize> = (0..n).filter(|i| !next[*i]).collect();
+            let cost = |mm: &Motion| {
+                rows.iter()
+                    .map(|&i| (x[i] - mm.at(t[i])).powi(2))
+                    .sum::<f64>()
+            };
+            match fit_motion(t, x, &rows) {
+                Some(m2) if cost(&m2) <= cost(&m) => {
+                    m = m2;
+                    use_row = next.iter().map(|o| !o).collect();
+                    out = next;
+                }
+                _ => break 'shares,
             }
         }
     }

@@ -105,12 +105,8 @@ pub fn inject(
         }
         Fault::InputStuck => {
             let dur = rng.gen_range(0.5..2.0);
-            let held = log.theta_in_rad[a];
-            let b = a + (dur / dt).round() as usize;
-            for v in &mut log.theta_in_rad[a..b] {
-                *v = held;
-            }
-            (Channel::Input, t0, log.t_s[b - 1])
+            let end = hold_input(log, t0, dur);
+            (Channel::Input, t0, end)
         }
         Fault::Departure => {
             let width = rng.gen_range(0.5..1.5);
@@ -164,6 +160,23 @@ pub fn inject(
             (Channel::Output, t0, log.t_s[b - 1])
         }
     }
+}
+
+/// The input reading held at its value at `t0` (s, inside the log) for `dur` s; returns the
+/// time of the last sample held, s.
+pub fn hold_input(log: &mut BenchLog, t0: f64, dur: f64) -> f64 {
+    let a = log
+        .t_s
+        .iter()
+        .position(|t| *t >= t0)
+        .expect("hold inside the log");
+    let dt = log.t_s[1] - log.t_s[0];
+    let b = (a + (dur / dt).round() as usize).min(log.t_s.len());
+    let held = log.theta_in_rad[a];
+    for v in &mut log.theta_in_rad[a..b] {
+        *v = held;
+    }
+    log.t_s[b - 1]
 }
 
 /// A log of the independent truth with `effects` (scenario from the seed's parity) and
