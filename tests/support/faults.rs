@@ -63,11 +63,7 @@ pub fn inject(
     rng: &mut impl Rng,
 ) -> (Channel, f64, f64) {
     let n = log.t_s.len();
-    let a = log
-        .t_s
-        .iter()
-        .position(|t| *t >= t0)
-        .expect("fault inside the log");
+    let a = row_at(log, t0);
     let dt = log.t_s[1] - log.t_s[0];
     let bump = |t: f64, width: f64| 0.5 * (1.0 - (TAU * (t - t0) / width).cos());
     match fault {
@@ -165,11 +161,7 @@ pub fn inject(
 /// The input reading held at its value at `t0` (s, inside the log) for `dur` s; returns the
 /// time of the last sample held, s.
 pub fn hold_input(log: &mut BenchLog, t0: f64, dur: f64) -> f64 {
-    let a = log
-        .t_s
-        .iter()
-        .position(|t| *t >= t0)
-        .expect("hold inside the log");
+    let a = row_at(log, t0);
     let dt = log.t_s[1] - log.t_s[0];
     let b = (a + (dur / dt).round() as usize).min(log.t_s.len());
     let held = log.theta_in_rad[a];
@@ -193,4 +185,12 @@ pub fn faulted_log(
     let t0 = rng.gen_range(8.0..20.0);
     let span = inject(&mut log, fault, t0, sc.drive.ratio(), &mut rng);
     (sc, log, span)
+}
+
+/// The first row of `log` at or after `t0` (s); `t0` must lie inside the log.
+fn row_at(log: &BenchLog, t0: f64) -> usize {
+    log.t_s
+        .iter()
+        .position(|t| *t >= t0)
+        .expect("the time lies inside the log")
 }
