@@ -352,6 +352,18 @@ pub fn zero_is_natural(name: &str) -> bool {
     name.starts_with("encoder_zero[") || name.ends_with("_phase") || name.contains("_per_log[")
 }
 
+/// Why `p` is not identifiable on its `std` alone, in words: that uncertainty is not finite
+/// or exceeds its value (`None` when it is within it, and for a value whose natural size is
+/// zero, [`zero_is_natural`], unless it is not finite).
+pub fn uncertainty_exceeds_value(p: &ParamEstimate) -> Option<String> {
+    (!p.std.is_finite() || (p.std > p.value.abs() && !zero_is_natural(&p.name))).then(|| {
+        format!(
+            "its uncertainty ({}) exceeds its value",
+            crate::compact(p.std)
+        )
+    })
+}
+
 /// A reported parameter the data does not pin, and why.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct NotIdentifiable {
@@ -391,11 +403,8 @@ pub fn not_identifiable(
                     partners.join(", ")
                 )
             }
-        } else if !p.std.is_finite() || (p.std > p.value.abs() && !zero_is_natural(&p.name)) {
-            format!(
-                "its uncertainty ({}) exceeds its value",
-                crate::compact(p.std)
-            )
+        } else if let Some(why) = uncertainty_exceeds_value(p) {
+            why
         } else if let Some((other, r)) = column(&p.name).and_then(|c| {
             raw.iter()
                 .filter(|(n, k)| *k != c && *n != p.name)

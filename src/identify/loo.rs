@@ -45,9 +45,8 @@ impl SharedParam {
     /// `jackknife` (its unit).
     pub fn judge(mut estimate: ParamEstimate, jackknife: Option<f64>) -> Self {
         let std_fit = estimate.std;
-        // Exactly zero is a term its bound holds (a weight kept non-negative), and no
-        // spread at all one the fit does not move: neither is an estimate to widen.
-        let held = std_fit == 0.0 || estimate.value == 0.0;
+        let held = on_bound(std_fit, estimate.value);
+        let exceeds = super::identifiability::uncertainty_exceeds_value(&estimate);
         // The reported +- is the larger of the fit's and the jackknife's. The fit's comes
         // from a linear view of one optimum; the folds are the calibration itself redone
         // without each log, so where the law is nonlinear in the logs (a threshold growth
@@ -74,11 +73,7 @@ impl SharedParam {
         });
         let not_identifiable = if held {
             None
-        } else if !std_fit.is_finite() || (!natural && std_fit > v) {
-            let exceeds = format!(
-                "its uncertainty ({}) exceeds its value",
-                crate::compact(std_fit)
-            );
+        } else if let Some(exceeds) = exceeds {
             Some(match apart {
                 Some(a) => format!("{exceeds}, and {a}"),
                 None => exceeds,
@@ -101,8 +96,15 @@ impl SharedParam {
 
     /// Whether the joint calibration held it on its bound (no `+-` reported).
     fn held(&self) -> bool {
-        self.std_fit == 0.0 || self.estimate.value == 0.0
+        on_bound(self.std_fit, self.estimate.value)
     }
+}
+
+/// Whether a joint calibration's `value` with 1-sigma `std_fit` is held on its bound:
+/// exactly zero is a term its bound holds (a weight kept non-negative), and no spread at
+/// all one the fit does not move; neither is an estimate to widen or to judge.
+fn on_bound(std_fit: f64, value: f64) -> bool {
+    std_fit == 0.0 || value == 0.0
 }
 
 /// One log left out.
