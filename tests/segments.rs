@@ -16,7 +16,9 @@ use cable_servo::identify::{diagnose, effect_value, BenchLog, DiagnoseOptions, E
 use cable_servo::scenario::Scenario;
 use rand::{Rng, SeedableRng};
 use std::f64::consts::TAU;
-use support::faults::{faulted_log, hold_input, inject, quant, Fault, FAULTS, Q_OUT};
+use support::faults::{
+    faulted_log, hold_input, inject, offset_output, quant, row_at, Fault, FAULTS, Q_OUT,
+};
 use support::rates::{opts, opts_every, opts_library, scenario, size_of, truth};
 
 /// Segments of a log after its start-up cut, as the diagnosis sees them.
@@ -211,10 +213,8 @@ fn a_spike_at_either_end_of_the_log_is_flagged() {
         let wrong = rng.gen_range(1e-3..1e-2) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
         let at_start = seed % 3 != 0;
         let range = if at_start { 0..len } else { n - len..n };
-        for v in &mut log.theta_out_rad[range.clone()] {
-            *v = quant(*v + wrong, Q_OUT);
-        }
-        let (a, b) = (log.t_s[range.start], log.t_s[range.end - 1]);
+        let b = offset_output(&mut log, range.start, range.end, wrong);
+        let a = log.t_s[range.start];
         let s = flagged(&log);
         let what = format!("seed {seed}, {len} samples at {a:.3}-{b:.3} s: {s:?}");
         assert_eq!(s.len(), 1, "{what}");
@@ -457,19 +457,13 @@ fn an_output_spike_on_a_reversal_of_the_input_is_flagged() {
         assert!(s.is_empty(), "seed {seed}, clean: {s:?}");
         // Both scans reverse every 5 s from 2.5 s.
         let turn_s = 2.5 + 5.0 * f64::from(rng.gen_range(1..5u8));
-        let turn = clean
-            .t_s
-            .iter()
-            .position(|t| *t >= turn_s - 1e-9)
-            .expect("turn inside the log");
+        let turn = row_at(&clean, turn_s - 1e-9);
         let len = rng.gen_range(1..=4usize);
         let from = turn - rng.gen_range(0..len);
         let size = rng.gen_range(1.5e-3..3e-3) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
         let mut log = clean;
-        for v in &mut log.theta_out_rad[from..from + len] {
-            *v = quant(*v + size, Q_OUT);
-        }
-        let (a, b) = (log.t_s[from], log.t_s[from + len - 1]);
+        let b = offset_output(&mut log, from, from + len, size);
+        let a = log.t_s[from];
         let s = flagged(&log);
         let spike = s
             .iter()

@@ -141,21 +141,25 @@ pub fn inject(
         Fault::OutputSpike => {
             let len = rng.gen_range(1..=4usize);
             let wrong = rng.gen_range(1e-3..1e-2) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-            for v in &mut log.theta_out_rad[a..a + len] {
-                *v = quant(*v + wrong, Q_OUT);
-            }
-            (Channel::Output, t0, log.t_s[a + len - 1])
+            let end = offset_output(log, a, a + len, wrong);
+            (Channel::Output, t0, end)
         }
         Fault::OutputJump => {
             let dur = rng.gen_range(0.1..0.5);
             let wrong = rng.gen_range(0.02..0.1) * if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-            let b = a + (dur / dt).round() as usize;
-            for v in &mut log.theta_out_rad[a..b] {
-                *v = quant(*v + wrong, Q_OUT);
-            }
-            (Channel::Output, t0, log.t_s[b - 1])
+            let end = offset_output(log, a, a + (dur / dt).round() as usize, wrong);
+            (Channel::Output, t0, end)
         }
     }
+}
+
+/// The output readings of rows `a..b` of `log` moved by `size` (rad) and kept on the
+/// output's encoder grid; returns the time of the last row moved, s.
+pub fn offset_output(log: &mut BenchLog, a: usize, b: usize, size: f64) -> f64 {
+    for v in &mut log.theta_out_rad[a..b] {
+        *v = quant(*v + size, Q_OUT);
+    }
+    log.t_s[b - 1]
 }
 
 /// The input reading held at its value at `t0` (s, inside the log) for `dur` s; returns the
@@ -188,7 +192,7 @@ pub fn faulted_log(
 }
 
 /// The first row of `log` at or after `t0` (s); `t0` must lie inside the log.
-fn row_at(log: &BenchLog, t0: f64) -> usize {
+pub fn row_at(log: &BenchLog, t0: f64) -> usize {
     log.t_s
         .iter()
         .position(|t| *t >= t0)
