@@ -66,6 +66,11 @@ pub enum DesignError {
     Write(String),
 }
 
+/// Largest end of a search range, N m or Hz: far beyond any gimbal's brake load or scan,
+/// and small enough that the bisection's tolerance floor (1e-9 of it) stays a number a
+/// design review can read.
+pub const MAX_SEARCH_END: f64 = 1e6;
+
 fn with_value(base: &Scenario, question: Question, value: f64) -> Scenario {
     let mut s = base.clone();
     match question {
@@ -135,9 +140,15 @@ pub fn largest_meeting_target(
             "the fastest scan needs a sine or triangle closed_loop.reference".into(),
         ));
     }
-    if !(range.0.is_finite() && range.1 > range.0 && tolerance > 0.0) {
+    if !(range.0 >= 0.0
+        && range.1 > range.0
+        && range.1 <= MAX_SEARCH_END
+        && tolerance > 0.0
+        && tolerance.is_finite())
+    {
         return Err(DesignError::Unsuitable(format!(
-            "need a range lo < hi and a tolerance > 0, got {} to {} and {}",
+            "need a range 0 <= lo < hi <= {} and a finite tolerance > 0, got {} to {} and {}",
+            crate::readable(MAX_SEARCH_END),
             crate::readable(range.0),
             crate::readable(range.1),
             crate::readable(tolerance)

@@ -102,6 +102,46 @@ pub fn fixed(v: f64, decimals: usize) -> String {
     }
 }
 
+/// `text` with every number written out in more than 17 digits (as Rust and serde print
+/// `1e308`: three hundred of them) replaced by its [`readable`] form: the last guard of
+/// the command line's messages, whatever built them. Digits that are part of a word
+/// (`tool4_04`) are left alone.
+pub fn long_numbers_compacted(text: &str) -> String {
+    const LONGEST: usize = 17;
+    let bytes = text.as_bytes();
+    let mut out = String::with_capacity(text.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        let word_before = i > 0 && (bytes[i - 1].is_ascii_alphanumeric() || bytes[i - 1] == b'_');
+        if !bytes[i].is_ascii_digit() || word_before {
+            let c = text[i..].chars().next().unwrap_or(' ');
+            out.push(c);
+            i += c.len_utf8();
+            continue;
+        }
+        let start = i;
+        let mut digits = 0;
+        let mut point = false;
+        while i < bytes.len() {
+            match bytes[i] {
+                b'0'..=b'9' => digits += 1,
+                b'.' if !point && bytes.get(i + 1).is_some_and(u8::is_ascii_digit) => point = true,
+                _ => break,
+            }
+            i += 1;
+        }
+        let token = &text[start..i];
+        let word_after = bytes
+            .get(i)
+            .is_some_and(|b| b.is_ascii_alphabetic() || *b == b'_');
+        match token.parse::<f64>() {
+            Ok(v) if digits > LONGEST && !word_after => out.push_str(&readable(v)),
+            _ => out.push_str(token),
+        }
+    }
+    out
+}
+
 /// A duration as shown in messages: `40 s`, `12 min`, `3.5 h`, `9.2 days`.
 pub fn duration_words(s: f64) -> String {
     if !s.is_finite() {
@@ -153,5 +193,22 @@ mod words_tests {
         assert_eq!(super::readable(100.00001), "100");
         assert_eq!(super::readable(100.0001), "100.0001");
         assert_eq!(super::readable(-1.23456789e-300), "-1.234568e-300");
+    }
+
+    #[test]
+    fn long_numbers_in_messages_are_compacted() {
+        let huge = format!("{}", 1e308_f64);
+        let tiny = format!("{}", -1e-300_f64);
+        assert!(huge.len() > 300 && tiny.len() > 300);
+        let message = format!("invalid type: floating point `{huge}.0`, at {tiny} s; the count {huge}");
+        assert_eq!(
+            super::long_numbers_compacted(&message),
+            "invalid type: floating point `1e308`, at -1e-300 s; the count 1e308"
+        );
+        // Everyday numbers, words with digits and non-ASCII text stay as they are.
+        let plain = "tool4_04.csv line 12: 0.1 mrad at 20000 Hz, 12345678901234567 µs";
+        assert_eq!(super::long_numbers_compacted(plain), plain);
+        let tagged = format!("x{huge}y");
+        assert_eq!(super::long_numbers_compacted(&tagged), tagged);
     }
 }

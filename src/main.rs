@@ -10,11 +10,13 @@ use cable_servo::scenario::{Scenario, DEFAULT_SCENARIO};
 use cable_servo::study::answers;
 use cable_servo::sweep::{vary, Shard};
 
-/// Print a line to stdout; a closed pipe (`| head`) is not an error worth a panic.
+/// Print a line to stdout, long numbers compacted; a closed pipe (`| head`) is not an
+/// error worth a panic.
 macro_rules! say {
     ($($arg:tt)*) => {{
         use std::io::Write as _;
-        let _ = writeln!(std::io::stdout(), $($arg)*);
+        let text = cable_servo::long_numbers_compacted(&format!($($arg)*));
+        let _ = writeln!(std::io::stdout(), "{text}");
     }};
 }
 
@@ -26,11 +28,12 @@ macro_rules! say_raw {
     }};
 }
 
-/// Print a line to stderr, ignoring a closed pipe.
+/// Print a line to stderr, long numbers compacted, ignoring a closed pipe.
 macro_rules! tell {
     ($($arg:tt)*) => {{
         use std::io::Write as _;
-        let _ = writeln!(std::io::stderr(), $($arg)*);
+        let text = cable_servo::long_numbers_compacted(&format!($($arg)*));
+        let _ = writeln!(std::io::stderr(), "{text}");
     }};
 }
 
@@ -1471,6 +1474,16 @@ fn closed_loop_answer(
             return ExitCode::from(exit::USAGE);
         }
     };
+    // The scenario as given first: its own faults, or a study without a closed loop, are
+    // named as they are, not as faults of the mode's override below.
+    match load(name, set) {
+        Ok(s) if s.closed_loop.is_none() => {
+            tell!("error: {name} is not a closed-loop scenario (study = \"closed_loop\")");
+            return ExitCode::from(exit::INPUT);
+        }
+        Ok(_) => {}
+        Err(code) => return code,
+    }
     let mut set = set.clone();
     // The design is judged in the mode asked about, as every command would with this --set.
     set.push(format!("closed_loop.requirements.mode={}", mode.name()));

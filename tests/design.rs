@@ -42,3 +42,25 @@ fn fastest_scan_passes_and_a_faster_one_fails() {
     assert!(peak_passes(&at(f)));
     assert!(!peak_passes(&at(f + 2.0 * tol)));
 }
+
+#[test]
+fn a_search_range_without_a_readable_end_is_refused_before_any_run() {
+    let base = Scenario::load("eots_scan", &[]).unwrap();
+    for (range, tol) in [
+        ((0.05, f64::INFINITY), 0.02),
+        ((0.05, 1e308), 0.02),
+        ((-1.0, 3.0), 0.02),
+        ((0.05, 3.0), f64::INFINITY),
+    ] {
+        let e = largest_meeting_target(
+            &base,
+            Question::LargestLoad,
+            CompensationMode::Memory,
+            range,
+            tol,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("0 <= lo < hi <= 1e6") && !e.contains("inf "), "{e}");
+    }
+}

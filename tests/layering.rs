@@ -14,6 +14,7 @@ const LAYERS: &[(&str, &[&str])] = &[
             "number",
             "NOT_A_NUMBER",
             "compact",
+            "long_numbers_compacted",
             "significant",
             "readable",
             "fixed",

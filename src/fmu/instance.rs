@@ -161,8 +161,9 @@ pub fn plant_params(scenario: &Scenario) -> Result<PlantParams, String> {
         (Study::ClosedLoop, Some(p)) => p.clone(),
         (study, _) => {
             return Err(format!(
-                "scenario {}: study is {study:?}; an FMU is built from a closed-loop scenario (study = \"closed_loop\"), whose [closed_loop] section gives motor, drum and sensors",
-                scenario.name()
+                "scenario {}: study is \"{}\"; an FMU is built from a closed-loop scenario (study = \"closed_loop\"), whose [closed_loop] section gives motor, drum and sensors",
+                scenario.name(),
+                study.as_str()
             ))
         }
     };

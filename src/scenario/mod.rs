@@ -46,6 +46,10 @@ pub enum Study {
     ClosedLoop,
 }
 
+/// Longest scenario `name`, characters: the results folder and its staging folder are
+/// named after it, and a file system allows 255 bytes for a name.
+pub const MAX_NAME_CHARS: usize = 100;
+
 /// Most samples a quasi-static run may take (memory and run time grow with it).
 pub const MAX_QS_SAMPLES: f64 = 2e6;
 

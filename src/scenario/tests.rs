@@ -188,3 +188,24 @@ fn a_new_kind_replaces_the_old_kinds_keys_in_any_order() {
     // Setting the same kind keeps the keys.
     assert!(step(&["closed_loop.reference.kind=\"sine\""]).is_ok());
 }
+
+#[test]
+fn a_name_too_long_for_a_folder_is_refused_with_its_limit() {
+    let long = "a".repeat(300);
+    let text = builtin("paper_bench")
+        .unwrap()
+        .replace("name = \"paper_bench\"", &format!("name = \"{long}\""));
+    let err = Scenario::from_toml(&text, "x.toml", "x", &[])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("name") && err.contains("300 characters") && err.contains("at most 100"),
+        "{err}"
+    );
+    assert!(err.len() < 300, "{err}");
+    let fits = builtin("paper_bench").unwrap().replace(
+        "name = \"paper_bench\"",
+        &format!("name = \"{}\"", "a".repeat(super::MAX_NAME_CHARS)),
+    );
+    assert!(Scenario::from_toml(&fits, "x.toml", "x", &[]).is_ok());
+}

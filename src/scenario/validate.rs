@@ -18,6 +18,17 @@ impl Scenario {
                     format!("{name:?} must be a non-empty folder name of letters, digits, '_', '-' or '.'"),
                 ));
             }
+            if name.len() > super::MAX_NAME_CHARS {
+                return Err(bad(
+                    "name",
+                    format!(
+                        "\"{}...\" is {} characters long; a results folder is named after it, so at most {} are allowed",
+                        &name[..24],
+                        name.len(),
+                        super::MAX_NAME_CHARS
+                    ),
+                ));
+            }
         }
         self.drive.validate().map_err(|e| {
             let key = match &e {

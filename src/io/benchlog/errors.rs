@@ -21,6 +21,8 @@ pub enum ValueProblem {
     /// ([`super::MAX_MAGNITUDE`]: a load of 1e308 N m is a broken logger, and the replay
     /// would carry it to infinity).
     BeyondColumn,
+    /// A time beyond [`super::MAX_TIME_S`] in magnitude.
+    BeyondTime,
 }
 
 /// Errors from reading or writing a bench log.
@@ -328,6 +330,11 @@ pub(super) fn describe_value(reason: ValueProblem, text: &str) -> String {
             "value {} is out of range: angles (rad) and loads (N m) are allowed up to {} in magnitude",
             show(text),
             crate::number(super::MAX_MAGNITUDE)
+        ),
+        ValueProblem::BeyondTime => format!(
+            "time {} is out of range: times are allowed up to {} s in magnitude",
+            show(text),
+            crate::number(super::MAX_TIME_S)
         ),
     }
 }

@@ -58,6 +58,10 @@ pub const OPTIONAL_COLUMNS: [&str; 3] = ["tension_upper_n", "tension_lower_n", "
 /// per radian), and a replay of anything larger overflows.
 pub const MAX_MAGNITUDE: f64 = 1e6;
 
+/// Largest magnitude of a log's time column, s: 1e9 s is 32 years, far beyond any bench
+/// run, and a time of 1e300 s would reach every trace, axis and table read from it.
+pub const MAX_TIME_S: f64 = 1e9;
+
 /// Maximum number of characters of offending input quoted in an error message.
 const MAX_SHOWN_CHARS: usize = 40;
 

@@ -422,6 +422,8 @@ impl<R: Read> Parser<R> {
                 .and_then(|v| {
                     if bounded && v.abs() > super::MAX_MAGNITUDE {
                         Err(ValueProblem::BeyondColumn)
+                    } else if matches!(col, Col::T) && v.abs() > super::MAX_TIME_S {
+                        Err(ValueProblem::BeyondTime)
                     } else {
                         Ok(v)
                     }

@@ -422,3 +422,34 @@ fn a_drive_log_refuses_loads_and_angles_beyond_any_drive() {
     // The plain reader keeps its contract: any finite number round-trips.
     assert!(read_bench_log(&path).is_ok());
 }
+
+#[test]
+fn a_log_refuses_a_time_beyond_any_bench_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("late.csv");
+    std::fs::write(
+        &path,
+        "t_s,theta_in_rad,theta_out_rad,load_nm\n0,0,-0,-0.7\n1e300,-0,-0.0002,-0.70\n",
+    )
+    .unwrap();
+    for e in [
+        super::read_drive_log(&path).unwrap_err().to_string(),
+        read_bench_log(&path).unwrap_err().to_string(),
+    ] {
+        assert!(
+            e.contains("late.csv")
+                && e.contains("line 3")
+                && e.contains("t_s")
+                && e.contains("1e300")
+                && e.contains("up to 1e9 s"),
+            "{e}"
+        );
+    }
+    // A long run's times are accepted.
+    std::fs::write(
+        &path,
+        "t_s,theta_in_rad,theta_out_rad,load_nm\n0,0,0,0\n86400,0.1,0.1,0\n",
+    )
+    .unwrap();
+    assert!(read_bench_log(&path).is_ok());
+}
