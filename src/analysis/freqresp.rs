@@ -640,8 +640,12 @@ pub struct AmplitudeResponse {
     pub axis_frequencies: AxisCounts,
     /// Margins from the measured `L` (plant input, output disturbance).
     pub margins: Option<EstimatedMargins>,
-    /// Requirements not met, and frequencies that failed (empty = passes).
+    /// Requirements not met, and frequencies whose run stopped (empty = passes).
     pub shortfalls: Vec<String>,
+    /// Frequencies the measurement could not resolve at this amplitude, grouped by
+    /// reason ([`FreqPoint::unresolved`]): left out of the estimate and named here, not
+    /// failing; a larger amplitude resolves them.
+    pub unresolved: Vec<String>,
     /// The base-motion rejection at the required frequency (base motion with
     /// `requirements.min_base_rejection_db` declared; `None` otherwise).
     pub base_rejection: Option<RejectionCheck>,
@@ -1483,8 +1487,10 @@ fn margins_of(
             });
             let (f, l) = match found.and_then(|p| p.loop_gain.map(|l| (p.frequency_hz, l))) {
                 Some(v) => v,
-                // Linear interpolation of log |L| on log f, phase likewise.
+                // Linear interpolation of log |L| on log f, phase likewise, between the
+                // closest measurements either side of the crossing.
                 None => {
+                    let ((f0, l0), (f1, l1)) = closest_bracket((f0, l0), (f1, l1), &extra, lg);
                     let s = lg(l0) / (lg(l0) - lg(l1));
                     let f = (f0.ln() + s * (f1.ln() - f0.ln())).exp();
                     let arg = l0.arg() + s * wrap(l1.arg() - l0.arg());
@@ -1504,10 +1510,18 @@ fn margins_of(
             let l = match found.and_then(|p| p.loop_gain) {
                 Some(l) => Some((l, None)),
                 None => {
+                    let ((f0, l0), (f1, l1)) = closest_bracket((f0, l0), (f1, l1), &extra, sn);
+                    // Without a measurement at the crossing, the chord between the two
+                    // closest points says where the phase crosses the real axis: a chord crossing
+                    // it right of the origin passes 0 deg (a sign change of the imaginary
+                    // part through +-90 deg), which is no phase crossover at all.
                     let s = l0.im / (l0.im - l1.im);
-                    let mag = (l0.norm().ln() + s * (l1.norm().ln() - l0.norm().ln())).exp();
-                    let f = (f0.ln() + s * (f1.ln() - f0.ln())).exp();
-                    Some((Complex::new(-mag, 0.0), Some(f)))
+                    let on_axis = l0.re + s * (l1.re - l0.re);
+                    (on_axis < 0.0).then(|| {
+                        let mag = (l0.norm().ln() + s * (l1.norm().ln() - l0.norm().ln())).exp();
+                        let f = (f0.ln() + s * (f1.ln() - f0.ln())).exp();
+                        (Complex::new(-mag, 0.0), Some(f))
+                    })
                 }
             };
             if let Some((l, f_interp)) = l {
@@ -1577,6 +1591,31 @@ fn margins_of(
     m
 }
 
+/// The closest pair of loop gains `(f, L)` either side of a sign change of `g` between
+/// the bracket `a`..`b`, from the bracket and the measurements a refinement made inside
+/// it (`extra`; a refinement that failed midway still narrowed the bracket, and the
+/// bracket's chord alone can put the crossing on the wrong side of the origin).
+fn closest_bracket(
+    a: (f64, Complex<f64>),
+    b: (f64, Complex<f64>),
+    extra: &[FreqPoint],
+    g: impl Fn(Complex<f64>) -> f64,
+) -> ((f64, Complex<f64>), (f64, Complex<f64>)) {
+    let (lo, hi) = if a.0 <= b.0 { (a, b) } else { (b, a) };
+    let mut inside: Vec<(f64, Complex<f64>)> = extra
+        .iter()
+        .filter(|p| p.frequency_hz > lo.0 && p.frequency_hz < hi.0)
+        .filter_map(|p| p.loop_gain.map(|l| (p.frequency_hz, l)))
+        .collect();
+    inside.push(lo);
+    inside.push(hi);
+    inside.sort_by(|x, y| x.0.total_cmp(&y.0));
+    inside
+        .windows(2)
+        .find(|w| g(w[0].1) * g(w[1].1) <= 0.0 && g(w[0].1) != g(w[1].1))
+        .map_or((lo, hi), |w| (w[0], w[1]))
+}
+
 fn wrap(a: f64) -> f64 {
     let tau = std::f64::consts::TAU;
     (a + std::f64::consts::PI).rem_euclid(tau) - std::f64::consts::PI
@@ -1629,6 +1668,7 @@ pub fn measure(
         motor_friction: p.motor.coulomb_nm > 0.0,
     };
     let slews = plan.slew_rates_rad_s.clone();
+    let exact = bench.lin.margins(4000);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -1693,6 +1733,27 @@ pub fn measure(
                     min_rejection_db: min_db,
                 });
                 shortfalls.extend(base_rejection.as_ref().and_then(RejectionCheck::shortfall));
+                let mut unresolved = failure_groups(
+                    &points,
+                    FreqPoint::unresolved,
+                    "unresolved (left out of the estimate, not failing)",
+                );
+                // A margin the exact reference has and this amplitude's measurements do not:
+                // its crossover lies among frequencies left out, so it was not measured, and
+                // the table's dash must not read as "no crossover".
+                if let Some(m) = margins.as_ref().filter(|_| points.iter().any(FreqPoint::unresolved)) {
+                    for (what, measured, f) in [
+                        ("gain margin", m.gain_margin_db, exact.phase_crossover_hz),
+                        ("downward gain margin", m.lower_gain_margin_db, exact.lower_phase_crossover_hz),
+                    ] {
+                        if let (None, Some(f)) = (measured, f) {
+                            unresolved.push(format!(
+                                "{what} not measured: the exact reference crosses -180 deg at {} Hz, where this amplitude's measurements are left out",
+                                crate::significant(f, 4)
+                            ));
+                        }
+                    }
+                }
                 Ok((
                     AmplitudeResponse {
                         amplitude: amp,
@@ -1701,6 +1762,7 @@ pub fn measure(
                         axis: points.iter().filter_map(|p| p.axis).max(),
                         axis_frequencies: AxisCounts::of(&points),
                         points,
+                        unresolved,
                         margins,
                         shortfalls,
                         base_rejection,
@@ -1725,23 +1787,24 @@ pub fn measure(
         operating: plan,
         limit_cycles,
         amplitudes,
-        exact_margins: bench.lin.margins(4000),
+        exact_margins: exact,
         reference_cable,
         runs,
         simulated_s,
     })
 }
 
-fn shortfalls(
-    req: &crate::closed_loop::Requirements,
+/// The points `pick` chooses among those with a failure, grouped by their reason, each
+/// group with its frequencies, so the console says which and why without the CSV;
+/// `verb` says what happened to them ("failed", "unresolved").
+fn failure_groups(
     points: &[FreqPoint],
-    margins: Option<&EstimatedMargins>,
+    pick: impl Fn(&FreqPoint) -> bool,
+    verb: &str,
 ) -> Vec<String> {
     let mut out = Vec::new();
-    // Failed frequencies grouped by their reason, each group with its frequencies, so
-    // the console says which failed and why without the CSV.
     let mut groups: Vec<(&str, Vec<f64>, Vec<f64>)> = Vec::new();
-    for p in points {
+    for p in points.iter().filter(|p| pick(p)) {
         if let Some(why) = p.failure.as_deref() {
             let u: Vec<f64> = p.uncertainty_percent.into_iter().collect();
             match groups.iter_mut().find(|g| g.0 == why) {
@@ -1772,12 +1835,22 @@ fn shortfalls(
             format!(" (uncertainty {lo:.0} to {hi:.0} %)")
         };
         out.push(format!(
-            "{} of {} frequencies failed, at {} Hz: {why}{spread}",
+            "{} of {} frequencies {verb}, at {} Hz: {why}{spread}",
             f.len(),
             points.len(),
             list.join(", ")
         ));
     }
+    out
+}
+
+fn shortfalls(
+    req: &crate::closed_loop::Requirements,
+    points: &[FreqPoint],
+    margins: Option<&EstimatedMargins>,
+) -> Vec<String> {
+    // A point the measurement could not resolve is named apart, not failing.
+    let mut out = failure_groups(points, |p| !p.unresolved(), "failed");
     let Some(m) = margins else {
         return out;
     };
@@ -1862,6 +1935,95 @@ mod tests {
             assert!((w.frequency_hz / f - 1.0).abs() < 1.0 / f64::from(spec.min_samples) + 1e-12);
             assert!(w.samples >= u64::from(spec.min_samples));
         }
+    }
+
+    fn measured(f: f64, l: Complex<f64>) -> FreqPoint {
+        FreqPoint {
+            requested_hz: f,
+            frequency_hz: f,
+            response: Some(l),
+            loop_gain: Some(l),
+            exact: l,
+            distortion_percent: None,
+            output_amplitude_mrad: None,
+            axis: None,
+            held_fraction: None,
+            reversals_per_period: None,
+            uncertainty_percent: None,
+            refinement: false,
+            failure: None,
+        }
+    }
+
+    #[test]
+    fn a_phase_passing_zero_between_two_points_is_no_phase_crossover() {
+        let deg = |d: f64| d.to_radians();
+        // -111 deg at -17 dB, then +48 deg at -20.6 dB: the imaginary part changes sign
+        // through 0 deg. With no measurement between them (the refinement fails), no
+        // gain margin may be made up from the chord.
+        let mut points = vec![
+            measured(40.58, Complex::from_polar(0.141, deg(-111.0))),
+            measured(45.66, Complex::from_polar(0.093, deg(48.0))),
+        ];
+        let m = margins_of(&mut points, 4, &mut |_| None);
+        assert_eq!(m.gain_margin_db, None, "{m:?}");
+        assert_eq!(m.phase_crossover_hz, None, "{m:?}");
+        // The same sign change through -180 deg is a phase crossover at about -18.7 dB.
+        let mut points = vec![
+            measured(40.58, Complex::from_polar(0.141, deg(-170.0))),
+            measured(45.66, Complex::from_polar(0.093, deg(175.0))),
+        ];
+        let m = margins_of(&mut points, 4, &mut |_| None);
+        let gm = m.gain_margin_db.expect("a crossing through -180 deg");
+        assert!((17.0..20.6).contains(&gm), "{gm}");
+        let f = m.phase_crossover_hz.unwrap_or(0.0);
+        assert!((40.58..45.66).contains(&f), "{f}");
+        // A bracket whose chord passes just left of the origin (-126.8 deg at -5.1 dB,
+        // +58.6 deg at -10.0 dB), with a refinement that measured -110.9 deg and
+        // +47.6 deg inside it and then failed: the closest measurements decide, and the
+        // phase passes 0 deg, so there is no crossover (the chord alone made one up at
+        // 43.1 Hz, 8.19 dB).
+        let mut points = vec![
+            measured(32.85, Complex::from_polar(0.554, deg(-126.8))),
+            measured(50.85, Complex::from_polar(0.315, deg(58.55))),
+        ];
+        let mut inside = vec![
+            measured(40.58, Complex::from_polar(0.1415, deg(-110.85))),
+            measured(45.66, Complex::from_polar(0.0930, deg(47.6))),
+        ]
+        .into_iter();
+        let m = margins_of(&mut points, 4, &mut |_| inside.next());
+        assert_eq!(m.gain_margin_db, None, "{m:?}");
+    }
+
+    #[test]
+    fn an_unresolved_frequency_is_named_apart_and_a_stopped_one_fails() {
+        let mut quiet = measured(3.7, Complex::from(0.5));
+        quiet.response = None;
+        quiet.loop_gain = None;
+        quiet.failure = Some("no response at the injected frequency".into());
+        let mut noisy = measured(2585.0, Complex::from(0.1));
+        noisy.uncertainty_percent = Some(40.0);
+        noisy.failure = Some("uncertain by more than 10 %".into());
+        let mut slipped = measured(5.0, Complex::from(0.5));
+        slipped.response = None;
+        slipped.loop_gain = None;
+        slipped.failure = Some("gross slip on the pulley".into());
+        let ok = measured(26.0, Complex::from_polar(1.0, -2.4));
+        let req = crate::closed_loop::Requirements::default();
+        let points = vec![quiet.clone(), ok.clone(), noisy.clone()];
+        assert!(quiet.unresolved() && noisy.unresolved() && !slipped.unresolved());
+        assert!(shortfalls(&req, &points, None).is_empty());
+        let named = failure_groups(&points, FreqPoint::unresolved, "unresolved");
+        assert_eq!(named.len(), 2, "{named:?}");
+        assert!(named[0].starts_with("1 of 3 frequencies unresolved, at 3.700 Hz: no response"));
+        let points = vec![quiet, ok, slipped];
+        let short = shortfalls(&req, &points, None);
+        assert_eq!(short.len(), 1, "{short:?}");
+        assert!(
+            short[0].contains("failed, at 5.000 Hz: gross slip"),
+            "{short:?}"
+        );
     }
 
     #[test]

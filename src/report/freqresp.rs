@@ -64,7 +64,14 @@ fn row(point: LoopPoint, a: &AmplitudeResponse, p: &FreqPoint) -> Vec<String> {
         format!("{}", p.requested_hz),
         format!("{}", p.frequency_hz),
         p.refinement.to_string(),
-        if p.failure.is_some() { "failed" } else { "ok" }.to_string(),
+        if p.unresolved() {
+            "unresolved"
+        } else if p.failure.is_some() {
+            "failed"
+        } else {
+            "ok"
+        }
+        .to_string(),
         num(r.map(db)),
         num(r.map(|r| r.arg().to_degrees())),
         num(r.map(|r| r.re)),
@@ -126,13 +133,19 @@ pub fn write_outputs(
                 "unit": a.unit,
                 "passes": r.verdict().map(|_| a.passes()),
                 "shortfalls": a.shortfalls,
+                "unresolved": a.unresolved,
                 "base_rejection": a.base_rejection,
                 "slew_rate_rad_s": a.slew_rate_rad_s,
                 "axis": a.axis,
                 "axis_effect": a.axis.map(|m| m.effect()),
                 "axis_frequencies": a.axis_frequencies,
                 "frequencies": a.points.len(),
-                "failed_frequencies": a.points.iter().filter(|p| p.failure.is_some()).count(),
+                "failed_frequencies": a
+                    .points
+                    .iter()
+                    .filter(|p| p.failure.is_some() && !p.unresolved())
+                    .count(),
+                "unresolved_frequencies": a.points.iter().filter(|p| p.unresolved()).count(),
                 "margins": a.margins,
             })
         })
@@ -415,7 +428,17 @@ pub fn format_table(r: &FreqResponse) -> String {
             .iter()
             .filter_map(|p| p.distortion_percent)
             .fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.max(v))));
-        let failed = a.points.iter().filter(|p| p.failure.is_some()).count();
+        let unresolved = a.points.iter().filter(|p| p.unresolved()).count();
+        let failed = a
+            .points
+            .iter()
+            .filter(|p| p.failure.is_some() && !p.unresolved())
+            .count();
+        let counts: Vec<String> = [(failed, "failed"), (unresolved, "unresolved")]
+            .iter()
+            .filter(|(n, _)| *n > 0)
+            .map(|(n, what)| format!("{n} frequencies {what}"))
+            .collect();
         let m = a.margins.clone().unwrap_or_default();
         t.push_str(&format!(
             "{:<22} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>9} {:>8} {:>12} {:>6}{}\n",
@@ -430,10 +453,10 @@ pub fn format_table(r: &FreqResponse) -> String {
             opt(thd, 1),
             a.axis.map_or("-", |m| m.name()),
             if a.passes() { "yes" } else { "no" },
-            if failed > 0 {
-                format!("  ({failed} frequencies failed)")
-            } else {
+            if counts.is_empty() {
                 String::new()
+            } else {
+                format!("  ({})", counts.join(", "))
             }
         ));
     }
@@ -480,6 +503,11 @@ pub fn format_table(r: &FreqResponse) -> String {
         }
         for s in &a.shortfalls {
             t.push_str(&format!("  {} {}: {s}\n", a.amplitude, a.unit));
+        }
+    }
+    for a in &r.amplitudes {
+        for u in &a.unresolved {
+            t.push_str(&format!("{} {}: {u}\n", a.amplitude, a.unit));
         }
     }
     if let Some(cycles) = &r.limit_cycles {
