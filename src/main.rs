@@ -1437,7 +1437,7 @@ fn design_least_rate(
             force,
         )
     });
-    match cable_servo::design::tune_files::write_least_rate(&r, &dir, force) {
+    match cable_servo::design::tune_files::write_least_rate(&r, &scenario, &dir, force) {
         Ok(path) => {
             say!("results: {}", path.display());
             html_report(&path);
@@ -1735,6 +1735,11 @@ fn report(result: Result<RunReport, RunError>) -> ExitCode {
         Err(e) => {
             tell!("error: {e}");
             ExitCode::from(match e {
+                // A result file that cannot be written is an output fault, whichever
+                // part of the run writes it.
+                RunError::Identify(cable_servo::identify::IdentifyError::Write { .. }) => {
+                    exit::OUTPUT
+                }
                 RunError::Scenario(_)
                 | RunError::Table(_)
                 | RunError::Sweep(_)

@@ -948,7 +948,7 @@ pub fn run_diagnosis_with_progress(
         .collect::<Result<_, _>>()?;
     let diagnosis = crate::identify::diagnose_with_progress(scenario, &logs, options, progress)?;
     let staged = StagedDir::create(&out.dir, out.force)?;
-    report::diagnosis::write_diagnosis(staged.path(), &diagnosis, None)?;
+    report::diagnosis::write_diagnosis(staged.path(), scenario, &diagnosis, None)?;
     if let Some(path) = json {
         let text = std::fs::read(staged.path().join("diagnosis.json"))
             .map_err(|e| ReportError::io(path, e))?;
@@ -1031,12 +1031,14 @@ pub fn run_leave_one_out_with_progress(
     )?;
     let text = crate::identify::loo::loo_text(&table);
     let staged = StagedDir::create(&out.dir, out.force)?;
-    let body = serde_json::to_vec_pretty(&serde_json::json!({
-        "program_version": env!("CARGO_PKG_VERSION"),
-        "scenario": scenario.name(),
-        "logs": paths.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
-        "leave_one_out": table,
-    }))
+    let body = serde_json::to_vec_pretty(&report::with_provenance(
+        scenario,
+        true,
+        &serde_json::json!({
+            "logs": paths.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+            "leave_one_out": table,
+        }),
+    ))
     .map_err(|e| ReportError::io(&out.dir, std::io::Error::other(e)))?;
     crate::io::output::write_atomic(&staged.path().join("leave_one_out.json"), &body)?;
     crate::io::output::write_atomic(&staged.path().join("leave_one_out.txt"), text.as_bytes())?;

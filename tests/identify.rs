@@ -742,7 +742,7 @@ fn writes_report_and_model() {
     let log = truth(&sc, &[(EffectName::InputPulleyRunout, 1e-3)], 9);
     let d = diagnose(&sc, &[log], &DiagnoseOptions::default()).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let files = cable_servo::report::diagnosis::write_diagnosis(dir.path(), &d, None).unwrap();
+    let files = cable_servo::report::diagnosis::write_diagnosis(dir.path(), &sc, &d, None).unwrap();
     assert!(files.iter().all(|f| f.exists()));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("diagnosis.json")).unwrap())
@@ -758,6 +758,15 @@ fn writes_report_and_model() {
     ] {
         assert!(json.get(k).is_some(), "{k}");
     }
+    // What made it, as every result records.
+    assert_eq!(json["program_version"], env!("CARGO_PKG_VERSION"));
+    assert_eq!(json["complete"], true);
+    assert_eq!(json["scenario_name"], sc.name());
+    assert!(
+        json["scenario"]["drive"]["preload_n"].is_number(),
+        "{}",
+        json["scenario"]
+    );
     let m = dir.path().join("model.toml");
     cable_servo::report::diagnosis::save_model(&m, &sc, &d).unwrap();
     let back = Scenario::load(m.to_str().unwrap(), &[]).unwrap();
@@ -1334,7 +1343,7 @@ fn an_extension_the_play_operator_beats_is_not_established() {
             );
         }
         let dir = tempfile::tempdir().unwrap();
-        cable_servo::report::diagnosis::write_diagnosis(dir.path(), &d, None).unwrap();
+        cable_servo::report::diagnosis::write_diagnosis(dir.path(), &sc, &d, None).unwrap();
         let json: serde_json::Value = serde_json::from_str(
             &std::fs::read_to_string(dir.path().join("diagnosis.json")).unwrap(),
         )

@@ -418,6 +418,37 @@ fn static_checks(case: &Case, dir: &Path) -> usize {
     if summary["verdict"].is_object() {
         verdict_matches(&html, "verdict", &summary["verdict"], case.name);
     }
+    // Every simulated mode's figures, as the console's table gives them.
+    if let Some(modes) = summary["modes"].as_array() {
+        let start = html
+            .find("data-key=\"modes\"")
+            .unwrap_or_else(|| panic!("{}: no table of the modes", case.name));
+        let table = &html[start..start + html[start..].find("</table>").unwrap_or(0)];
+        for m in modes {
+            let name = m["name"].as_str().unwrap_or("");
+            if m["completion"]["status"] != "complete" {
+                // A stopped mode shows its reason, no figures.
+                let tr = format!(
+                    "<tr data-requirement=\"pointing_error\" data-condition=\"mode {name}\">"
+                );
+                assert!(table.contains(&tr), "{}: stopped mode {name}", case.name);
+                continue;
+            }
+            for (requirement, key) in [
+                ("rms_error", "rms_mrad"),
+                ("peak_error", "peak_mrad"),
+                ("p95_error", "p95_mrad"),
+            ] {
+                let what = format!("{} mode {name} {requirement}", case.name);
+                let tr = format!(
+                    "<tr data-requirement=\"{requirement}\" data-condition=\"mode {name}\">"
+                );
+                let i = table.find(&tr).unwrap_or_else(|| panic!("{what}: no row"));
+                let row = &table[i..i + table[i..].find("</tr>").unwrap_or(0)];
+                same_number(shown(cell(row, "measured")), m[key].as_f64(), &what);
+            }
+        }
+    }
     for d in summary["designs"].as_array().into_iter().flatten() {
         let key = format!("design:{}", d["name"].as_str().unwrap_or(""));
         verdict_matches(&html, &key, &d["verdict"], case.name);

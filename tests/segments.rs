@@ -190,7 +190,8 @@ fn exclusion_turns_a_stuck_output_back_into_none() {
         .2
         .starts_with("excluded: output stuck"));
     let dir = std::env::temp_dir().join(format!("segments-report-{}", std::process::id()));
-    let files = cable_servo::report::diagnosis::write_diagnosis(&dir, &d, None).expect("report");
+    let files =
+        cable_servo::report::diagnosis::write_diagnosis(&dir, &sc, &d, None).expect("report");
     let text = std::fs::read_to_string(dir.join("report.txt")).expect("report.txt");
     assert!(
         text.contains("Not the drive:") && text.contains("output stuck"),

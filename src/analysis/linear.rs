@@ -155,12 +155,21 @@ pub fn tangent_half_stiffness(drive: &DriveParams, load_nm: f64) -> Result<f64, 
     let mut hi = target / (2.0 * free);
     let mut doublings = 0;
     let slack = |_| {
+        // A load beyond any double's preload has no preload to suggest.
+        let needed_n = load_nm.abs() / (2.0 * drive.drum_radius_m);
+        let remedy = if needed_n.is_finite() {
+            format!(
+                "raise drive.preload_n above about {} N or lower the load",
+                crate::compact(needed_n)
+            )
+        } else {
+            "lower the load".to_string()
+        };
         format!(
-            "the drive cannot carry {} N m on first loading from its {} N preload: a span goes slack first (the halves carry at most about 2 x preload_n x drum_radius_m = {} N m); raise drive.preload_n above about {} N or lower the load",
+            "the drive cannot carry {} N m on first loading from its {} N preload: a span goes slack first (the halves carry at most about 2 x preload_n x drum_radius_m = {} N m); {remedy}",
             crate::number(load_nm),
             crate::number(drive.preload_n),
             crate::compact(2.0 * drive.preload_n * drive.drum_radius_m),
-            crate::compact(load_nm.abs() / (2.0 * drive.drum_radius_m))
         )
     };
     // Bracket the displacement between one that carries less than the load and one that
@@ -1238,6 +1247,12 @@ mod tests {
         // Past slack: the lower span would have to push.
         let e = tangent_half_stiffness(&drive, 25.0).expect_err("not carried");
         assert!(e.contains("cannot carry 25 N m"), "{e}");
+        // A load beyond any double's preload reads as numbers still.
+        let e = tangent_half_stiffness(&drive, 1e308).expect_err("not carried");
+        assert!(
+            e.contains("cannot carry 1e308 N m") && !e.contains("inf"),
+            "{e}"
+        );
     }
 
     /// The bench loop of `scenarios/eots_tracking.toml`, read without the scenario layer.

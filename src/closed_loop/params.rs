@@ -908,7 +908,8 @@ impl ClosedLoopParams {
         // run would track some other signal, or diverge and blame the gains.
         let nyquist = 0.5 * self.controller.sample_rate_hz;
         let fastest = self.reference.fastest_frequency_hz();
-        if self.controller.sample_rate_hz.is_finite() && fastest >= nyquist {
+        // A rate that is no rate at all is named by its own check below.
+        if self.controller.sample_rate_hz.is_finite() && nyquist > 0.0 && fastest >= nyquist {
             return Err((
                 key("reference"),
                 format!(

@@ -286,12 +286,15 @@ pub fn write_tune(
         .map_err(|e| write_err(&at("candidates.csv"), e))?;
     write_atomic(&at("candidates.csv"), &bytes)?;
     let front: Vec<&Candidate> = r.verified.iter().filter(|c| c.on_front).collect();
-    let summary = serde_json::json!({
-        "program_version": env!("CARGO_PKG_VERSION"),
-        "tune": r,
-        "pick": r.picked(),
-        "front": front,
-    });
+    let summary = crate::report::with_provenance(
+        base,
+        true,
+        &serde_json::json!({
+            "tune": r,
+            "pick": r.picked(),
+            "front": front,
+        }),
+    );
     let body =
         serde_json::to_vec_pretty(&summary).map_err(|e| write_err(&at("summary.json"), e))?;
     write_atomic(&at("summary.json"), &body)?;
@@ -301,13 +304,19 @@ pub fn write_tune(
 }
 
 /// Writes a least-rate search's `least_rate.json` and `least_rate.txt` into `dir`.
-pub fn write_least_rate(r: &LeastRate, dir: &Path, force: bool) -> Result<PathBuf, DesignError> {
+pub fn write_least_rate(
+    r: &LeastRate,
+    base: &Scenario,
+    dir: &Path,
+    force: bool,
+) -> Result<PathBuf, DesignError> {
     let staged = StagedDir::create(dir, force)?;
     let path = staged.path().join("least_rate.json");
-    let body = serde_json::to_vec_pretty(&serde_json::json!({
-        "program_version": env!("CARGO_PKG_VERSION"),
-        "least_rate": r,
-    }))
+    let body = serde_json::to_vec_pretty(&crate::report::with_provenance(
+        base,
+        true,
+        &serde_json::json!({ "least_rate": r }),
+    ))
     .map_err(|e| write_err(&path, e))?;
     write_atomic(&path, &body)?;
     write_atomic(

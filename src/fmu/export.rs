@@ -24,6 +24,14 @@ pub enum ExportError {
     /// The shared library is missing.
     #[error("the FMU's shared library {} is missing: it is built next to the cable-servo binary by `cargo build --release` (the library target is also a cdylib); run export-fmu from that build or give --library PATH", .0.display())]
     NoLibrary(PathBuf),
+    /// The file given as the shared library is not one a Linux x86-64 host can load.
+    #[error("--library {}: {why}; give the libcable_servo.so that `cargo build --release` builds next to the cable-servo binary", path.display())]
+    NotALibrary {
+        /// The file.
+        path: PathBuf,
+        /// What it is instead.
+        why: String,
+    },
     /// The FMU would replace an existing file.
     #[error("{} exists; use --force to replace it or --out for another file", .0.display())]
     Exists(PathBuf),
@@ -51,6 +59,22 @@ pub struct ExportReport {
     pub variables: usize,
     /// Size of the archive, bytes.
     pub bytes: usize,
+}
+
+/// Why `bytes` are not an x86-64 ELF shared object (the only binary an FMU of this build
+/// packs, and what an FMI host will try to load), or `None` when they are.
+fn not_a_shared_library(bytes: &[u8]) -> Option<String> {
+    const ET_DYN: u16 = 3;
+    const EM_X86_64: u16 = 62;
+    if bytes.len() < 20 || &bytes[..4] != b"\x7fELF" {
+        return Some("not a shared library (no ELF header)".into());
+    }
+    let half = |at: usize| u16::from_le_bytes([bytes[at], bytes[at + 1]]);
+    // Class 2 is 64-bit, data 1 little-endian.
+    if bytes[4] != 2 || bytes[5] != 1 || half(18) != EM_X86_64 {
+        return Some("an ELF file for another machine than 64-bit x86".into());
+    }
+    (half(16) != ET_DYN).then(|| "an ELF file that is not a shared library".into())
 }
 
 /// Where the shared library is expected: next to the executable.
@@ -342,6 +366,12 @@ pub fn export_fmu(
     if out.exists() && !force {
         return Err(ExportError::Exists(out.to_path_buf()));
     }
+    if library.is_dir() {
+        return Err(ExportError::NotALibrary {
+            path: library.to_path_buf(),
+            why: "a directory, not a file".into(),
+        });
+    }
     let lib = std::fs::read(library).map_err(|e| match e.kind() {
         std::io::ErrorKind::NotFound => ExportError::NoLibrary(library.to_path_buf()),
         _ => ExportError::Io {
@@ -349,6 +379,12 @@ pub fn export_fmu(
             source: e,
         },
     })?;
+    if let Some(why) = not_a_shared_library(&lib) {
+        return Err(ExportError::NotALibrary {
+            path: library.to_path_buf(),
+            why,
+        });
+    }
     let id = guid(&text);
     let values = Values {
         params: instance.params().clone(),
@@ -386,17 +422,11 @@ pub fn export_fmu(
         path: out.to_path_buf(),
         source: std::io::Error::other("the archive passes the 4 GiB limit of zip"),
     })?;
-    let io = |source| ExportError::Io {
+    // Written as every result is: whole or not at all, with the umask's permissions.
+    crate::io::output::write_atomic(out, &bytes).map_err(|e| ExportError::Io {
         path: out.to_path_buf(),
-        source,
-    };
-    let dir = match out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let mut tmp = tempfile::NamedTempFile::new_in(&dir).map_err(io)?;
-    std::io::Write::write_all(&mut tmp, &bytes).map_err(io)?;
-    tmp.persist(out).map_err(|e| io(e.error))?;
+        source: std::io::Error::other(e.to_string()),
+    })?;
     Ok(ExportReport {
         path: out.to_path_buf(),
         guid: id,

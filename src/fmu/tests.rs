@@ -704,3 +704,33 @@ fn a_scenario_whose_loop_parts_the_fmu_would_drop_is_refused_naming_them() {
         assert!(!head.contains(absent), "{absent} in {head}");
     }
 }
+
+#[test]
+fn a_library_that_is_not_a_shared_object_is_refused_and_nothing_written() {
+    use super::export::{export_fmu, ExportError};
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+    let eots = Scenario::load("eots_tracking", &[]).unwrap_or_else(|e| panic!("{e}"));
+    let csv = dir.path().join("log.csv");
+    std::fs::write(&csv, "t_s,theta_in_rad\n0,0\n").unwrap_or_else(|e| panic!("{e}"));
+    let mut arm = b"\x7fELF\x02\x01\x01".to_vec();
+    arm.resize(64, 0);
+    arm[16] = 3; // a shared object, but for 64-bit ARM (183)
+    arm[18] = 183;
+    let arm_path = dir.path().join("libarm.so");
+    std::fs::write(&arm_path, &arm).unwrap_or_else(|e| panic!("{e}"));
+    let out = dir.path().join("drive.fmu");
+    for (library, says) in [
+        (csv, "no ELF header"),
+        (dir.path().to_path_buf(), "a directory"),
+        (arm_path, "another machine"),
+    ] {
+        match export_fmu(&eots, &library, &out, false) {
+            Err(e @ ExportError::NotALibrary { .. }) => {
+                let m = e.to_string();
+                assert!(m.starts_with("--library") && m.contains(says), "{m}");
+            }
+            other => panic!("{}: {other:?}", library.display()),
+        }
+        assert!(!out.exists());
+    }
+}

@@ -9,7 +9,7 @@
 use serde::Serialize;
 
 use super::effects::{EffectName, IdentifyParams};
-use super::model::{self, Evaluator, Fitted, NlParam, Prepared, Spec};
+use super::model::{Evaluator, Fitted, NlParam, Prepared, Spec};
 use super::startup::{self, StartCut, StartMode};
 use super::{extra_effects, play, BenchLog, IdentifyError, ParamEstimate, ResidualRuns};
 use crate::physics::DriveParams;
@@ -529,9 +529,11 @@ pub fn leave_one_out_with_segments(
     }
     let (cut, start_cuts): (Vec<BenchLog>, Vec<StartCut>) =
         logs.iter().map(|l| startup::cut_start(l, start)).unzip();
-    let mut prepared: Vec<Prepared> = cut
+    let mut prepared: Vec<Prepared> = logs
         .iter()
-        .map(|l| model::prepare(l, ident.max_rate_hz))
+        .zip(&cut)
+        .zip(&start_cuts)
+        .map(|((l, c), s)| startup::prepare_after_cut(l, c, s, ident.max_rate_hz))
         .collect::<Result<_, _>>()?;
     check_logs(&cut, &prepared)?;
     let (segments, keep_per_log) =

@@ -529,9 +529,11 @@ pub fn diagnose_with_progress(
         .iter()
         .map(|l| startup::cut_start(l, options.start))
         .unzip();
-    let mut prepared: Vec<Prepared> = cut_logs
+    let mut prepared: Vec<Prepared> = logs
         .iter()
-        .map(|l| model::prepare(l, ident.max_rate_hz))
+        .zip(&cut_logs)
+        .zip(&start_cuts)
+        .map(|((l, c), cut)| startup::prepare_after_cut(l, c, cut, ident.max_rate_hz))
         .collect::<Result<_, _>>()?;
     for p in &prepared {
         still_input(p)?;

@@ -130,9 +130,65 @@ pub fn cut_start(log: &BenchLog, mode: StartMode) -> (BenchLog, StartCut) {
     )
 }
 
+/// [`super::model::prepare`] of `cut_log`, the part of `log` left after `cut`: a log too
+/// short to fit after the cut says so, with the cut and what the whole log held, so the
+/// cut is the thing to change, not the log.
+pub fn prepare_after_cut(
+    log: &BenchLog,
+    cut_log: &BenchLog,
+    cut: &StartCut,
+    max_rate_hz: f64,
+) -> Result<super::model::Prepared, super::IdentifyError> {
+    super::model::prepare(cut_log, max_rate_hz).map_err(|e| match e {
+        super::IdentifyError::BadLog { log: name, message } if cut.cut_s > 0.0 => {
+            let span = match (log.t_s.first(), log.t_s.last()) {
+                (Some(a), Some(b)) => format!(" from {a:.3} to {b:.3} s"),
+                _ => String::new(),
+            };
+            super::IdentifyError::BadLog {
+                log: name,
+                message: format!(
+                    "{message}; left after the start cut ({}) of a log of {} samples{span}",
+                    cut.reason,
+                    log.len()
+                ),
+            }
+        }
+        e => e,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_cut_that_leaves_too_little_is_named_in_the_error() {
+        let n = 20000;
+        let t = times(n, 1e-3);
+        let log = BenchLog {
+            theta_in_rad: t.iter().map(|t| (0.5 * t).sin()).collect(),
+            theta_out_rad: t.iter().map(|t| (0.5 * t).sin()).collect(),
+            load_nm: vec![0.1; n],
+            t_s: t,
+            source: "tool4_04.csv".into(),
+            ..BenchLog::default()
+        };
+        let (short, cut) = cut_start(&log, StartMode::Fixed(19.99));
+        let e = prepare_after_cut(&log, &short, &cut, 1000.0)
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(
+            e.contains("tool4_04.csv")
+                && e.contains("too few")
+                && e.contains("first 19.990 s cut as requested")
+                && e.contains("20000 samples from 0.000 to 19.999 s"),
+            "{e}"
+        );
+        let (whole, cut) = cut_start(&log, StartMode::Fixed(0.0));
+        assert!(prepare_after_cut(&log, &whole, &cut, 1000.0).is_ok());
+    }
 
     fn times(n: usize, dt: f64) -> Vec<f64> {
         (0..n).map(|i| i as f64 * dt).collect()

@@ -593,10 +593,17 @@ pub fn closed_loop_charts(
             .filter(|e| e.is_finite())
             .fold(0.0_f64, f64::max);
         let y = (1.1 * largest).max(1.2 * target_mrad);
-        let mut fitted = chart(
-            &format!(
+        // A run that stopped before the window has no window to name.
+        let title = if from.is_finite() {
+            format!(
                 "compensated modes over the metrics window, axis fitted to them (from {from:.1} s)"
-            ),
+            )
+        } else {
+            "compensated modes (no metrics window: every compensated mode stopped before it)"
+                .to_string()
+        };
+        let mut fitted = chart(
+            &title,
             "time [s]",
             "pointing error [mrad]",
             curves(&error, true),

@@ -537,6 +537,7 @@ fn runs_note(d: &Diagnosis) -> Option<String> {
 /// files written. `json_path` overrides where the JSON goes.
 pub fn write_diagnosis(
     dir: &Path,
+    scenario: &Scenario,
     diagnosis: &Diagnosis,
     json_path: Option<&Path>,
 ) -> Result<Vec<PathBuf>, IdentifyError> {
@@ -545,10 +546,17 @@ pub fn write_diagnosis(
         message: e.to_string(),
     })?;
     let mut files = Vec::new();
-    let json = serde_json::to_string_pretty(diagnosis).map_err(|e| IdentifyError::Write {
+    let encode_err = |e: serde_json::Error| IdentifyError::Write {
         path: "diagnosis.json".into(),
         message: e.to_string(),
-    })?;
+    };
+    // The diagnosis records what made it, as every result does.
+    let record = crate::report::with_provenance(
+        scenario,
+        true,
+        &serde_json::to_value(diagnosis).map_err(encode_err)?,
+    );
+    let json = serde_json::to_string_pretty(&record).map_err(encode_err)?;
     let jp = json_path
         .map(Path::to_path_buf)
         .unwrap_or_else(|| dir.join("diagnosis.json"));

@@ -91,7 +91,7 @@ enum Outcome {
 }
 
 /// One requirement as the page shows it.
-#[derive(Debug)]
+#[derive(Debug, Default)]
 struct Row {
     /// Requirement's identifier (`phase_margin`) or a figure's name.
     requirement: String,
@@ -311,6 +311,16 @@ fn describe(
             ),
             rows,
         });
+        if let Some(modes) = record["modes"].as_array() {
+            page.tables.push(Table {
+                key: "modes".into(),
+                heading: format!(
+                    "Pointing error per compensation mode, over the metrics window{}",
+                    window_words(modes)
+                ),
+                rows: mode_rows(modes),
+            });
+        }
         if record["freqresp"].is_object() {
             // A frequency response carries the design's verdict beside what it measured:
             // the page's outcome is the verdict, as the command's exit code is.
@@ -341,7 +351,12 @@ fn describe(
     } else {
         // A study without requirements (quasi-static, backlash) or a diagnosis: its key
         // figures as they are recorded.
-        page.title = if study.is_empty() {
+        // A diagnosis is titled by the logs it read (report.txt's first line, below), not
+        // by the study of the scenario it was calibrated for.
+        let diagnosis = matches!(record_name, "diagnosis.json" | "leave_one_out.json");
+        page.title = if diagnosis {
+            String::new()
+        } else if study.is_empty() {
             format!("{}: {name}", words(record_name.trim_end_matches(".json")))
         } else {
             format!("{} study: {name}", words(&study))
@@ -362,7 +377,7 @@ fn describe(
         }
         if let Ok(t) = std::fs::read_to_string(dir.join("report.txt")) {
             // Its first line names the logs: `Diagnosis of 2 log(s): a.csv, b.csv`.
-            if name.is_empty() {
+            if page.title.is_empty() {
                 if let Some(first) = t.lines().next().filter(|l| !l.trim().is_empty()) {
                     page.title = first.trim().to_string();
                 }
@@ -376,6 +391,9 @@ fn describe(
         if let Some(fault) = record["result"]["fault"].as_str() {
             page.outcome = Outcome::Stopped(fault.to_string());
         }
+        if page.title.is_empty() {
+            page.title = format!("{}: {name}", words(record_name.trim_end_matches(".json")));
+        }
     }
     if page.incomplete && !matches!(page.outcome, Outcome::Stopped(_)) {
         let reason = stop_reason(dir, record, stopped);
@@ -385,6 +403,59 @@ fn describe(
         page.outcome = Outcome::Stopped(reason);
     }
     Ok(())
+}
+
+/// The pointing figures of every mode a closed-loop run simulated, as the console's table
+/// gives them: the design is judged in one mode, the others show what compensation buys.
+/// A mode that stopped has no figures, only its reason.
+fn mode_rows(modes: &[Value]) -> Vec<Row> {
+    let mut rows = Vec::new();
+    for m in modes {
+        let condition = format!("mode {}", text(&m["name"]));
+        let stopped = m["completion"]["status"].as_str() != Some("complete");
+        if stopped {
+            rows.push(Row {
+                requirement: "pointing_error".into(),
+                condition,
+                note: format!(
+                    "stopped at {} s: {}",
+                    text(&m["completion"]["time_s"]),
+                    text(&m["completion"]["fault"])
+                ),
+                ..Row::default()
+            });
+            continue;
+        }
+        for (key, figure) in [
+            ("rms_mrad", "rms_error"),
+            ("peak_mrad", "peak_error"),
+            ("p95_mrad", "p95_error"),
+        ] {
+            rows.push(Row {
+                requirement: figure.into(),
+                condition: condition.clone(),
+                measured: num(&m[key]),
+                unit: "mrad".into(),
+                ..Row::default()
+            });
+        }
+    }
+    rows
+}
+
+/// ` (2 to 20 s)` from the first mode's metrics window, or nothing when none is recorded.
+fn window_words(modes: &[Value]) -> String {
+    modes
+        .iter()
+        .find_map(|m| {
+            let w = m["metrics"]["window_s"].as_array()?;
+            Some(format!(
+                " ({} to {} s)",
+                fmt(num(w.first()?)?),
+                fmt(num(w.get(1)?)?)
+            ))
+        })
+        .unwrap_or_default()
 }
 
 /// `closed_loop` to `Closed loop`.
@@ -400,7 +471,11 @@ fn words(id: &str) -> String {
 fn scalar_rows(v: &Value, prefix: &str, rows: &mut Vec<Row>) {
     let Some(obj) = v.as_object() else { return };
     for (k, x) in obj {
-        if k == "scenario" || k == "program" || k == "program_version" || k == "complete" {
+        // Provenance, shown in its own section.
+        if matches!(
+            k.as_str(),
+            "scenario" | "scenario_name" | "study" | "program" | "program_version" | "complete"
+        ) {
             continue;
         }
         let key = if prefix.is_empty() {

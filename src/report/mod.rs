@@ -80,6 +80,18 @@ pub fn write_summary(
     complete: bool,
     fields: &serde_json::Value,
 ) -> Result<(), ReportError> {
+    write_json(path, &with_provenance(scenario, complete, fields))
+}
+
+/// The provenance every result records (program and version, scenario name, study,
+/// completeness and the resolved scenario) merged with a record's own `fields` (a JSON
+/// object; its keys win): what `summary.json` holds, and the records of the commands that
+/// write another file (`diagnosis.json`, `leave_one_out.json`).
+pub fn with_provenance(
+    scenario: &crate::scenario::Scenario,
+    complete: bool,
+    fields: &serde_json::Value,
+) -> serde_json::Value {
     let mut summary = serde_json::json!({
         "program": "cable-servo",
         "program_version": env!("CARGO_PKG_VERSION"),
@@ -91,5 +103,5 @@ pub fn write_summary(
     if let (Some(all), Some(own)) = (summary.as_object_mut(), fields.as_object()) {
         all.extend(own.clone());
     }
-    write_json(path, &summary)
+    summary
 }

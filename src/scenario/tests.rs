@@ -209,3 +209,24 @@ fn a_name_too_long_for_a_folder_is_refused_with_its_limit() {
     );
     assert!(Scenario::from_toml(&fits, "x.toml", "x", &[]).is_ok());
 }
+
+#[test]
+fn a_control_rate_that_is_no_rate_is_named_as_such() {
+    for rate in ["-1", "0"] {
+        let set = [format!("closed_loop.controller.sample_rate_hz={rate}")];
+        let err = Scenario::from_toml(
+            builtin("eots_tracking").unwrap(),
+            "eots_tracking",
+            "eots_tracking",
+            &set,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("controller.sample_rate_hz")
+                && err.contains("> 0")
+                && !err.contains("Nyquist"),
+            "{err}"
+        );
+    }
+}
