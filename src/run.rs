@@ -332,6 +332,7 @@ impl CaseRunner for BacklashRunner {
             "anchor_reached",
             "tension_upper_n",
             "status",
+            "stop",
         ]
         .map(String::from)
         .to_vec()
@@ -340,7 +341,28 @@ impl CaseRunner for BacklashRunner {
     fn run(&self, scenario: &Scenario, _case: &Case) -> Vec<Cell> {
         let r: BacklashResult = match &scenario.backlash {
             Some(p) => quasi_static::backlash(&scenario.drive, p),
-            None => return vec![Cell::Text("no_backlash_section".into())],
+            // Validation requires the section; should a case lack it all the same, the
+            // row says why it has no figures rather than leaving a blank status.
+            None => {
+                let mut cells: Vec<Cell> = (0..3).map(|_| Cell::Num(None)).collect();
+                cells.extend([
+                    Cell::Text(String::new()),
+                    Cell::Text(String::new()),
+                    Cell::Num(None),
+                    Cell::Text("error".into()),
+                    Cell::Text(
+                        "study = \"backlash\" needs a [backlash] section with load_nm".into(),
+                    ),
+                ]);
+                return cells;
+            }
+        };
+        let stop = match (r.regime, &r.fault) {
+            (quasi_static::Regime::Ok, _) => String::new(),
+            (_, Some(fault)) => fault.clone(),
+            // The protocol records its fault with every stop; this only guards the row
+            // against a blank reason.
+            (regime, None) => format!("{} during the +M, -M, +M protocol", regime.as_str()),
         };
         vec![
             Cell::Num(r.initial_mrad),
@@ -349,13 +371,8 @@ impl CaseRunner for BacklashRunner {
             Cell::Text(r.regime.as_str().into()),
             Cell::Text(r.anchor_reached.to_string()),
             Cell::Num(r.tension_upper_n),
-            Cell::Text(
-                match r.regime {
-                    quasi_static::Regime::Ok => "ok",
-                    other => other.as_str(),
-                }
-                .into(),
-            ),
+            Cell::Text(r.regime.as_str().into()),
+            Cell::Text(stop),
         ]
     }
 }

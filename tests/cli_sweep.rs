@@ -306,3 +306,61 @@ fn stopped_cases_are_named_and_never_numbers() {
     assert_eq!(m["first_not_finished"][0]["case"], 0, "{m}");
     assert_eq!(m["first_not_finished"][0]["status"], "gross_slip", "{m}");
 }
+
+/// A backlash case the physics stops carries its reason to the console, `summary.json`
+/// and the `stop` column of `sweep.csv`; with no requirement to judge, the sweep itself
+/// succeeds.
+#[test]
+fn a_slack_case_names_its_reason_everywhere() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("slack");
+    let o = cable_servo(&[
+        "sweep",
+        "paper_fig11",
+        "--vary",
+        "drive.preload_n=10,100",
+        "--vary",
+        "backlash.load_nm=3",
+        "--out",
+        path(&out),
+    ]);
+    let console = String::from_utf8_lossy(&o.stdout).to_string();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{console}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let line = console
+        .lines()
+        .find(|l| l.trim_start().starts_with("case 0 "))
+        .unwrap_or_else(|| panic!("no line for the stopped case: {console}"));
+    let reason = line
+        .split_once("): slack ")
+        .map(|(_, r)| r.trim())
+        .unwrap_or_default();
+    assert!(reason.contains("span goes slack"), "{line}");
+    assert!(reason.contains("raise preload_n above"), "{line}");
+
+    let summary: serde_json::Value =
+        serde_json::from_str(&text(&out.join("summary.json"))).unwrap();
+    let first = &summary["outcomes"]["cases"]["first_not_finished"][0];
+    assert_eq!(first["status"], "slack", "{first}");
+    assert_eq!(first["reason"], reason, "{first}");
+
+    let mut table = csv::Reader::from_path(out.join("sweep.csv")).unwrap();
+    let header = table.headers().unwrap().clone();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|c| c == name)
+            .unwrap_or_else(|| panic!("{name} not in {header:?}"))
+    };
+    let (status, stop) = (col("status"), col("stop"));
+    let rows: Vec<csv::StringRecord> = table.records().map(Result::unwrap).collect();
+    assert_eq!(rows.len(), 2);
+    assert_eq!(&rows[0][status], "slack");
+    assert_eq!(&rows[0][stop], reason);
+    assert_eq!(&rows[1][status], "ok");
+    assert_eq!(&rows[1][stop], "");
+}
