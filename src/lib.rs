@@ -200,7 +200,8 @@ mod words_tests {
         let huge = format!("{}", 1e308_f64);
         let tiny = format!("{}", -1e-300_f64);
         assert!(huge.len() > 300 && tiny.len() > 300);
-        let message = format!("invalid type: floating point `{huge}.0`, at {tiny} s; the count {huge}");
+        let message =
+            format!("invalid type: floating point `{huge}.0`, at {tiny} s; the count {huge}");
         assert_eq!(
             super::long_numbers_compacted(&message),
             "invalid type: floating point `1e308`, at -1e-300 s; the count 1e308"

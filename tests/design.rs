@@ -61,6 +61,9 @@ fn a_search_range_without_a_readable_end_is_refused_before_any_run() {
         )
         .unwrap_err()
         .to_string();
-        assert!(e.contains("0 <= lo < hi <= 1e6") && !e.contains("inf "), "{e}");
+        assert!(
+            e.contains("0 <= lo < hi <= 1e6") && !e.contains("inf "),
+            "{e}"
+        );
     }
 }
