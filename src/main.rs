@@ -369,7 +369,10 @@ enum Command {
         #[arg(long)]
         force: bool,
     },
-    /// Join the sweep.csv files of shard runs into the file a single run writes.
+    /// Join the sweep.csv files of shard runs into the file a single run writes. Every
+    /// cell is checked against its column (finite numbers, blank figures only for cases
+    /// without them, status and regime words, true/false); a bad cell is refused with its
+    /// file, line, column and what is allowed, and nothing is written (exit 3).
     Merge {
         /// Output file (e.g. results/paper_fig11/sweep.csv).
         #[arg(long)]

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use crate::closed_loop;
 use crate::io::output::{OutputError, StagedDir};
+use crate::io::sweep_columns;
 use crate::report::{self, ReportError};
 use crate::scenario::{Scenario, ScenarioError, Study};
 use crate::study::quasi_static::{self, BacklashResult};
@@ -324,23 +325,34 @@ pub struct BacklashRunner;
 
 impl CaseRunner for BacklashRunner {
     fn columns(&self) -> Vec<String> {
-        [
-            "initial_mrad",
-            "reversal_mrad",
-            "first_reversal_mrad",
-            "regime",
-            "anchor_reached",
-            "tension_upper_n",
-            "status",
-        ]
-        .map(String::from)
-        .to_vec()
+        sweep_columns::BACKLASH.map(String::from).to_vec()
     }
 
     fn run(&self, scenario: &Scenario, _case: &Case) -> Vec<Cell> {
         let r: BacklashResult = match &scenario.backlash {
             Some(p) => quasi_static::backlash(&scenario.drive, p),
-            None => return vec![Cell::Text("no_backlash_section".into())],
+            // Validation requires the section; should a case lack it all the same, the
+            // row says why it has no figures rather than leaving a blank status.
+            None => {
+                let mut cells: Vec<Cell> = (0..3).map(|_| Cell::Num(None)).collect();
+                cells.extend([
+                    Cell::Text(String::new()),
+                    Cell::Text("false".into()),
+                    Cell::Num(None),
+                    Cell::Text("error".into()),
+                    Cell::Text(
+                        "study = \"backlash\" needs a [backlash] section with load_nm".into(),
+                    ),
+                ]);
+                return cells;
+            }
+        };
+        let stop = match (r.regime, &r.fault) {
+            (quasi_static::Regime::Ok, _) => String::new(),
+            (_, Some(fault)) => fault.clone(),
+            // The protocol records its fault with every stop; this only guards the row
+            // against a blank reason.
+            (regime, None) => format!("{} during the +M, -M, +M protocol", regime.as_str()),
         };
         vec![
             Cell::Num(r.initial_mrad),
@@ -349,13 +361,8 @@ impl CaseRunner for BacklashRunner {
             Cell::Text(r.regime.as_str().into()),
             Cell::Text(r.anchor_reached.to_string()),
             Cell::Num(r.tension_upper_n),
-            Cell::Text(
-                match r.regime {
-                    quasi_static::Regime::Ok => "ok",
-                    other => other.as_str(),
-                }
-                .into(),
-            ),
+            Cell::Text(r.regime.as_str().into()),
+            Cell::Text(stop),
         ]
     }
 }
@@ -365,23 +372,19 @@ pub struct QuasiStaticRunner;
 
 impl CaseRunner for QuasiStaticRunner {
     fn columns(&self) -> Vec<String> {
-        [
-            "peak_error_mrad",
-            "peak_to_peak_error_mrad",
-            "rms_error_mrad",
-            "largest_jump_mrad",
-            "tension_min_n",
-            "tension_max_n",
-            "status",
-            "stop",
-        ]
-        .map(String::from)
-        .to_vec()
+        sweep_columns::QUASI_STATIC.map(String::from).to_vec()
     }
 
     fn run(&self, scenario: &Scenario, _case: &Case) -> Vec<Cell> {
         let Some(qs) = &scenario.quasi_static else {
-            return Vec::new();
+            // Validation requires the section; should a case lack it all the same, the
+            // row says why it has no figures rather than leaving a blank status.
+            let mut cells: Vec<Cell> = (0..6).map(|_| Cell::Num(None)).collect();
+            cells.extend([
+                Cell::Text("error".into()),
+                Cell::Text("study = \"quasi_static\" needs a [quasi_static] section".into()),
+            ]);
+            return cells;
         };
         let model = qs.models.first().copied().unwrap_or_default();
         let trace = quasi_static::run_model(&scenario.drive, &scenario.load, qs, model);
@@ -464,25 +467,10 @@ impl ClosedLoopRunner {
         }
     }
 
-    const FIGURES: [&'static str; 7] = [
-        "rms_mrad",
-        "peak_mrad",
-        "p95_mrad",
-        "within_target_fraction",
-        "passes_target",
-        "status",
-        "stop",
-    ];
+    const FIGURES: [&'static str; 7] = sweep_columns::CLOSED_LOOP_MODE;
 
     /// The case's verdict: every requirement, the judged mode's pointing included.
-    const VERDICT: [&'static str; 6] = [
-        "passes",
-        "phase_margin_deg",
-        "gain_margin_up_db",
-        "gain_margin_down_db",
-        "ms",
-        "failing",
-    ];
+    const VERDICT: [&'static str; 6] = sweep_columns::CLOSED_LOOP_VERDICT;
 }
 
 impl CaseRunner for ClosedLoopRunner {
@@ -554,7 +542,14 @@ impl CaseRunner for ClosedLoopRunner {
                         Cell::Text(stop),
                     ]);
                 }
-                None => cells.extend(Self::FIGURES.iter().map(|_| Cell::Num(None))),
+                None => {
+                    cells.extend((0..4).map(|_| Cell::Num(None)));
+                    cells.extend([
+                        Cell::Text("false".into()),
+                        Cell::Text("error".into()),
+                        Cell::Text(format!("mode {} was not simulated", mode.name())),
+                    ]);
+                }
             }
         }
         let verdict = closed_loop::ClosedLoopSource::closed_loop_setup(scenario)

@@ -306,3 +306,235 @@ fn stopped_cases_are_named_and_never_numbers() {
     assert_eq!(m["first_not_finished"][0]["case"], 0, "{m}");
     assert_eq!(m["first_not_finished"][0]["status"], "gross_slip", "{m}");
 }
+
+/// A backlash case the physics stops carries its reason to the console, `summary.json`
+/// and the `stop` column of `sweep.csv`; with no requirement to judge, the sweep itself
+/// succeeds.
+#[test]
+fn a_slack_case_names_its_reason_everywhere() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("slack");
+    let o = cable_servo(&[
+        "sweep",
+        "paper_fig11",
+        "--vary",
+        "drive.preload_n=10,100",
+        "--vary",
+        "backlash.load_nm=3",
+        "--out",
+        path(&out),
+    ]);
+    let console = String::from_utf8_lossy(&o.stdout).to_string();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{console}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let line = console
+        .lines()
+        .find(|l| l.trim_start().starts_with("case 0 "))
+        .unwrap_or_else(|| panic!("no line for the stopped case: {console}"));
+    let reason = line
+        .split_once("): slack ")
+        .map(|(_, r)| r.trim())
+        .unwrap_or_default();
+    assert!(reason.contains("span goes slack"), "{line}");
+    assert!(reason.contains("raise preload_n above"), "{line}");
+
+    let summary: serde_json::Value =
+        serde_json::from_str(&text(&out.join("summary.json"))).unwrap();
+    let first = &summary["outcomes"]["cases"]["first_not_finished"][0];
+    assert_eq!(first["status"], "slack", "{first}");
+    assert_eq!(first["reason"], reason, "{first}");
+
+    let mut table = csv::Reader::from_path(out.join("sweep.csv")).unwrap();
+    let header = table.headers().unwrap().clone();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|c| c == name)
+            .unwrap_or_else(|| panic!("{name} not in {header:?}"))
+    };
+    let (status, stop) = (col("status"), col("stop"));
+    let rows: Vec<csv::StringRecord> = table.records().map(Result::unwrap).collect();
+    assert_eq!(rows.len(), 2);
+    assert_eq!(&rows[0][status], "slack");
+    assert_eq!(&rows[0][stop], reason);
+    assert_eq!(&rows[1][status], "ok");
+    assert_eq!(&rows[1][stop], "");
+}
+
+/// Shards are checked cell by cell before anything is merged: junk a hand edit or a
+/// damaged disk leaves in a shard is refused with its file, line, column and value, and
+/// no merged table is left behind; good shards, quoted reasons included, still merge into
+/// the single run's file.
+#[test]
+fn merge_refuses_junk_cells_naming_file_line_and_column() {
+    let tmp = tempfile::tempdir().unwrap();
+    // 10 N slips on a 3 rad pulley wrap at 0.72 N m (a reason with commas, so quoted) and
+    // goes slack at 3 N m; 100 N carries both.
+    let common = [
+        "sweep",
+        "paper_fig11",
+        "--vary",
+        "drive.preload_n=10,100",
+        "--vary",
+        "backlash.load_nm=0.72,3",
+        "--set",
+        "drive.pulley_wrap_rad=3",
+        "--threads",
+        "1",
+    ];
+    let run = |extra: &[&str], dir: &Path| {
+        let args = [&common[..], extra, &["--out", path(dir)]].concat();
+        let o = cable_servo(&args);
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    };
+    let (single, s1, s2) = (
+        tmp.path().join("single"),
+        tmp.path().join("s1"),
+        tmp.path().join("s2"),
+    );
+    run(&[], &single);
+    run(&["--shard", "1/2"], &s1);
+    run(&["--shard", "2/2"], &s2);
+    let merge = |out: &Path| cable_servo(&["merge", "--out", path(out), path(&s1), path(&s2)]);
+
+    let good = tmp.path().join("good.csv");
+    let o = merge(&good);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let merged = text(&good);
+    assert_eq!(merged, text(&single.join("sweep.csv")));
+    assert!(
+        merged.contains(",\"gross slip of the upper half"),
+        "{merged}"
+    );
+
+    let table = s1.join("sweep.csv");
+    let original = text(&table);
+    let lines: Vec<&str> = original.lines().collect();
+    assert!(
+        lines[1].starts_with("0,10,0.72,,,,gross_slip,"),
+        "{original}"
+    );
+    assert!(lines[2].starts_with("2,100,0.72,"), "{original}");
+    let ok = lines[2].split(',').collect::<Vec<_>>();
+    let edited = |column: usize, value: &str| {
+        let mut cells = ok.clone();
+        cells[column - 1] = value;
+        cells.join(",")
+    };
+    let slipped_with_figures = lines[1].replacen("0,10,0.72,,", "0,10,0.72,0.5,", 1);
+    let slipped_without_reason = "0,10,0.72,,,,gross_slip,false,,gross_slip,".to_string();
+    // (line, row, column, name, value as quoted in the message, what the message says)
+    let junk = [
+        (
+            3,
+            "2,10,abc,nan,,,ok,false,1,ok,".to_string(),
+            3,
+            "load_nm",
+            "\"abc\"",
+            "finite number",
+        ),
+        (
+            3,
+            edited(2, "inf"),
+            2,
+            "preload_n",
+            "\"inf\"",
+            "finite number",
+        ),
+        (
+            3,
+            edited(4, "nan"),
+            4,
+            "initial_mrad",
+            "\"nan\"",
+            "finite number",
+        ),
+        (
+            3,
+            edited(9, "1e999"),
+            9,
+            "tension_upper_n",
+            "\"1e999\"",
+            "finite number",
+        ),
+        (
+            3,
+            edited(7, "fine"),
+            7,
+            "regime",
+            "\"fine\"",
+            "`gross_slip`",
+        ),
+        (
+            3,
+            edited(8, "yes"),
+            8,
+            "anchor_reached",
+            "\"yes\"",
+            "`true` or `false`",
+        ),
+        (
+            3,
+            edited(10, "done"),
+            10,
+            "status",
+            "\"done\"",
+            "`unstable`",
+        ),
+        (
+            2,
+            slipped_with_figures,
+            4,
+            "initial_mrad",
+            "\"0.5\"",
+            "must be blank",
+        ),
+        (
+            2,
+            slipped_without_reason,
+            11,
+            "stop",
+            "a blank cell",
+            "must not be blank",
+        ),
+    ];
+    for (k, (line, row, column, name, value, says)) in junk.into_iter().enumerate() {
+        let mut rows = lines.clone();
+        rows[line - 1] = &row;
+        std::fs::write(&table, rows.join("\n") + "\n").unwrap();
+        let out = tmp.path().join(format!("junk-{k}.csv"));
+        let o = merge(&out);
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        assert_eq!(o.status.code(), Some(3), "{row}: {err}");
+        let at = format!(
+            "{}:{line}: column {column} ({name}) holds {value}",
+            path(&table)
+        );
+        assert!(err.contains(&at), "{row}\nexpected {at}\n{err}");
+        assert!(err.contains(says), "{row}: {err}");
+        assert!(!out.exists(), "{row}: a merged table was written");
+        assert!(!tmp.path().join(format!("junk-{k}.csv.merge.json")).exists());
+    }
+    std::fs::write(&table, &original).unwrap();
+    let o = merge(&tmp.path().join("again.csv"));
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}

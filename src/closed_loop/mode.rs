@@ -18,6 +18,13 @@ pub enum CompensationMode {
 }
 
 impl CompensationMode {
+    /// Every mode, for readers that recognise the columns a mode names in a table.
+    pub const ALL: [CompensationMode; 3] = [
+        CompensationMode::None,
+        CompensationMode::Memoryless,
+        CompensationMode::Memory,
+    ];
+
     /// Name used in files (`none`, `memoryless`, `memory`).
     pub fn name(self) -> &'static str {
         match self {

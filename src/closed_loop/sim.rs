@@ -248,6 +248,15 @@ pub enum StopKind {
 }
 
 impl StopKind {
+    /// Every kind, for readers that check a status column against the names it may hold.
+    pub const ALL: [StopKind; 5] = [
+        StopKind::Slack,
+        StopKind::GrossSlip,
+        StopKind::Unstable,
+        StopKind::Saturated,
+        StopKind::Stopped,
+    ];
+
     /// The status name (`slack`, `gross_slip`, `unstable`, `saturated`, `stopped`).
     pub fn name(self) -> &'static str {
         match self {

@@ -7,4 +7,5 @@ pub mod merge;
 pub mod output;
 pub mod signals;
 pub mod staging;
+pub mod sweep_columns;
 pub mod tables;

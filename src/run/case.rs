@@ -191,6 +191,108 @@ mod tests {
         assert_eq!(cases, expand(&spec, &base).unwrap());
     }
 
+    /// Rows and outcomes of a grid sweep over the `paper_fig11` drive.
+    fn fig11_grid(preloads: &[f64], loads: &[f64]) -> (Vec<String>, Vec<(Case, Vec<Cell>)>) {
+        let scenario = Scenario::from_toml(
+            crate::scenario::builtin("paper_fig11").unwrap(),
+            "f",
+            "f",
+            &[],
+        )
+        .unwrap();
+        let base = scenario.to_table();
+        let values = |v: &[f64]| v.iter().map(|&x| toml::Value::Float(x)).collect();
+        let spec = SweepSpec {
+            mode: SweepMode::Grid,
+            parameters: vec![
+                SweepParameter::with_values("drive.preload_n", values(preloads)),
+                SweepParameter::with_values("backlash.load_nm", values(loads)),
+            ],
+            ..SweepSpec::default()
+        };
+        let cases = expand(&spec, &base).unwrap();
+        let plan = Plan {
+            cases: &cases,
+            shard: Shard::ALL,
+            threads: 1,
+            stop: None,
+        };
+        let runner = crate::run::BacklashRunner;
+        let mut rows = Vec::new();
+        run_cases(
+            &plan,
+            runner.columns().len(),
+            &|case| run_one_case(&base, "f", case, &runner, None),
+            &mut |case, cells| {
+                rows.push((case.clone(), cells));
+                Ok(())
+            },
+            &|| {},
+        )
+        .unwrap();
+        (runner.columns(), rows)
+    }
+
+    #[test]
+    fn a_slack_case_names_its_reason_in_the_row_and_the_outcomes() {
+        // 10 N of preload cannot carry 3 N m on a 0.1025 m drum; 100 N can.
+        let (columns, rows) = fig11_grid(&[10.0, 100.0], &[3.0]);
+        let col = |name: &str| columns.iter().position(|c| c == name).unwrap();
+        let text = |cells: &[Cell], j: usize| match &cells[j] {
+            Cell::Text(t) => t.clone(),
+            other => panic!("column {} holds {other:?}", columns[j]),
+        };
+        let (slack, held) = (&rows[0].1, &rows[1].1);
+        assert_eq!(text(slack, col("status")), "slack");
+        let reason = text(slack, col("stop"));
+        assert!(reason.contains("goes slack"), "{reason}");
+        assert!(reason.contains("raise preload_n above"), "{reason}");
+        assert_eq!(slack[col("reversal_mrad")], Cell::Num(None));
+        assert_eq!(text(held, col("status")), "ok");
+        assert_eq!(text(held, col("stop")), "");
+
+        let parameters = ["preload_n".to_string(), "load_nm".to_string()];
+        let (json, console) = crate::report::sweep::outcomes(&parameters, &columns, &rows);
+        let first = &json["cases"]["first_not_finished"][0];
+        assert_eq!(first["status"], "slack", "{json}");
+        assert_eq!(first["reason"], reason.as_str(), "{json}");
+        let line = console
+            .lines()
+            .find(|l| l.trim_start().starts_with("case 0 "))
+            .unwrap_or_else(|| panic!("no line for case 0 in {console}"));
+        assert!(line.ends_with(&format!("slack {reason}")), "{line}");
+    }
+
+    /// The outcomes read a case's reason from the `stop` column beside its `status`: a
+    /// runner without one would report stopped cases with a blank reason.
+    #[test]
+    fn every_status_column_has_its_stop_column() {
+        let closed_loop = Scenario::from_toml(
+            crate::scenario::builtin("eots_tracking").unwrap(),
+            "e",
+            "e",
+            &[],
+        )
+        .unwrap();
+        let runners: [(&str, Box<dyn CaseRunner>); 3] = [
+            ("backlash", Box::new(crate::run::BacklashRunner)),
+            ("quasi-static", Box::new(crate::run::QuasiStaticRunner)),
+            (
+                "closed loop",
+                Box::new(crate::run::ClosedLoopRunner::for_scenario(&closed_loop)),
+            ),
+        ];
+        for (study, runner) in runners {
+            let columns = runner.columns();
+            let statuses: Vec<&String> = columns.iter().filter(|c| c.ends_with("status")).collect();
+            assert!(!statuses.is_empty(), "{study}: {columns:?}");
+            for status in statuses {
+                let stop = format!("{}stop", status.strip_suffix("status").unwrap_or(""));
+                assert!(columns.contains(&stop), "{study}: {status} without {stop}");
+            }
+        }
+    }
+
     #[test]
     fn tolerance_scenario_file_expands() {
         let text = include_str!("../../scenarios/paper_bench_tolerance.toml");

@@ -323,6 +323,9 @@ pub enum Regime {
 }
 
 impl Regime {
+    /// Every regime, for readers that check a regime column against the names it may hold.
+    pub const ALL: [Regime; 3] = [Regime::Ok, Regime::Slack, Regime::GrossSlip];
+
     /// Name as written in tables.
     pub fn as_str(self) -> &'static str {
         match self {
