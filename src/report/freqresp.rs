@@ -437,7 +437,10 @@ pub fn format_table(r: &FreqResponse) -> String {
         let counts: Vec<String> = [(failed, "failed"), (unresolved, "unresolved")]
             .iter()
             .filter(|(n, _)| *n > 0)
-            .map(|(n, what)| format!("{n} frequencies {what}"))
+            .map(|(n, what)| {
+                let noun = if *n == 1 { "frequency" } else { "frequencies" };
+                format!("{n} {noun} {what}")
+            })
             .collect();
         let m = a.margins.clone().unwrap_or_default();
         t.push_str(&format!(
