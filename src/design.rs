@@ -71,6 +71,26 @@ pub enum DesignError {
 /// design review can read.
 pub const MAX_SEARCH_END: f64 = 1e6;
 
+/// Whether a search `range` (N m or Hz) and `tolerance` can be searched: checked before
+/// any run, so a range no search can resolve costs nothing.
+pub fn check_search(range: (f64, f64), tolerance: f64) -> Result<(), DesignError> {
+    if range.0 >= 0.0
+        && range.1 > range.0
+        && range.1 <= MAX_SEARCH_END
+        && tolerance > 0.0
+        && tolerance.is_finite()
+    {
+        return Ok(());
+    }
+    Err(DesignError::Unsuitable(format!(
+        "need a range 0 <= lo < hi <= {} and a finite tolerance > 0, got {} to {} and {}",
+        crate::readable(MAX_SEARCH_END),
+        crate::readable(range.0),
+        crate::readable(range.1),
+        crate::readable(tolerance)
+    )))
+}
+
 fn with_value(base: &Scenario, question: Question, value: f64) -> Scenario {
     let mut s = base.clone();
     match question {
@@ -140,20 +160,7 @@ pub fn largest_meeting_target(
             "the fastest scan needs a sine or triangle closed_loop.reference".into(),
         ));
     }
-    if !(range.0 >= 0.0
-        && range.1 > range.0
-        && range.1 <= MAX_SEARCH_END
-        && tolerance > 0.0
-        && tolerance.is_finite())
-    {
-        return Err(DesignError::Unsuitable(format!(
-            "need a range 0 <= lo < hi <= {} and a finite tolerance > 0, got {} to {} and {}",
-            crate::readable(MAX_SEARCH_END),
-            crate::readable(range.0),
-            crate::readable(range.1),
-            crate::readable(tolerance)
-        )));
-    }
+    check_search(range, tolerance)?;
     let search = largest_passing(range.0, range.1, tolerance, |v| {
         meets(&with_value(base, question, v), mode)
     });

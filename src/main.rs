@@ -1466,6 +1466,10 @@ fn closed_loop_answer(
         search.max.unwrap_or(max),
         search.tol.unwrap_or(tol),
     );
+    if let Err(e) = cable_servo::design::check_search((min, max), tol) {
+        tell!("error: --min/--max/--tol: {e}");
+        return ExitCode::from(exit::USAGE);
+    }
     let name = search.scenario.as_deref().unwrap_or(default_scenario);
     let set = &search.set;
     let mode = match search.mode.as_str() {
