@@ -458,7 +458,9 @@ fn draw_legend<DB: DrawingBackend>(
                     }
                 }
                 let size = if s.style == SeriesStyle::Points { 3 } else { 4 };
-                draw_marker(la, s.pattern, (x + SAMPLE / 2, y), size, s.color)?;
+                if !s.context || s.style == SeriesStyle::Points {
+                    draw_marker(la, s.pattern, (x + SAMPLE / 2, y), size, s.color)?;
+                }
             }
             Key::Fill(c) => {
                 la.draw(&Rectangle::new(
