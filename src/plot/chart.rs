@@ -378,6 +378,7 @@ fn draw_legend<DB: DrawingBackend>(
 ) -> Result<PixelRect, String> {
     const ROW: i32 = 22;
     const SAMPLE: i32 = 34;
+    const STEP_RISE: i32 = 8;
     let base = la.get_base_pixel();
     let (w, _) = la.dim_in_pixel();
     let font = TextStyle::from((FONT, LEGEND_PX).into_font()).color(&BLACK);
@@ -437,11 +438,13 @@ fn draw_legend<DB: DrawingBackend>(
                 let pattern = LINE_PATTERNS[s.pattern % LINE_PATTERNS.len()];
                 if s.style != SeriesStyle::Points {
                     let sample: Vec<(f64, f64)> = if s.style == SeriesStyle::Step {
+                        // The treads clear of the marker on the riser (it reaches 6 px
+                        // from its centre), or they cut into it.
                         vec![
-                            (f64::from(x), f64::from(y + 5)),
-                            (f64::from(x + SAMPLE / 2), f64::from(y + 5)),
-                            (f64::from(x + SAMPLE / 2), f64::from(y - 5)),
-                            (f64::from(x + SAMPLE), f64::from(y - 5)),
+                            (f64::from(x), f64::from(y + STEP_RISE)),
+                            (f64::from(x + SAMPLE / 2), f64::from(y + STEP_RISE)),
+                            (f64::from(x + SAMPLE / 2), f64::from(y - STEP_RISE)),
+                            (f64::from(x + SAMPLE), f64::from(y - STEP_RISE)),
                         ]
                     } else {
                         vec![
