@@ -159,6 +159,28 @@ fn draw_marker<DB: DrawingBackend>(
     }
 }
 
+/// The words of `text` for wrapping, a number kept with the unit after it (`20000 Hz)`,
+/// `0.1 mrad`): a line must not end in a number whose unit starts the next.
+pub(super) fn unbroken_words(text: &str) -> Vec<String> {
+    let mut words: Vec<String> = Vec::new();
+    let mut after_number = false;
+    for word in text.split_whitespace() {
+        let unit = word.len() <= 5 && word.starts_with(|c: char| c.is_alphabetic() || c == '%');
+        match words.last_mut() {
+            Some(last) if after_number && unit => {
+                last.push(' ');
+                last.push_str(word);
+                after_number = false;
+            }
+            _ => {
+                words.push(word.to_string());
+                after_number = word.ends_with(|c: char| c.is_ascii_digit());
+            }
+        }
+    }
+    words
+}
+
 /// Splits `text` into lines no wider than `width` pixels (at word boundaries; a single
 /// longer word keeps its own line).
 fn wrap<DB: DrawingBackend>(
@@ -174,7 +196,8 @@ fn wrap<DB: DrawingBackend>(
     };
     let mut lines = Vec::new();
     let mut cur = String::new();
-    for word in text.split_whitespace() {
+    for word in unbroken_words(text) {
+        let word = word.as_str();
         let candidate = if cur.is_empty() {
             word.to_string()
         } else {

@@ -1199,3 +1199,17 @@ fn heatmap_log_colour_scale_spreads_decades() {
         HEATMAP_SIZE,
     );
 }
+
+/// A legend line never ends in a number whose unit starts the next.
+#[test]
+fn a_number_keeps_its_unit_when_a_legend_wraps() {
+    assert_eq!(
+        chart::unbroken_words("scenario's design (20000 Hz)"),
+        ["scenario's", "design", "(20000 Hz)"]
+    );
+    assert_eq!(
+        chart::unbroken_words("target 0.1 mrad"),
+        ["target", "0.1 mrad"]
+    );
+    assert_eq!(chart::unbroken_words("share 95 %"), ["share", "95 %"]);
+}
