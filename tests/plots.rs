@@ -20,9 +20,15 @@ fn slots(f: &Figure) -> Vec<(String, Option<usize>)> {
         Figure::Chart(c) => vec![c.clone()],
         Figure::Panels { charts, .. } => charts.clone(),
     };
+    // Context (samples not judged) is grey, outside every mode's slot.
     charts
         .iter()
-        .flat_map(|c| c.series.iter().map(|s| (s.label.clone(), s.palette_slot)))
+        .flat_map(|c| {
+            c.series
+                .iter()
+                .filter(|s| !s.context)
+                .map(|s| (s.label.clone(), s.palette_slot))
+        })
         .collect()
 }
 
@@ -109,5 +115,58 @@ fn time_outside_the_metrics_window_is_shaded_and_off_the_error_scale() {
     // Every error panel carries the target.
     for c in chart_of(&all, "pointing_error") {
         assert!(c.bands.iter().any(|b| b.label.starts_with("target")));
+    }
+}
+
+/// The error against angle judges what the verdict judges: each mode's curve holds its
+/// samples in the metrics window and nothing else; the start-up before it is kept apart,
+/// in grey under one legend entry, and leaves the axis to the judged samples.
+#[test]
+fn error_against_angle_sets_the_start_up_apart() {
+    let sets = vec![
+        "closed_loop.modes=[\"none\", \"memory\"]".to_string(),
+        "closed_loop.duration_s=2.5".to_string(),
+    ];
+    let s = Scenario::load("eots_tracking", &sets).unwrap_or_else(|e| panic!("{e}"));
+    let r = run_closed_loop(&s, &RunOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+    let figures = closed_loop_charts(&r, 0.1, "A");
+    let panels = chart_of(&figures, "error_vs_angle");
+    let c = panels[0];
+    // The compensated mode on an axis of its own, judged samples only.
+    let labels: Vec<&str> = panels[1].series.iter().map(|s| s.label.as_str()).collect();
+    assert_eq!(labels, ["memory"]);
+    let (from, to) = (
+        r.modes[0].metrics.window_s[0],
+        r.modes[0].metrics.window_s[1],
+    );
+    let context: Vec<_> = c.series.iter().filter(|s| s.context).collect();
+    let judged: Vec<_> = c.series.iter().filter(|s| !s.context).collect();
+    assert_eq!((context.len(), judged.len()), (2, 2));
+    let labels: Vec<&str> = context.iter().map(|s| s.label.as_str()).collect();
+    assert_eq!(labels[1], "", "one legend entry for the grey");
+    assert!(labels[0].starts_with("before metrics start"), "{labels:?}");
+    let Some((_, Figure::Panels { title, .. })) =
+        figures.iter().find(|(s, _)| s == "error_vs_angle")
+    else {
+        panic!("error against angle is not a panel figure");
+    };
+    assert!(title.contains("judged from"), "{title}");
+    for (k, m) in r.modes.iter().enumerate() {
+        let t = &m.series.as_ref().expect("recorded").t_s;
+        for (i, &ti) in t.iter().enumerate() {
+            let inside = ti >= from && ti <= to;
+            assert_eq!(
+                judged[k].y[i].is_finite(),
+                inside,
+                "{} at {ti} s",
+                m.mode.name()
+            );
+            assert_eq!(
+                context[k].y[i].is_finite(),
+                !inside,
+                "{} at {ti} s",
+                m.mode.name()
+            );
+        }
     }
 }

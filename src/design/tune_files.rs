@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::tune::{Candidate, LeastRate, TuneResult};
+use super::tune::{Candidate, Feedforward, LeastRate, TuneResult};
 use super::DesignError;
 use crate::analysis::linear::LinearLoop;
 use crate::closed_loop::ClosedLoopSource;
@@ -326,6 +326,21 @@ pub fn write_least_rate(
     Ok(staged.commit()?)
 }
 
+/// A design's name in a figure with what sets it apart from the candidates searched: its
+/// control rate always (the scenario's own design keeps its rate whatever rate was tuned
+/// at), and its load-feedforward setting when the search did not try that setting.
+fn design_label(name: &str, c: &Candidate, searched: Feedforward) -> String {
+    let mut words = format!("{} Hz", crate::compact(c.rate_hz));
+    if !searched.settings().contains(&c.load_feedforward) {
+        words.push_str(if c.load_feedforward {
+            ", with load feedforward"
+        } else {
+            ", without load feedforward"
+        });
+    }
+    format!("{name} ({words})")
+}
+
 /// The front (peak against margin class, per load-feedforward setting), the Bode plot of
 /// the pick's loop gain against the scenario's design at each stiffness, and their
 /// reference steps on the exact linear loop.
@@ -385,9 +400,14 @@ fn figures(r: &TuneResult, base: &Scenario, dir: &Path) -> Result<(), DesignErro
     }
     if r.scenario_design.signable {
         if let (Some(m), Some(p)) = (r.scenario_design.margin_class, r.scenario_design.peak_mrad) {
-            front
-                .series
-                .push(Series::points("scenario's design", vec![100.0 * m], vec![p]).in_slot(3));
+            front.series.push(
+                Series::points(
+                    design_label("scenario's design", &r.scenario_design, r.feedforward),
+                    vec![100.0 * m],
+                    vec![p],
+                )
+                .in_slot(3),
+            );
         }
     }
     if !front.series.is_empty() {
@@ -426,7 +446,7 @@ fn figures(r: &TuneResult, base: &Scenario, dir: &Path) -> Result<(), DesignErro
                 r.scenario
             ),
             x_label: "time [s]".into(),
-            y_label: "drum angle / step [-]".into(),
+            y_label: "drum angle / step [1]".into(),
             ..Chart::default()
         },
     );
@@ -445,7 +465,11 @@ fn figures(r: &TuneResult, base: &Scenario, dir: &Path) -> Result<(), DesignErro
                 .map(|i| 1.0 * (hi / 1.0).powf(i as f64 / 599.0))
                 .collect();
             let l: Vec<_> = freqs.iter().map(|&f| lin.loop_gain(f)).collect();
-            let name = format!("{label}, {}", point.condition);
+            let name = format!(
+                "{}, {}",
+                design_label(label, c, r.feedforward),
+                point.condition
+            );
             let line = |y: Vec<f64>| {
                 let s = Series::line(name.clone(), freqs.clone(), y);
                 if k == 0 {
@@ -484,4 +508,52 @@ fn figures(r: &TuneResult, base: &Scenario, dir: &Path) -> Result<(), DesignErro
         plot::save_chart(&step, &dir.join("step"))?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::design::tune::Gains;
+
+    fn design(rate_hz: f64, load_feedforward: bool) -> Candidate {
+        Candidate {
+            gains: Gains {
+                kp: 1.0,
+                ki: 0.0,
+                kd: 0.0,
+            },
+            rate_hz,
+            load_feedforward,
+            origin: "scenario",
+            linear_compliance_mrad_per_nm: None,
+            margins: Vec::new(),
+            signable: true,
+            status: "complete".into(),
+            peak_mrad: Some(0.05),
+            rms_mrad: Some(0.01),
+            passes: true,
+            margin_class: Some(0.1),
+            failing: Vec::new(),
+            on_front: false,
+        }
+    }
+
+    /// A design drawn among candidates of another rate or feedforward setting says so.
+    #[test]
+    fn a_design_is_named_with_its_own_rate_and_an_unsearched_feedforward() {
+        let own = design(20000.0, false);
+        assert_eq!(
+            design_label("scenario's design", &own, Feedforward::Without),
+            "scenario's design (20000 Hz)"
+        );
+        let with = design(20000.0, true);
+        assert_eq!(
+            design_label("scenario's design", &with, Feedforward::Without),
+            "scenario's design (20000 Hz, with load feedforward)"
+        );
+        assert_eq!(
+            design_label("pick", &design(10000.0, true), Feedforward::Both),
+            "pick (10000 Hz)"
+        );
+    }
 }

@@ -285,6 +285,10 @@ fn draw_panel<DB: DrawingBackend>(
         .draw()
         .map_err(err)?;
     let bounds = Bounds { x0, x1, y0, y1 };
+    // What the texts beside the marks should keep off: the curves' pixels and the
+    // markers of sampled traces.
+    let mut inked: Vec<(i32, i32)> = Vec::new();
+    let mut dots: Vec<PixelRect> = Vec::new();
     for t in &p.traces {
         let color = rgb(t.rgb);
         let pts: Vec<Pt> =
@@ -317,6 +321,7 @@ fn draw_panel<DB: DrawingBackend>(
             }
             runs.push(run);
             for piece in runs.iter().flat_map(|r| clip_polyline(r, &bounds)) {
+                inked.extend(along(&piece, |q| cc.backend_coord(&q)));
                 match t.dash.pattern() {
                     None => {
                         cc.draw_series(
@@ -341,6 +346,8 @@ fn draw_panel<DB: DrawingBackend>(
         if let Some(shape) = t.marker {
             for &q in pts.iter().filter(|q| bounds.contains(**q)) {
                 marker(&mut cc, q, shape, 4, color)?;
+                let (x, y) = cc.backend_coord(&q);
+                dots.push(((x - 5, y - 5), (x + 5, y + 5)));
             }
         }
     }
@@ -371,37 +378,249 @@ fn draw_panel<DB: DrawingBackend>(
             );
         cc.draw_series(std::iter::once(head)).map_err(err)?;
     }
-    for m in &p.marks {
-        let q = (tx(m.x), m.y);
-        if !bounds.contains(q) {
-            continue;
-        }
+    let shown: Vec<(&Mark, Pt)> = p
+        .marks
+        .iter()
+        .map(|m| (m, (tx(m.x), m.y)))
+        .filter(|(_, q)| bounds.contains(*q))
+        .collect();
+    for &(m, q) in &shown {
         marker(&mut cc, q, m.shape, m.size, rgb(m.rgb))?;
-        if !m.text.is_empty() {
-            let colour = rgb(m.rgb);
-            let white = WHITE.mix(0.9);
-            let font = TextStyle::from((FONT, 15).into_font())
-                .color(&colour)
-                .pos(Pos::new(HPos::Left, VPos::Center));
-            // A white halo keeps the text readable over grid and curves.
-            let halo = TextStyle::from((FONT, 15, FontStyle::Bold).into_font())
-                .color(&white)
-                .pos(Pos::new(HPos::Left, VPos::Center));
-            let (ox, oy) = m.text_offset;
-            for (dx, dy) in [(-1, 0), (1, 0), (0, -1), (0, 1)] {
+    }
+    // The texts after every marker, each placed clear of the markers and of the texts
+    // placed before it.
+    let plain = TextStyle::from((FONT, MARK_TEXT_PX).into_font());
+    let obstacles: Vec<PixelRect> = shown
+        .iter()
+        .map(|&(m, q)| {
+            let (x, y) = cc.backend_coord(&q);
+            let r = m.size as i32 + 2;
+            ((x - r, y - r), (x + r, y + r))
+        })
+        .chain(dots)
+        .collect();
+    let texts: Vec<(&Mark, Pt, LabelBox)> = shown
+        .iter()
+        .filter(|(m, _)| !m.text.is_empty())
+        .map(|&(m, q)| {
+            let (w, h) = area
+                .estimate_text_size(&m.text, &plain)
+                .map_or((8 * m.text.len() as i32, MARK_TEXT_PX as i32), |(w, h)| {
+                    (w as i32, h as i32)
+                });
+            let label = LabelBox {
+                anchor: cc.backend_coord(&q),
+                offset: m.text_offset,
+                size: (w + 2, h + 2),
+            };
+            (m, q, label)
+        })
+        .collect();
+    let (px_x, px_y) = cc.plotting_area().get_pixel_range();
+    // A few pixels in from the axes, so no text touches them.
+    let plot = (
+        (px_x.start + 3, px_y.start + 3),
+        (px_x.end - 3, px_y.end - 3),
+    );
+    let labels: Vec<LabelBox> = texts.iter().map(|t| t.2).collect();
+    let placed = place_labels(&labels, &obstacles, &inked, plot);
+    for ((m, q, label), &(ox, oy)) in texts.iter().zip(&placed) {
+        let colour = rgb(m.rgb);
+        // A text moved off its spot points back at its marker.
+        if (oy - label.offset.1).abs() > label.size.1 || ox != label.offset.0 {
+            let (top, bottom) = (oy - label.size.1 / 2, oy + label.size.1 / 2);
+            let near_y = 0.clamp(top, bottom);
+            let near_x = if ox < 0 { ox + label.size.0 } else { ox };
+            let r = m.size as i32 + 1;
+            let len = f64::from(near_x).hypot(f64::from(near_y));
+            if len > f64::from(r) + 2.0 {
+                let start = (
+                    (f64::from(near_x) * f64::from(r) / len).round() as i32,
+                    (f64::from(near_y) * f64::from(r) / len).round() as i32,
+                );
                 cc.draw_series(std::iter::once(
-                    EmptyElement::at(q)
-                        + Text::new(m.text.clone(), (ox + dx, oy + dy), halo.clone()),
+                    EmptyElement::at(*q)
+                        + PathElement::new(vec![start, (near_x, near_y)], colour.mix(0.7)),
                 ))
                 .map_err(err)?;
             }
+        }
+        // A white halo keeps the text readable over grid and curves.
+        let white = WHITE.mix(0.9);
+        let halo = TextStyle::from((FONT, MARK_TEXT_PX, FontStyle::Bold).into_font())
+            .color(&white)
+            .pos(Pos::new(HPos::Left, VPos::Center));
+        let font = TextStyle::from((FONT, MARK_TEXT_PX).into_font())
+            .color(&colour)
+            .pos(Pos::new(HPos::Left, VPos::Center));
+        for (dx, dy) in [(-1, 0), (1, 0), (0, -1), (0, 1)] {
             cc.draw_series(std::iter::once(
-                EmptyElement::at(q) + Text::new(m.text.clone(), (ox, oy), font),
+                EmptyElement::at(*q) + Text::new(m.text.clone(), (ox + dx, oy + dy), halo.clone()),
             ))
             .map_err(err)?;
         }
+        cc.draw_series(std::iter::once(
+            EmptyElement::at(*q) + Text::new(m.text.clone(), (ox, oy), font),
+        ))
+        .map_err(err)?;
     }
     Ok(())
+}
+
+/// Size of the text beside a mark, px.
+const MARK_TEXT_PX: u32 = 15;
+
+/// A mark's text to be placed: the marker's pixel, the offset asked for (of the text's
+/// left end, its middle in height) and the text's size, px.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct LabelBox {
+    pub(super) anchor: (i32, i32),
+    pub(super) offset: (i32, i32),
+    pub(super) size: (i32, i32),
+}
+
+impl LabelBox {
+    /// The text's box at offset `o`.
+    fn at(&self, o: (i32, i32)) -> PixelRect {
+        let (x, y) = (self.anchor.0 + o.0, self.anchor.1 + o.1);
+        (
+            (x, y - self.size.1 / 2),
+            (x + self.size.0, y + self.size.1 - self.size.1 / 2),
+        )
+    }
+}
+
+/// Area two boxes share, px².
+fn shared(a: PixelRect, b: PixelRect) -> i64 {
+    let w = a.1 .0.min(b.1 .0) - a.0 .0.max(b.0 .0);
+    let h = a.1 .1.min(b.1 .1) - a.0 .1.max(b.0 .1);
+    if w > 0 && h > 0 {
+        i64::from(w) * i64::from(h)
+    } else {
+        0
+    }
+}
+
+/// Area of `a` outside `area`, px².
+fn outside(a: PixelRect, area: PixelRect) -> i64 {
+    let whole = i64::from(a.1 .0 - a.0 .0) * i64::from(a.1 .1 - a.0 .1);
+    whole - shared(a, area)
+}
+
+/// Pixels along a polyline in data coordinates, one every 2 px of its length however
+/// densely it is sampled (`px` maps a point to its pixel).
+fn along(piece: &[Pt], px: impl Fn(Pt) -> (i32, i32)) -> Vec<(i32, i32)> {
+    const STEP: f64 = 2.0;
+    let pts: Vec<(f64, f64)> = piece
+        .iter()
+        .map(|&q| {
+            let (x, y) = px(q);
+            (f64::from(x), f64::from(y))
+        })
+        .collect();
+    let mut out: Vec<(i32, i32)> = pts
+        .first()
+        .map(|p| (p.0 as i32, p.1 as i32))
+        .into_iter()
+        .collect();
+    // Length walked since the last pixel taken.
+    let mut walked = 0.0;
+    for w in pts.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let len = (b.0 - a.0).hypot(b.1 - a.1);
+        let mut at = STEP - walked;
+        while at <= len {
+            let t = at / len;
+            out.push((
+                (a.0 + t * (b.0 - a.0)).round() as i32,
+                (a.1 + t * (b.1 - a.1)).round() as i32,
+            ));
+            at += STEP;
+        }
+        walked = len - (at - STEP);
+    }
+    out
+}
+
+/// Offsets for texts beside marks, in order. A text never covers the texts placed before
+/// it or the `obstacles` (the markers) and stays inside `area` when any spot tried allows:
+/// where it asked to be, stacked a line at a time above or below (the way it asked first)
+/// and moved out from the marker by up to two thirds of its width, and the same on the
+/// marker's other side, taken only when its own side has no such spot (a side is asked
+/// for a reason: away from the critical point). Among those, the one that weighs least:
+/// the `inked` pixels it covers (the curves, one every 2 px) plus a price for each move;
+/// failing all, the spot that overlaps least.
+pub(super) fn place_labels(
+    labels: &[LabelBox],
+    obstacles: &[PixelRect],
+    inked: &[(i32, i32)],
+    area: PixelRect,
+) -> Vec<(i32, i32)> {
+    const STEPS: i32 = 6;
+    // A move is worth about 24 px of curve under the text (the halo keeps a text over a
+    // curve readable; one far from its marker is hard to pair with it).
+    const MOVE_COST: i64 = 12;
+    let mut placed: Vec<PixelRect> = Vec::new();
+    let mut out = Vec::with_capacity(labels.len());
+    for l in labels {
+        let (ox, oy) = l.offset;
+        let line = l.size.1;
+        let first = if oy < 0 { -1 } else { 1 };
+        // (offset, moves, other side): a move is a line up or down, or a third of the
+        // text's width further out from the marker.
+        let mut tries = Vec::new();
+        for (base, flipped) in [(ox, 0), (-ox - l.size.0, 1)] {
+            let outward = if 2 * base + l.size.0 >= 0 { 1 } else { -1 };
+            for j in 0..=2 {
+                let x = base + outward * j * l.size.0 / 3;
+                tries.push(((x, oy), j, flipped));
+                for k in 1..=STEPS {
+                    tries.push(((x, oy + first * k * line), j + k, flipped));
+                    tries.push(((x, oy - first * k * line), j + k, flipped));
+                }
+            }
+        }
+        // Only the curve near this mark can matter.
+        let reach = (
+            (
+                l.anchor.0 - ox.abs() - 2 * l.size.0,
+                l.anchor.1 - (STEPS + 1) * line - oy.abs(),
+            ),
+            (
+                l.anchor.0 + ox.abs() + 2 * l.size.0,
+                l.anchor.1 + (STEPS + 1) * line + oy.abs(),
+            ),
+        );
+        let near: Vec<(i32, i32)> = inked
+            .iter()
+            .copied()
+            .filter(|&(x, y)| {
+                x >= reach.0 .0 && x <= reach.1 .0 && y >= reach.0 .1 && y <= reach.1 .1
+            })
+            .collect();
+        let hard = |o: (i32, i32)| {
+            let b = l.at(o);
+            let hit: i64 = placed.iter().chain(obstacles).map(|&q| shared(b, q)).sum();
+            hit + outside(b, area)
+        };
+        let soft = |o: (i32, i32), moved: i32| {
+            let ((x0, y0), (x1, y1)) = l.at(o);
+            let covered = near
+                .iter()
+                .filter(|&&(x, y)| x >= x0 && x < x1 && y >= y0 && y < y1)
+                .count() as i64;
+            covered + MOVE_COST * i64::from(moved)
+        };
+        let best = tries
+            .iter()
+            .filter(|t| hard(t.0) == 0)
+            .min_by_key(|t| (t.2, soft(t.0, t.1)))
+            .or_else(|| tries.iter().min_by_key(|t| hard(t.0)))
+            .map_or(l.offset, |t| t.0);
+        placed.push(l.at(best));
+        out.push(best);
+    }
+    out
 }
 
 type Cc<'a, DB> = ChartContext<'a, DB, Cartesian2d<TickRange, TickRange>>;
@@ -667,6 +886,51 @@ mod tests {
         let files = save_annotated(&fig, &tmp.path().join("f")).unwrap();
         assert_eq!(files.len(), 2);
         assert!(files.iter().all(|f| f.is_file()));
+    }
+
+    /// Texts that would print over each other are stacked apart, each kept inside the
+    /// plot and off the markers; a text with room stays where it asked to be.
+    #[test]
+    fn texts_beside_marks_are_placed_apart() {
+        let area = ((0, 0), (400, 300));
+        let label = |anchor, offset| LabelBox {
+            anchor,
+            offset,
+            size: (110, 17),
+        };
+        // Two marks close together, both asking for the text above-right.
+        let labels = [label((100, 100), (8, -14)), label((104, 104), (8, -14))];
+        let markers = [((94, 94), (106, 106)), ((98, 98), (110, 110))];
+        let placed = place_labels(&labels, &markers, &[], area);
+        assert_eq!(placed[0], (8, -14), "the first keeps its spot");
+        let boxes: Vec<PixelRect> = labels.iter().zip(&placed).map(|(l, &o)| l.at(o)).collect();
+        assert_eq!(shared(boxes[0], boxes[1]), 0, "{boxes:?}");
+        for b in &boxes {
+            assert_eq!(outside(*b, area), 0, "{b:?}");
+            for m in &markers {
+                assert_eq!(shared(*b, *m), 0, "{b:?} over {m:?}");
+            }
+        }
+        // A curve through the spot asked for: the text moves off it, by as little as does.
+        let curve: Vec<(i32, i32)> = (0..400).map(|x| (x, 86)).collect();
+        let off = place_labels(&[label((100, 100), (8, -14))], &[], &curve, area);
+        let b = label((100, 100), off[0]).at(off[0]);
+        assert!(
+            !curve
+                .iter()
+                .any(|&(x, y)| x >= b.0 .0 && x < b.1 .0 && y >= b.0 .1 && y < b.1 .1),
+            "{b:?}"
+        );
+        assert!((off[0].1 + 14).abs() <= 17, "{off:?}");
+        // However densely a curve is sampled, it is counted by its length.
+        let dense: Vec<Pt> = (0..=200).map(|i| (f64::from(i) * 0.1, 0.0)).collect();
+        let sparse = [(0.0, 0.0), (20.0, 0.0)];
+        let px = |q: Pt| ((q.0 * 10.0) as i32, 5);
+        assert_eq!(along(&dense, px).len(), along(&sparse, px).len());
+        assert_eq!(along(&sparse, px).len(), 101);
+        // At the right edge, the text goes to the marker's left.
+        let edge = place_labels(&[label((390, 150), (8, -14))], &[], &[], area);
+        assert!(edge[0].0 < 0, "{edge:?}");
     }
 
     #[test]

@@ -159,6 +159,28 @@ fn draw_marker<DB: DrawingBackend>(
     }
 }
 
+/// The words of `text` for wrapping, a number kept with the unit after it (`20000 Hz)`,
+/// `0.1 mrad`): a line must not end in a number whose unit starts the next.
+pub(super) fn unbroken_words(text: &str) -> Vec<String> {
+    let mut words: Vec<String> = Vec::new();
+    let mut after_number = false;
+    for word in text.split_whitespace() {
+        let unit = word.len() <= 5 && word.starts_with(|c: char| c.is_alphabetic() || c == '%');
+        match words.last_mut() {
+            Some(last) if after_number && unit => {
+                last.push(' ');
+                last.push_str(word);
+                after_number = false;
+            }
+            _ => {
+                words.push(word.to_string());
+                after_number = word.ends_with(|c: char| c.is_ascii_digit());
+            }
+        }
+    }
+    words
+}
+
 /// Splits `text` into lines no wider than `width` pixels (at word boundaries; a single
 /// longer word keeps its own line).
 fn wrap<DB: DrawingBackend>(
@@ -174,7 +196,8 @@ fn wrap<DB: DrawingBackend>(
     };
     let mut lines = Vec::new();
     let mut cur = String::new();
-    for word in text.split_whitespace() {
+    for word in unbroken_words(text) {
+        let word = word.as_str();
         let candidate = if cur.is_empty() {
             word.to_string()
         } else {
@@ -378,6 +401,7 @@ fn draw_legend<DB: DrawingBackend>(
 ) -> Result<PixelRect, String> {
     const ROW: i32 = 22;
     const SAMPLE: i32 = 34;
+    const STEP_RISE: i32 = 8;
     let base = la.get_base_pixel();
     let (w, _) = la.dim_in_pixel();
     let font = TextStyle::from((FONT, LEGEND_PX).into_font()).color(&BLACK);
@@ -437,11 +461,13 @@ fn draw_legend<DB: DrawingBackend>(
                 let pattern = LINE_PATTERNS[s.pattern % LINE_PATTERNS.len()];
                 if s.style != SeriesStyle::Points {
                     let sample: Vec<(f64, f64)> = if s.style == SeriesStyle::Step {
+                        // The treads clear of the marker on the riser (it reaches 6 px
+                        // from its centre), or they cut into it.
                         vec![
-                            (f64::from(x), f64::from(y + 5)),
-                            (f64::from(x + SAMPLE / 2), f64::from(y + 5)),
-                            (f64::from(x + SAMPLE / 2), f64::from(y - 5)),
-                            (f64::from(x + SAMPLE), f64::from(y - 5)),
+                            (f64::from(x), f64::from(y + STEP_RISE)),
+                            (f64::from(x + SAMPLE / 2), f64::from(y + STEP_RISE)),
+                            (f64::from(x + SAMPLE / 2), f64::from(y - STEP_RISE)),
+                            (f64::from(x + SAMPLE), f64::from(y - STEP_RISE)),
                         ]
                     } else {
                         vec![
@@ -458,7 +484,9 @@ fn draw_legend<DB: DrawingBackend>(
                     }
                 }
                 let size = if s.style == SeriesStyle::Points { 3 } else { 4 };
-                draw_marker(la, s.pattern, (x + SAMPLE / 2, y), size, s.color)?;
+                if !s.context || s.style == SeriesStyle::Points {
+                    draw_marker(la, s.pattern, (x + SAMPLE / 2, y), size, s.color)?;
+                }
             }
             Key::Fill(c) => {
                 la.draw(&Rectangle::new(

@@ -173,7 +173,15 @@ pub struct Series {
     /// A colour of its own (red, green, blue), ahead of the palette: black for a
     /// reference, [`family_colour`] for a family ordered by a parameter.
     pub rgb: Option<[u8; 3]>,
+    /// Shown for context, not judged (samples before the metrics window): drawn plain
+    /// (no dashes, no markers) and kept out of the automatic y range, which the other
+    /// series set, so it cannot squeeze them; beyond that range it is marked off scale.
+    pub context: bool,
 }
+
+/// Colour of samples shown for context only ([`Series::context`]): a light grey under
+/// the judged curves.
+pub const CONTEXT_RGB: [u8; 3] = [185, 185, 185];
 
 /// Colour of a reference curve drawn among measured ones.
 pub const REFERENCE_RGB: [u8; 3] = [0, 0, 0];
@@ -213,6 +221,13 @@ impl Series {
         self
     }
 
+    /// The same series shown for context only, in [`CONTEXT_RGB`] (see [`Series::context`]).
+    pub fn as_context(mut self) -> Self {
+        self.context = true;
+        self.rgb = Some(CONTEXT_RGB);
+        self
+    }
+
     /// A series drawn as a connected line.
     pub fn line(label: impl Into<String>, x: Vec<f64>, y: Vec<f64>) -> Self {
         Self {
@@ -222,6 +237,7 @@ impl Series {
             style: SeriesStyle::Line,
             palette_slot: None,
             rgb: None,
+            context: false,
         }
     }
 
@@ -234,6 +250,7 @@ impl Series {
             style: SeriesStyle::Points,
             palette_slot: None,
             rgb: None,
+            context: false,
         }
     }
 
@@ -246,6 +263,7 @@ impl Series {
             style: SeriesStyle::Step,
             palette_slot: None,
             rgb: None,
+            context: false,
         }
     }
 }

@@ -200,6 +200,8 @@ pub(super) struct PreparedSeries {
     pub(super) dots: Vec<Pt>,
     /// Has at least one drawable sample anywhere (decides the legend entry).
     pub(super) has_data: bool,
+    /// Shown for context only: a plain line, its legend sample without a marker.
+    pub(super) context: bool,
     /// Dash pattern and marker shape (index into [`LINE_PATTERNS`]), so curves of one
     /// colour family or curves drawn over each other stay apart.
     pub(super) pattern: usize,
@@ -378,17 +380,26 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
         (a.min(b), a.max(b))
     });
     let (mut fit_min, mut fit_max) = (f64::INFINITY, f64::NEG_INFINITY);
-    for (rx, ry) in runs.iter().flatten() {
-        for &v in rx {
-            xmin = xmin.min(v);
-            xmax = xmax.max(v);
-        }
-        for (&x, &v) in rx.iter().zip(ry) {
-            ymin = ymin.min(v);
-            ymax = ymax.max(v);
-            if fit.is_some_and(|(a, b)| x >= a && x <= b) {
-                fit_min = fit_min.min(v);
-                fit_max = fit_max.max(v);
+    // Context series set the y range only when nothing else has data to set it.
+    let judged = |i: usize| !chart.series[i].context;
+    let any_judged = runs
+        .iter()
+        .enumerate()
+        .any(|(i, r)| judged(i) && !r.is_empty());
+    for (i, series_runs) in runs.iter().enumerate() {
+        let scales = judged(i) || !any_judged;
+        for (rx, ry) in series_runs {
+            for &v in rx {
+                xmin = xmin.min(v);
+                xmax = xmax.max(v);
+            }
+            for (&x, &v) in rx.iter().zip(ry).filter(|_| scales) {
+                ymin = ymin.min(v);
+                ymax = ymax.max(v);
+                if fit.is_some_and(|(a, b)| x >= a && x <= b) {
+                    fit_min = fit_min.min(v);
+                    fit_max = fit_max.max(v);
+                }
             }
         }
     }
@@ -473,7 +484,7 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
         }
         // Patterns and markers tell the curves of the legend apart; a curve outside it
         // (a bound, a guide) stays a plain line.
-        let pattern = if s.label.is_empty() {
+        let pattern = if s.label.is_empty() || s.context {
             0
         } else {
             s.rgb.map_or(s.palette_slot.unwrap_or(idx), |_| idx) % LINE_PATTERNS.len()
@@ -486,7 +497,7 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
                 None => PALETTE[s.palette_slot.unwrap_or(idx) % PALETTE.len()],
             },
             style: s.style,
-            markers: if s.label.is_empty() {
+            markers: if s.label.is_empty() || s.context {
                 Vec::new()
             } else {
                 marker_points(&lines, x0, x1, pattern)
@@ -494,6 +505,7 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
             lines,
             dots,
             has_data: !runs.is_empty(),
+            context: s.context,
             pattern,
             off_above,
             off_below,
@@ -505,7 +517,12 @@ pub(super) fn prepare_chart(chart: &Chart, buckets: usize) -> Result<PreparedCha
     for j in 1..chart.series.len() {
         for i in 0..j {
             let (a, b) = (&chart.series[i], &chart.series[j]);
-            if a.label.is_empty() || b.label.is_empty() || a.label == b.label {
+            if a.label.is_empty()
+                || b.label.is_empty()
+                || a.label == b.label
+                || a.context
+                || b.context
+            {
                 continue;
             }
             if coincide(a, b, (log_x, log_y), (x0, x1), tol) {

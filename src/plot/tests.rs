@@ -1063,6 +1063,57 @@ fn window_sets_the_scale_and_the_rest_is_marked_off_scale() {
     );
 }
 
+/// Samples shown for context (a start-up transient before the metrics window) leave the
+/// scale to the judged ones, are marked off scale where they leave it, and are drawn plain
+/// in their grey, with one legend entry.
+#[test]
+fn context_samples_do_not_set_the_scale() {
+    let x: Vec<f64> = (0..400).map(|i| f64::from(i) * 0.1 - 20.0).collect();
+    let judged: Vec<f64> = x.iter().map(|v| 0.05 * (v * 0.3).sin()).collect();
+    let transient: Vec<f64> = x
+        .iter()
+        .map(|v| {
+            if v.abs() < 1.0 {
+                -0.5 * (1.0 - v.abs())
+            } else {
+                f64::NAN
+            }
+        })
+        .collect();
+    let chart = Chart {
+        series: vec![
+            Series::line(
+                "before metrics start (not judged)",
+                x.clone(),
+                transient.clone(),
+            )
+            .as_context(),
+            Series::line("", x.clone(), transient).as_context(),
+            Series::line("memory", x, judged).in_slot(2),
+        ],
+        ..Chart::default()
+    };
+    let p = prepare_chart(&chart, plot_buckets(CHART_SIZE.0)).expect("prepared");
+    assert!(p.y.lo > -0.1 && p.y.hi < 0.1, "{} {}", p.y.lo, p.y.hi);
+    assert!(!p.series[0].off_below.is_empty());
+    assert!(p.notes.iter().any(|n| n.contains("off scale")));
+    let grey = RGBColor(CONTEXT_RGB[0], CONTEXT_RGB[1], CONTEXT_RGB[2]);
+    for s in &p.series[..2] {
+        assert_eq!((s.color, s.pattern, s.markers.len()), (grey, 0, 0));
+    }
+    // Only context: it sets the scale itself rather than leaving an empty axis.
+    let alone = Chart {
+        series: vec![chart.series[0].clone()],
+        ..Chart::default()
+    };
+    let p = prepare_chart(&alone, plot_buckets(CHART_SIZE.0)).expect("prepared");
+    assert!(p.y.lo <= -0.5, "{}", p.y.lo);
+    check_outputs(
+        &save_chart(&chart, &out_dir("context").join("context")).expect("drawn"),
+        CHART_SIZE,
+    );
+}
+
 /// Categories named on an axis: their names are its tick labels, nothing else is.
 #[test]
 fn named_axis_shows_the_names() {
@@ -1147,4 +1198,18 @@ fn heatmap_log_colour_scale_spreads_decades() {
         &save_heatmap(&map, &out_dir("heat_log").join("map")).expect("drawn"),
         HEATMAP_SIZE,
     );
+}
+
+/// A legend line never ends in a number whose unit starts the next.
+#[test]
+fn a_number_keeps_its_unit_when_a_legend_wraps() {
+    assert_eq!(
+        chart::unbroken_words("scenario's design (20000 Hz)"),
+        ["scenario's", "design", "(20000 Hz)"]
+    );
+    assert_eq!(
+        chart::unbroken_words("target 0.1 mrad"),
+        ["target", "0.1 mrad"]
+    );
+    assert_eq!(chart::unbroken_words("share 95 %"), ["share", "95 %"]);
 }

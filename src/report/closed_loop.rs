@@ -469,6 +469,37 @@ pub fn window_shades(window: Option<(f64, f64)>, span: (f64, f64)) -> Vec<XShade
     out
 }
 
+/// A mode's samples `y` at times `t` split at the metrics window `[from, to]`:
+/// `(judged, not judged)`, each as long as `y` with NaN where the other holds the sample,
+/// so each draws as a line of its own, broken where the other takes over. Without a
+/// window every sample is judged.
+pub fn split_at_window(t: &[f64], y: &[f64], window: Option<(f64, f64)>) -> (Vec<f64>, Vec<f64>) {
+    let inside = |t: f64| window.is_none_or(|(from, to)| t >= from && t <= to);
+    t.iter()
+        .zip(y)
+        .map(|(&t, &v)| {
+            if inside(t) {
+                (v, f64::NAN)
+            } else {
+                (f64::NAN, v)
+            }
+        })
+        .unzip()
+}
+
+/// Legend label of the samples recorded before the metrics window.
+pub const BEFORE_WINDOW: &str = "before metrics start (not judged)";
+
+/// Legend label of the samples a run recorded outside the metrics window `[from, to]`
+/// over its recorded time `span` (s): before the window alone when it runs to the end.
+pub fn not_judged_label((_, to): (f64, f64), span: (f64, f64)) -> &'static str {
+    if span.1 > to {
+        OUTSIDE_WINDOW
+    } else {
+        BEFORE_WINDOW
+    }
+}
+
 /// A figure of a run: one chart, or charts stacked under one title.
 // A handful of figures per run, built and drawn once: boxing the chart buys nothing.
 #[allow(clippy::large_enum_variant)]
@@ -497,11 +528,12 @@ pub fn mode_slot(mode: CompensationMode) -> usize {
 
 /// The closed-loop figures as `(file stem, figure)`: pointing error against time (every
 /// mode with the +-target band; below, the compensated modes on an axis fitted to them),
-/// pointing error against output angle, span tensions (upper and lower panels) and motor
-/// command in `command_unit` (`"A"` or `"V"`, see [`command_unit`]); one colour per mode
-/// throughout. Time outside the metrics window is shaded, and the error panels' scale is
-/// set by the window alone (a start-up transient beyond it is marked off scale). Built from
-/// recorded series only (empty when nothing was recorded, and then no figure is written).
+/// pointing error against output angle (the samples before the metrics window in grey),
+/// span tensions (upper and lower panels) and motor command in `command_unit` (`"A"` or
+/// `"V"`, see [`command_unit`]); one colour per mode throughout. Time outside the metrics
+/// window is shaded, and the error panels' scale is set by the window alone (a start-up
+/// transient beyond it is marked off scale). Built from recorded series only (empty when
+/// nothing was recorded, and then no figure is written).
 pub fn closed_loop_charts(
     result: &ClosedLoopResult,
     target_mrad: f64,
@@ -644,21 +676,7 @@ pub fn closed_loop_charts(
         ("pointing_error".into(), pointing),
         (
             "error_vs_angle".into(),
-            Figure::Chart(chart(
-                "Pointing error against output angle",
-                "output angle [mrad]",
-                "pointing error [mrad]",
-                curves(
-                    &|s| {
-                        (
-                            s.output_angle_rad.iter().map(|v| v * 1e3).collect(),
-                            s.pointing_error_mrad.clone(),
-                        )
-                    },
-                    false,
-                ),
-                band(),
-            )),
+            error_vs_angle(&recorded, window, span, band),
         ),
         (
             "tensions".into(),
@@ -689,6 +707,88 @@ pub fn closed_loop_charts(
         figures.push(("error_psd".into(), f));
     }
     figures
+}
+
+/// Pointing error against output angle: each mode's samples in the metrics window in its
+/// colour, on an axis fitted to them (and the target), and the samples before the window
+/// (the start-up transient, not judged) in light grey under them, marked off scale where
+/// they leave the axis. With the uncompensated mode beside compensated ones, a second
+/// panel shows the compensated modes' judged samples alone, on an axis fitted to them.
+fn error_vs_angle(
+    recorded: &[(CompensationMode, &TimeSeries, String)],
+    window: Option<(f64, f64)>,
+    span: (f64, f64),
+    band: impl Fn() -> Vec<HBand>,
+) -> Figure {
+    let angle =
+        |s: &TimeSeries| -> Vec<f64> { s.output_angle_rad.iter().map(|v| v * 1e3).collect() };
+    let mut context = Vec::new();
+    let mut judged = Vec::new();
+    for (mode, s, label) in recorded {
+        let (inside, outside) = split_at_window(&s.t_s, &s.pointing_error_mrad, window);
+        if outside.iter().any(|v| v.is_finite()) {
+            // One legend entry for the grey of every mode.
+            let label = match (context.is_empty(), window) {
+                (true, Some(w)) => not_judged_label(w, span).to_string(),
+                _ => String::new(),
+            };
+            context.push(Series::line(label, angle(s), outside).as_context());
+        }
+        let curve = Series::line(label.as_str(), angle(s), inside).in_slot(mode_slot(*mode));
+        judged.push((*mode, curve));
+    }
+    let title = match window {
+        Some((from, _)) if !context.is_empty() => format!(
+            "Pointing error against output angle, judged from {} s",
+            crate::compact(from)
+        ),
+        _ => "Pointing error against output angle".to_string(),
+    };
+    let set_apart = !context.is_empty();
+    let chart = |title: &str, series: Vec<Series>| Chart {
+        title: title.into(),
+        x_label: "output angle [mrad]".into(),
+        y_label: "pointing error [mrad]".into(),
+        series,
+        bands: band(),
+        ..Chart::default()
+    };
+    let compensated: Vec<Series> = judged
+        .iter()
+        .filter(|(m, _)| *m != CompensationMode::None)
+        .map(|(_, s)| s.clone())
+        .collect();
+    let has_none = judged.iter().any(|(m, _)| *m == CompensationMode::None);
+    // The grey first, so the judged curves are drawn over it.
+    let every: Vec<Series> = context
+        .into_iter()
+        .chain(judged.into_iter().map(|(_, s)| s))
+        .collect();
+    if has_none && !compensated.is_empty() {
+        // The uncompensated error sets the first panel's scale; the compensated modes,
+        // judged against the target, need one of their own to be told apart.
+        let first = if set_apart {
+            "every mode, axis fitted to the judged samples"
+        } else {
+            "every mode"
+        };
+        let second = if set_apart {
+            "compensated modes, judged samples only, axis fitted to them"
+        } else {
+            "compensated modes, axis fitted to them"
+        };
+        Figure::Panels {
+            title,
+            charts: vec![chart(first, every), chart(second, compensated)],
+        }
+    } else {
+        let mut one = chart(&title, every);
+        if set_apart {
+            one.notes
+                .push("axis fitted to the judged samples (the metrics window)".into());
+        }
+        Figure::Chart(one)
+    }
 }
 
 /// The target as a grey line across the spectra's frequency span (a log axis
@@ -891,4 +991,31 @@ pub fn format_budget(budget: &crate::analysis::budget::ErrorBudget) -> String {
         ));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each sample goes to exactly one side of the metrics window's edges, which belong to
+    /// the window.
+    #[test]
+    fn samples_are_split_at_the_metrics_window() {
+        let t = [0.0, 1.0, 2.0, 3.0, 4.0];
+        let y = [5.0, 4.0, 3.0, 2.0, 1.0];
+        let (judged, outside) = split_at_window(&t, &y, Some((2.0, 3.0)));
+        let nan = f64::NAN;
+        let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(p, q)| p.to_bits() == q.to_bits());
+        assert!(same(&judged, &[nan, nan, 3.0, 2.0, nan]), "{judged:?}");
+        assert!(same(&outside, &[5.0, 4.0, nan, nan, 1.0]), "{outside:?}");
+        let (all, none) = split_at_window(&t, &y, None);
+        assert_eq!(all, y.to_vec());
+        assert!(none.iter().all(|v| v.is_nan()));
+    }
+
+    #[test]
+    fn the_samples_not_judged_are_named_by_where_they_lie() {
+        assert_eq!(not_judged_label((2.0, 20.0), (0.0, 20.0)), BEFORE_WINDOW);
+        assert_eq!(not_judged_label((2.0, 10.0), (0.0, 20.0)), OUTSIDE_WINDOW);
+    }
 }

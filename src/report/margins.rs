@@ -673,8 +673,8 @@ fn top_point(x: &[f64], y: &[f64]) -> Option<(f64, f64)> {
 fn zplane(name: &str, models: &LoopModels) -> Option<AnnotatedFigure> {
     let mut full = Panel {
         title: "whole unit disc".into(),
-        x_label: "Re z".into(),
-        y_label: "Im z".into(),
+        x_label: "Re z [1]".into(),
+        y_label: "Im z [1]".into(),
         x_range: (-1.15, 1.15),
         y_range: (-1.15, 1.15),
         equal_aspect: true,
@@ -933,8 +933,8 @@ fn step(name: &str, models: &LoopModels) -> Option<AnnotatedFigure> {
 /// The Nyquist plane near -1 (equal aspect) with the Ms requirement drawn on it.
 pub(super) fn nyquist_plane(max_ms: f64) -> Panel {
     let mut plane = Panel {
-        x_label: "Re L".into(),
-        y_label: "Im L".into(),
+        x_label: "Re L [1]".into(),
+        y_label: "Im L [1]".into(),
         x_range: (-3.0, 1.5),
         y_range: (-2.0, 2.0),
         equal_aspect: true,

@@ -3,6 +3,7 @@
 //! (their failures are reported as warnings).
 
 pub mod closed_loop;
+pub mod columns;
 pub mod compare;
 pub mod diagnosis;
 pub mod freqresp;

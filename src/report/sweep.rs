@@ -3,8 +3,9 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+use super::columns::{column_label, column_value, column_words};
 use super::ReportError;
-use crate::plot::{save_chart, save_heatmap, Chart, Heatmap, Series};
+use crate::plot::{family_colour, save_chart, save_heatmap, Chart, Heatmap, Series};
 use crate::sweep::engine::{render_value, Case, Cell};
 
 /// Streams `sweep.csv`: header `case,<parameter columns>,<figure columns>`, then one row per
@@ -135,11 +136,14 @@ pub fn plot(
                     .iter()
                     .filter_map(|r| Some((param(r, xi)?, value(r, j)?)))
                     .unzip();
-                vec![Series::line(fig.clone(), x, y)]
+                vec![Series::line(figure_words(fig), x, y)]
             } else {
-                distinct(gi)
+                let members = distinct(gi);
+                let n = members.len();
+                members
                     .into_iter()
-                    .map(|g| {
+                    .enumerate()
+                    .map(|(k, g)| {
                         let mut pts: Vec<(f64, f64)> = rows
                             .iter()
                             .filter(|r| param(r, gi) == Some(g))
@@ -147,7 +151,11 @@ pub fn plot(
                             .collect();
                         pts.sort_by(|a, b| a.0.total_cmp(&b.0));
                         let (x, y) = pts.into_iter().unzip();
-                        Series::line(format!("{} = {g}", parameter_columns[gi]), x, y)
+                        member(
+                            Series::line(column_value(&parameter_columns[gi], g), x, y),
+                            k,
+                            n,
+                        )
                     })
                     .collect()
             };
@@ -161,9 +169,13 @@ pub fn plot(
             let xs: Vec<f64> = series.iter().flat_map(|s| s.x.iter().copied()).collect();
             series.extend(target_series(fig, contour_mrad, &xs));
             let chart = Chart {
-                title: format!("{fig} against {}", parameter_columns[xi]),
-                x_label: parameter_columns[xi].clone(),
-                y_label: fig.clone(),
+                title: format!(
+                    "{} against {}",
+                    figure_words(fig),
+                    column_words(&parameter_columns[xi]).0
+                ),
+                x_label: column_label(&parameter_columns[xi]),
+                y_label: figure_label(fig),
                 series,
                 log_x: log_spaced(&distinct(xi)),
                 ..Chart::default()
@@ -189,12 +201,14 @@ pub fn plot(
                 }
                 let map = Heatmap {
                     title: format!(
-                        "{fig} over {} and {}",
-                        parameter_columns[0], parameter_columns[1]
+                        "{} over {} and {}",
+                        figure_words(fig),
+                        column_words(&parameter_columns[0]).0,
+                        column_words(&parameter_columns[1]).0
                     ),
-                    x_label: parameter_columns[0].clone(),
-                    y_label: parameter_columns[1].clone(),
-                    z_label: fig.clone(),
+                    x_label: column_label(&parameter_columns[0]),
+                    y_label: column_label(&parameter_columns[1]),
+                    z_label: figure_label(fig),
                     log_x: log_spaced(&xs),
                     log_y: log_spaced(&ys),
                     x: xs,
@@ -214,6 +228,36 @@ pub fn plot(
         }
     }
     Ok(files)
+}
+
+/// Member `k` of `n` curves of a family ordered by a swept value: a palette colour of its
+/// own, never the grey the target line is drawn in; beyond the palette, a colour ramp in
+/// the family's order (the palette would repeat colour and pattern together).
+fn member(s: Series, k: usize, n: usize) -> Series {
+    const SLOTS: [usize; 9] = [0, 1, 2, 3, 4, 5, 6, 8, 9];
+    if n <= SLOTS.len() {
+        s.in_slot(SLOTS[k % SLOTS.len()])
+    } else {
+        s.in_rgb(family_colour(k, n))
+    }
+}
+
+/// A figure column in words, with its mode when it has one (`memory_rms_mrad`: RMS
+/// pointing error, memory).
+fn figure_words(column: &str) -> String {
+    match mode_and_metric(column) {
+        (Some((mode, _)), metric) => format!("{}, {mode}", column_words(metric).0),
+        (None, _) => column_words(column).0,
+    }
+}
+
+/// A figure column as an axis description: its words and its unit in brackets.
+fn figure_label(column: &str) -> String {
+    let unit = column_words(mode_and_metric(column).1).1;
+    match unit {
+        Some(u) => format!("{} [{u}]", figure_words(column)),
+        None => figure_words(column),
+    }
 }
 
 /// The target as a grey line across the swept values, for a figure in mrad (an error
@@ -428,7 +472,7 @@ fn by_metric(
                 let fig = &figure_columns[j];
                 let (label, slot) = match mode_and_metric(fig).0 {
                     Some((mode, slot)) => (mode.to_string(), Some(slot)),
-                    None => (fig.clone(), None),
+                    None => (column_words(fig).0, None),
                 };
                 let s = if lines {
                     Series::line(label, x, y)
@@ -446,9 +490,13 @@ fn by_metric(
             }
             series.extend(target_series(metric, target_mrad, &xs_all));
             let chart = Chart {
-                title: format!("{metric} against {param} ({cases} finished cases)"),
-                x_label: param.clone(),
-                y_label: metric.to_string(),
+                title: format!(
+                    "{} against {} ({cases} finished cases)",
+                    column_words(metric).0,
+                    column_words(param).0
+                ),
+                x_label: column_label(param),
+                y_label: column_label(metric),
                 series,
                 log_x: log_spaced(&xs_all),
                 ..Chart::default()
@@ -574,6 +622,39 @@ mod plot_choice_tests {
         assert!(!log_spaced(&[10.0, 20.0, 30.0, 40.0, 50.0]));
         assert!(!log_spaced(&[1.0, 2.0, 3.0]));
         assert!(!log_spaced(&[-1.0, 10.0, 100.0]));
+    }
+
+    /// However many curves a family has, none takes the grey of the target line, and up
+    /// to nine each has a colour of its own.
+    #[test]
+    fn a_family_never_takes_the_target_grey() {
+        let curve = || Series::line("", Vec::new(), Vec::new());
+        for n in 1..=9 {
+            let slots: Vec<Option<usize>> =
+                (0..n).map(|k| member(curve(), k, n).palette_slot).collect();
+            assert!(!slots.contains(&Some(7)), "{slots:?}");
+            let mut distinct = slots.clone();
+            distinct.dedup();
+            assert_eq!(distinct.len(), n, "{slots:?}");
+        }
+        let ramp: Vec<Option<[u8; 3]>> = (0..12).map(|k| member(curve(), k, 12).rgb).collect();
+        assert!(ramp
+            .iter()
+            .all(|c| c.is_some() && *c != Some([127, 127, 127])));
+    }
+
+    #[test]
+    fn a_figure_column_is_described_with_its_mode_and_unit() {
+        assert_eq!(
+            figure_label("memory_rms_mrad"),
+            "RMS pointing error, memory [mrad]"
+        );
+        assert_eq!(figure_label("reversal_mrad"), "reversal backlash [mrad]");
+        assert_eq!(figure_label("tension_upper_n"), "tension upper [N]");
+        assert_eq!(
+            figure_words("none_p95_mrad"),
+            "95th percentile pointing error, none"
+        );
     }
 
     #[test]
