@@ -2031,19 +2031,10 @@ mod tests {
         let g = |f: f64| (f / 26.3).ln() * 3.0 + (f / 26.3 - 1.0).powi(2);
         let mut eval = |f: f64| {
             let p = FreqPoint {
-                requested_hz: f,
-                frequency_hz: f,
                 response: None,
                 loop_gain: None,
-                exact: Complex::from(0.0),
-                distortion_percent: None,
-                output_amplitude_mrad: None,
-                axis: None,
-                held_fraction: None,
-                reversals_per_period: None,
-                uncertainty_percent: None,
                 refinement: true,
-                failure: None,
+                ..measured(f, Complex::from(0.0))
             };
             Some((f, g(f), p))
         };

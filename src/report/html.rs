@@ -315,7 +315,7 @@ fn describe(
             page.tables.push(Table {
                 key: "modes".into(),
                 heading: format!(
-                    "Pointing error per compensation mode, over the metrics window{}",
+                    "Pointing error [mrad] per compensation mode, over the metrics window{}",
                     window_words(modes)
                 ),
                 rows: mode_rows(modes),
