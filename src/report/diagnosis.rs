@@ -641,8 +641,8 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
                 if t.held_out { " (held out)" } else { "" },
                 mean * 1e3
             ),
-            x_label: "time (s)".into(),
-            y_label: "error (mrad)".into(),
+            x_label: "time [s]".into(),
+            y_label: "error [mrad]".into(),
             series: vec![
                 Series::points("measured", t.t_s.clone(), mr(&t.measured_rad)),
                 Series::line("base model", t.t_s.clone(), mr(&t.base_rad)),
@@ -674,7 +674,7 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
                     if base { "base-model" } else { "extended-model" }
                 ),
                 x_label: label.into(),
-                y_label: "residual (mrad)".into(),
+                y_label: "residual [mrad]".into(),
                 series: d
                     .traces
                     .iter()
@@ -710,13 +710,13 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
                         })
                     })
                     .collect(),
-                ..against("time (s)", &|t| t.t_s.clone(), base)
+                ..against("time [s]", &|t| t.t_s.clone(), base)
             },
-            against("input angle (rad)", &|t| t.theta_in_rad.clone(), base),
-            against("output angle (rad)", &|t| t.theta_out_rad.clone(), base),
-            against("transmitted load (N m)", &|t| t.load_nm.clone(), base),
+            against("input angle [rad]", &|t| t.theta_in_rad.clone(), base),
+            against("output angle [rad]", &|t| t.theta_out_rad.clone(), base),
+            against("transmitted load [N m]", &|t| t.load_nm.clone(), base),
             against(
-                "input velocity (rad/s)",
+                "input velocity [rad/s]",
                 &|t| t.velocity_rad_s.clone(),
                 base,
             ),
@@ -778,7 +778,7 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
     ];
     let cands = Chart {
         title: format!("Held-out RMSE of each candidate effect added to the {start} (round 1)"),
-        x_label: "held-out RMSE (mrad)".into(),
+        x_label: "held-out RMSE [mrad]".into(),
         y_label: "candidate effect".into(),
         series,
         y_range: Some((0.5, n.max(1) as f64 + 0.5)),

@@ -142,8 +142,8 @@ pub fn plot(
     // Angles and error over time.
     let angles = Chart {
         title: "Input and output angles".into(),
-        x_label: "time (s)".into(),
-        y_label: "angle (mrad)".into(),
+        x_label: "time [s]".into(),
+        y_label: "angle [mrad]".into(),
         series: vec![
             Series::line(
                 "theta_in / ic",
@@ -160,8 +160,8 @@ pub fn plot(
     };
     let error = Chart {
         title: "Transmission error".into(),
-        x_label: "time (s)".into(),
-        y_label: "error (mrad)".into(),
+        x_label: "time [s]".into(),
+        y_label: "error [mrad]".into(),
         series: traces
             .iter()
             .map(|tr| {
@@ -176,8 +176,8 @@ pub fn plot(
     };
     let load = Chart {
         title: "Transmitted torque".into(),
-        x_label: "time (s)".into(),
-        y_label: "torque M (N m)".into(),
+        x_label: "time [s]".into(),
+        y_label: "torque M [N m]".into(),
         series: vec![Series::line(
             "M = -Ml",
             t.clone(),
@@ -196,21 +196,21 @@ pub fn plot(
         (
             "error_vs_output",
             "Transmission error against output angle",
-            "output angle (mrad)",
+            "output angle [mrad]",
             (&|s: &crate::study::quasi_static::QsSample| s.theta_out_rad * 1e3)
                 as &dyn Fn(&crate::study::quasi_static::QsSample) -> f64,
         ),
         (
             "error_vs_load",
             "Transmission error against transmitted torque",
-            "torque M (N m)",
+            "torque M [N m]",
             &|s: &crate::study::quasi_static::QsSample| s.torque_nm,
         ),
     ] {
         let chart = Chart {
             title: title.into(),
             x_label: x_label.into(),
-            y_label: "transmission error (mrad)".into(),
+            y_label: "transmission error [mrad]".into(),
             series: traces
                 .iter()
                 .map(|tr| {
@@ -244,8 +244,8 @@ pub fn plot(
     files.extend(save_chart(
         &Chart {
             title: "Free-span tensions".into(),
-            x_label: "time (s)".into(),
-            y_label: "tension (N)".into(),
+            x_label: "time [s]".into(),
+            y_label: "tension [N]".into(),
             series,
             ..Chart::default()
         },
@@ -275,8 +275,8 @@ pub fn plot(
                         region.replace('_', " "),
                         model_name(tr.model)
                     ),
-                    x_label: "wrap angle from contact point (rad)".into(),
-                    y_label: "tension (N)".into(),
+                    x_label: "wrap angle from contact point [rad]".into(),
+                    y_label: "tension [N]".into(),
                     series: snaps
                         .iter()
                         .map(|p| {
