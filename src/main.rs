@@ -982,8 +982,7 @@ fn main() -> ExitCode {
                 Err(code) => return code,
             };
             let Some(p) = scenario.closed_loop.as_ref() else {
-                tell!("error: {name} is not a closed-loop scenario (study = \"closed_loop\")");
-                return ExitCode::from(exit::INPUT);
+                return not_closed_loop(name);
             };
             say!(
                 "{}: computation delay {} sample(s) at {} Hz",
@@ -1481,23 +1480,23 @@ fn closed_loop_answer(
             return ExitCode::from(exit::USAGE);
         }
     };
-    // The scenario as given first: its own faults, or a study without a closed loop, are
-    // named as they are, not as faults of the mode's override below.
-    match load(name, set) {
-        Ok(s) if s.closed_loop.is_none() => {
-            tell!("error: {name} is not a closed-loop scenario (study = \"closed_loop\")");
-            return ExitCode::from(exit::INPUT);
-        }
-        Ok(_) => {}
-        Err(code) => return code,
-    }
-    let mut set = set.clone();
-    // The design is judged in the mode asked about, as every command would with this --set.
-    set.push(format!("closed_loop.requirements.mode={}", mode.name()));
-    let scenario = match load(name, &set) {
+    let mut scenario = match load(name, set) {
         Ok(s) => s,
         Err(code) => return code,
     };
+    let Some(cl) = scenario.closed_loop.as_mut() else {
+        return not_closed_loop(name);
+    };
+    // The design is judged in the mode asked about, as every command judges it with
+    // `closed_loop.requirements.mode` set to that mode.
+    if !cl.modes.contains(&mode) {
+        tell!(
+            "error: --mode {}: {name} does not simulate it; list it in closed_loop.modes",
+            mode.name()
+        );
+        return ExitCode::from(exit::INPUT);
+    }
+    cl.requirements.mode = Some(mode);
     let verdict = verdict_exit(&scenario, Some("the design as given:"), false);
     match cable_servo::design::largest_meeting_target(&scenario, question, mode, (min, max), tol) {
         Ok(a) => {
@@ -1698,6 +1697,12 @@ fn compare(
         }
         Err(e) => report(Err(e)),
     }
+}
+
+/// A command that needs a closed loop was given scenario `name` without one.
+fn not_closed_loop(name: &str) -> ExitCode {
+    tell!("error: {name} is not a closed-loop scenario (study = \"closed_loop\")");
+    ExitCode::from(exit::INPUT)
 }
 
 fn load(name: &str, set: &[String]) -> Result<Scenario, ExitCode> {

@@ -909,6 +909,37 @@ fn coefficient(x: &[f64], cycles: f64) -> Complex<f64> {
 }
 
 impl FreqPoint {
+    /// A point asked for at `requested_hz` and run at `frequency_hz` (Hz), before anything
+    /// is read from its run: no response, no failure yet.
+    pub fn unmeasured(
+        requested_hz: f64,
+        frequency_hz: f64,
+        exact: Complex<f64>,
+        refinement: bool,
+    ) -> FreqPoint {
+        FreqPoint {
+            requested_hz,
+            frequency_hz,
+            response: None,
+            loop_gain: None,
+            exact,
+            distortion_percent: None,
+            output_amplitude_mrad: None,
+            axis: None,
+            held_fraction: None,
+            reversals_per_period: None,
+            uncertainty_percent: None,
+            refinement,
+            failure: None,
+        }
+    }
+
+    /// Whether this point's run stopped (slack, slip, saturation): a failed measurement
+    /// that fails its amplitude, unlike one the measurement could not resolve.
+    pub fn stopped(&self) -> bool {
+        self.failure.is_some() && !self.unresolved()
+    }
+
     /// Whether this point failed only because the measurement could not resolve it (no
     /// response at the injected frequency, or noise above [`MAX_UNCERTAINTY`]): the run
     /// itself went through, a larger amplitude would resolve it. Such a point is left out
@@ -1146,21 +1177,7 @@ impl Bench<'_> {
         };
         let result = run_closed_loop(&setup, &options)?;
         let exact = exact_transfer(&self.lin, point, w.frequency_hz);
-        let mut out = FreqPoint {
-            requested_hz: f_hz,
-            frequency_hz: w.frequency_hz,
-            response: None,
-            loop_gain: None,
-            exact,
-            distortion_percent: None,
-            output_amplitude_mrad: None,
-            axis: None,
-            held_fraction: None,
-            reversals_per_period: None,
-            uncertainty_percent: None,
-            refinement,
-            failure: None,
-        };
+        let mut out = FreqPoint::unmeasured(f_hz, w.frequency_hz, exact, refinement);
         let simulated = p.duration_s;
         let Some(mode) = result.modes.first() else {
             out.failure = Some("no mode ran".into());
@@ -1850,7 +1867,7 @@ fn shortfalls(
     margins: Option<&EstimatedMargins>,
 ) -> Vec<String> {
     // A point the measurement could not resolve is named apart, not failing.
-    let mut out = failure_groups(points, |p| !p.unresolved(), "failed");
+    let mut out = failure_groups(points, FreqPoint::stopped, "failed");
     let Some(m) = margins else {
         return out;
     };
@@ -1939,19 +1956,9 @@ mod tests {
 
     fn measured(f: f64, l: Complex<f64>) -> FreqPoint {
         FreqPoint {
-            requested_hz: f,
-            frequency_hz: f,
             response: Some(l),
             loop_gain: Some(l),
-            exact: l,
-            distortion_percent: None,
-            output_amplitude_mrad: None,
-            axis: None,
-            held_fraction: None,
-            reversals_per_period: None,
-            uncertainty_percent: None,
-            refinement: false,
-            failure: None,
+            ..FreqPoint::unmeasured(f, f, l, false)
         }
     }
 
@@ -2030,12 +2037,7 @@ mod tests {
     fn illinois_finds_a_root_of_a_smooth_function() {
         let g = |f: f64| (f / 26.3).ln() * 3.0 + (f / 26.3 - 1.0).powi(2);
         let mut eval = |f: f64| {
-            let p = FreqPoint {
-                response: None,
-                loop_gain: None,
-                refinement: true,
-                ..measured(f, Complex::from(0.0))
-            };
+            let p = FreqPoint::unmeasured(f, f, Complex::from(0.0), true);
             Some((f, g(f), p))
         };
         let p = refine_root((10.0, g(10.0)), (50.0, g(50.0)), 12, &mut eval).unwrap();

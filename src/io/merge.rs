@@ -145,21 +145,12 @@ fn numeric_parameters(summary: &serde_json::Value) -> Option<Vec<bool>> {
         .collect()
 }
 
-/// A cell for a message: quoted, cut when long, control characters shown as `?`.
+/// A cell for a message, quoted and cut as a bench log's cells are.
 fn shown_cell(cell: &str) -> String {
     if cell.is_empty() {
         return "a blank cell".into();
     }
-    const LONGEST: usize = 60;
-    let mut text: String = cell
-        .chars()
-        .take(LONGEST)
-        .map(|c| if c.is_control() { '?' } else { c })
-        .collect();
-    if cell.chars().count() > LONGEST {
-        text.push_str("...");
-    }
-    format!("\"{text}\"")
+    super::benchlog::show(cell)
 }
 
 fn read_shard(shard: &Path) -> Result<ShardFile, MergeError> {
@@ -633,10 +624,11 @@ mod tests {
     }
 
     #[test]
-    fn a_long_or_unprintable_cell_is_shown_cut_and_plain() {
+    fn a_long_or_unprintable_cell_is_shown_cut_and_escaped() {
         assert_eq!(shown_cell(""), "a blank cell");
-        assert_eq!(shown_cell("a\tb"), "\"a?b\"");
+        // Control characters escaped, never written raw into a message.
+        assert_eq!(shown_cell("a\tb"), "\"a\\tb\"");
         let long = "x".repeat(200);
-        assert_eq!(shown_cell(&long), format!("\"{}...\"", "x".repeat(60)));
+        assert_eq!(shown_cell(&long), format!("\"{}...\"", "x".repeat(40)));
     }
 }

@@ -511,13 +511,7 @@ fn outside(a: PixelRect, area: PixelRect) -> i64 {
 /// densely it is sampled (`px` maps a point to its pixel).
 fn along(piece: &[Pt], px: impl Fn(Pt) -> (i32, i32)) -> Vec<(i32, i32)> {
     const STEP: f64 = 2.0;
-    let pts: Vec<(f64, f64)> = piece
-        .iter()
-        .map(|&q| {
-            let (x, y) = px(q);
-            (f64::from(x), f64::from(y))
-        })
-        .collect();
+    let pts = super::chart::pixels_of(piece, px);
     let mut out: Vec<(i32, i32)> = pts
         .first()
         .map(|p| (p.0 as i32, p.1 as i32))
@@ -756,7 +750,9 @@ fn side_text<DB: DrawingBackend>(
             .unwrap_or(s.len() as i32 * 8 <= width)
     };
     let indent = if text.starts_with("  ") { "    " } else { "  " };
-    for word in text.split(' ') {
+    // Words as the legend wraps them: a number stays with its unit.
+    for word in super::chart::unbroken_words(text) {
+        let word = word.as_str();
         let candidate = if line.is_empty() {
             word.to_string()
         } else {

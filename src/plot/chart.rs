@@ -159,6 +159,16 @@ fn draw_marker<DB: DrawingBackend>(
     }
 }
 
+/// The points of `line` in the backend's pixels (`px`), as floats for walking along it.
+pub(super) fn pixels_of(line: &[Pt], px: impl Fn(Pt) -> (i32, i32)) -> Vec<(f64, f64)> {
+    line.iter()
+        .map(|&q| {
+            let (x, y) = px(q);
+            (f64::from(x), f64::from(y))
+        })
+        .collect()
+}
+
 /// The words of `text` for wrapping, a number kept with the unit after it (`20000 Hz)`,
 /// `0.1 mrad`): a line must not end in a number whose unit starts the next.
 pub(super) fn unbroken_words(text: &str) -> Vec<String> {
@@ -322,13 +332,7 @@ pub(super) fn draw_chart<DB: DrawingBackend>(
             .map_err(err)?;
         } else {
             for l in &s.lines {
-                let pixels: Vec<(f64, f64)> = l
-                    .iter()
-                    .map(|&q| {
-                        let (x, y) = px(q);
-                        (f64::from(x), f64::from(y))
-                    })
-                    .collect();
+                let pixels = pixels_of(l, px);
                 for piece in dash_pieces(&pixels, pattern) {
                     for w in piece.windows(2) {
                         let seg = vec![

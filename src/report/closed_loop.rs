@@ -473,7 +473,7 @@ pub fn window_shades(window: Option<(f64, f64)>, span: (f64, f64)) -> Vec<XShade
 /// `(judged, not judged)`, each as long as `y` with NaN where the other holds the sample,
 /// so each draws as a line of its own, broken where the other takes over. Without a
 /// window every sample is judged.
-pub fn split_at_window(t: &[f64], y: &[f64], window: Option<(f64, f64)>) -> (Vec<f64>, Vec<f64>) {
+fn split_at_window(t: &[f64], y: &[f64], window: Option<(f64, f64)>) -> (Vec<f64>, Vec<f64>) {
     let inside = |t: f64| window.is_none_or(|(from, to)| t >= from && t <= to);
     t.iter()
         .zip(y)
@@ -488,11 +488,11 @@ pub fn split_at_window(t: &[f64], y: &[f64], window: Option<(f64, f64)>) -> (Vec
 }
 
 /// Legend label of the samples recorded before the metrics window.
-pub const BEFORE_WINDOW: &str = "before metrics start (not judged)";
+const BEFORE_WINDOW: &str = "before metrics start (not judged)";
 
 /// Legend label of the samples a run recorded outside the metrics window `[from, to]`
 /// over its recorded time `span` (s): before the window alone when it runs to the end.
-pub fn not_judged_label((_, to): (f64, f64), span: (f64, f64)) -> &'static str {
+fn not_judged_label((_, to): (f64, f64), span: (f64, f64)) -> &'static str {
     if span.1 > to {
         OUTSIDE_WINDOW
     } else {
@@ -726,15 +726,16 @@ fn error_vs_angle(
     let mut judged = Vec::new();
     for (mode, s, label) in recorded {
         let (inside, outside) = split_at_window(&s.t_s, &s.pointing_error_mrad, window);
+        let x = angle(s);
         if outside.iter().any(|v| v.is_finite()) {
             // One legend entry for the grey of every mode.
             let label = match (context.is_empty(), window) {
                 (true, Some(w)) => not_judged_label(w, span).to_string(),
                 _ => String::new(),
             };
-            context.push(Series::line(label, angle(s), outside).as_context());
+            context.push(Series::line(label, x.clone(), outside).as_context());
         }
-        let curve = Series::line(label.as_str(), angle(s), inside).in_slot(mode_slot(*mode));
+        let curve = Series::line(label.as_str(), x, inside).in_slot(mode_slot(*mode));
         judged.push((*mode, curve));
     }
     let title = match window {

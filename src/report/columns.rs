@@ -159,7 +159,6 @@ pub fn column_value(column: &str, value: f64) -> String {
     let v = value.to_string();
     match column_words(column) {
         (words, Some(unit)) if unit == "1" => format!("{words} = {v}"),
-        (words, Some(unit)) if unit == "%" => format!("{words} = {v} %"),
         (words, Some(unit)) => format!("{words} = {v} {unit}"),
         (words, None) => format!("{words} = {v}"),
     }

@@ -66,7 +66,7 @@ fn row(point: LoopPoint, a: &AmplitudeResponse, p: &FreqPoint) -> Vec<String> {
         p.refinement.to_string(),
         if p.unresolved() {
             "unresolved"
-        } else if p.failure.is_some() {
+        } else if p.stopped() {
             "failed"
         } else {
             "ok"
@@ -143,7 +143,7 @@ pub fn write_outputs(
                 "failed_frequencies": a
                     .points
                     .iter()
-                    .filter(|p| p.failure.is_some() && !p.unresolved())
+                    .filter(|p| p.stopped())
                     .count(),
                 "unresolved_frequencies": a.points.iter().filter(|p| p.unresolved()).count(),
                 "margins": a.margins,
@@ -429,11 +429,7 @@ pub fn format_table(r: &FreqResponse) -> String {
             .filter_map(|p| p.distortion_percent)
             .fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.max(v))));
         let unresolved = a.points.iter().filter(|p| p.unresolved()).count();
-        let failed = a
-            .points
-            .iter()
-            .filter(|p| p.failure.is_some() && !p.unresolved())
-            .count();
+        let failed = a.points.iter().filter(|p| p.stopped()).count();
         let counts: Vec<String> = [(failed, "failed"), (unresolved, "unresolved")]
             .iter()
             .filter(|(n, _)| *n > 0)

@@ -131,15 +131,14 @@ mod tests {
     use crate::sweep::engine::{expand, run_cases, Plan, Shard};
     use crate::sweep::spec::{DistKind, SweepMode, SweepParameter, SweepSpec};
 
-    /// The built-in scenario `name`, read under the source and default name `called`.
-    fn builtin(name: &str, called: &str) -> Scenario {
-        let text = crate::scenario::builtin(name).unwrap_or_default();
-        Scenario::from_toml(text, called, called, &[]).unwrap_or_else(|e| panic!("{e}"))
+    /// The built-in scenario `name`.
+    fn builtin(name: &str) -> Scenario {
+        Scenario::load(name, &[]).unwrap_or_else(|e| panic!("{e}"))
     }
 
     #[test]
     fn rows_do_not_depend_on_threads_or_shards() {
-        let scenario = builtin("paper_fig11", "f");
+        let scenario = builtin("paper_fig11");
         let base = scenario.to_table();
         let spec = SweepSpec {
             mode: SweepMode::Random,
@@ -193,7 +192,7 @@ mod tests {
 
     /// Rows and outcomes of a grid sweep over the `paper_fig11` drive.
     fn fig11_grid(preloads: &[f64], loads: &[f64]) -> (Vec<String>, Vec<(Case, Vec<Cell>)>) {
-        let scenario = builtin("paper_fig11", "f");
+        let scenario = builtin("paper_fig11");
         let base = scenario.to_table();
         let values = |v: &[f64]| v.iter().map(|&x| toml::Value::Float(x)).collect();
         let spec = SweepSpec {
@@ -261,7 +260,7 @@ mod tests {
     /// runner without one would report stopped cases with a blank reason.
     #[test]
     fn every_status_column_has_its_stop_column() {
-        let closed_loop = builtin("eots_tracking", "e");
+        let closed_loop = builtin("eots_tracking");
         let runners: [(&str, Box<dyn CaseRunner>); 3] = [
             ("backlash", Box::new(crate::run::BacklashRunner)),
             ("quasi-static", Box::new(crate::run::QuasiStaticRunner)),

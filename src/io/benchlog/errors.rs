@@ -270,7 +270,7 @@ impl LogError {
 
 /// Quote user-provided text for a message: truncated to [`MAX_SHOWN_CHARS`] characters,
 /// with control characters and quotes escaped.
-pub(super) fn show(text: &str) -> String {
+pub(crate) fn show(text: &str) -> String {
     format!("{:?}", truncate(text))
 }
 

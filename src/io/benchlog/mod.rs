@@ -42,6 +42,7 @@ use std::io::Read;
 use std::path::Path;
 
 pub use crate::measurement::{BenchLog, Sample};
+pub(crate) use errors::show;
 pub use errors::{LogError, ValueProblem};
 pub use write::{write_bench_log, write_bench_log_to};
 
