@@ -471,6 +471,20 @@ impl ClosedLoopRunner {
 
     /// The case's verdict: every requirement, the judged mode's pointing included.
     const VERDICT: [&'static str; 6] = sweep_columns::CLOSED_LOOP_VERDICT;
+
+    /// A mode's cells (one per [`Self::FIGURES`]) when it has no result: no figures, not
+    /// passing, status `error` and `reason`.
+    fn mode_error(reason: String) -> [Cell; 7] {
+        [
+            Cell::Num(None),
+            Cell::Num(None),
+            Cell::Num(None),
+            Cell::Num(None),
+            Cell::Text("false".into()),
+            Cell::Text("error".into()),
+            Cell::Text(reason),
+        ]
+    }
 }
 
 impl CaseRunner for ClosedLoopRunner {
@@ -496,15 +510,7 @@ impl CaseRunner for ClosedLoopRunner {
                 let mut cells: Vec<Cell> = self
                     .modes
                     .iter()
-                    .flat_map(|_| {
-                        let mut cells: Vec<Cell> = (0..4).map(|_| Cell::Num(None)).collect();
-                        cells.extend([
-                            Cell::Text("false".into()),
-                            Cell::Text("error".into()),
-                            Cell::Text(e.to_string()),
-                        ]);
-                        cells
-                    })
+                    .flat_map(|_| Self::mode_error(e.to_string()))
                     .collect();
                 cells.push(Cell::Text("false".into()));
                 cells.extend((0..4).map(|_| Cell::Num(None)));
@@ -542,14 +548,10 @@ impl CaseRunner for ClosedLoopRunner {
                         Cell::Text(stop),
                     ]);
                 }
-                None => {
-                    cells.extend((0..4).map(|_| Cell::Num(None)));
-                    cells.extend([
-                        Cell::Text("false".into()),
-                        Cell::Text("error".into()),
-                        Cell::Text(format!("mode {} was not simulated", mode.name())),
-                    ]);
-                }
+                None => cells.extend(Self::mode_error(format!(
+                    "mode {} was not simulated",
+                    mode.name()
+                ))),
             }
         }
         let verdict = closed_loop::ClosedLoopSource::closed_loop_setup(scenario)

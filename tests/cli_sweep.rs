@@ -21,6 +21,18 @@ fn path(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// The console of a run that must exit with `code`; on another, both its streams.
+fn exits(o: &Output, code: i32) -> String {
+    let console = String::from_utf8_lossy(&o.stdout).to_string();
+    assert_eq!(
+        o.status.code(),
+        Some(code),
+        "{console}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    console
+}
+
 #[test]
 fn vary_without_a_sweep_section_with_case_time_series() {
     let tmp = tempfile::tempdir().unwrap();
@@ -250,14 +262,8 @@ fn stopped_cases_are_named_and_never_numbers() {
         "--out",
         path(&out),
     ]);
-    let console = String::from_utf8_lossy(&o.stdout).to_string();
     // A stopped case misses its requirements: the sweep says how many, and exits 4.
-    assert_eq!(
-        o.status.code(),
-        Some(4),
-        "{console}{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    let console = exits(&o, 4);
     assert!(
         console.contains("verdict: 1 of 2 cases miss a requirement"),
         "{console}"
@@ -324,13 +330,7 @@ fn a_slack_case_names_its_reason_everywhere() {
         "--out",
         path(&out),
     ]);
-    let console = String::from_utf8_lossy(&o.stdout).to_string();
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{console}{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    let console = exits(&o, 0);
     let line = console
         .lines()
         .find(|l| l.trim_start().starts_with("case 0 "))
@@ -389,12 +389,7 @@ fn merge_refuses_junk_cells_naming_file_line_and_column() {
     let run = |extra: &[&str], dir: &Path| {
         let args = [&common[..], extra, &["--out", path(dir)]].concat();
         let o = cable_servo(&args);
-        assert_eq!(
-            o.status.code(),
-            Some(0),
-            "{}",
-            String::from_utf8_lossy(&o.stderr)
-        );
+        exits(&o, 0);
     };
     let (single, s1, s2) = (
         tmp.path().join("single"),
@@ -408,12 +403,7 @@ fn merge_refuses_junk_cells_naming_file_line_and_column() {
 
     let good = tmp.path().join("good.csv");
     let o = merge(&good);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    exits(&o, 0);
     let merged = text(&good);
     assert_eq!(merged, text(&single.join("sweep.csv")));
     assert!(
@@ -531,10 +521,5 @@ fn merge_refuses_junk_cells_naming_file_line_and_column() {
     }
     std::fs::write(&table, &original).unwrap();
     let o = merge(&tmp.path().join("again.csv"));
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    exits(&o, 0);
 }
