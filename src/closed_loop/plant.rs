@@ -127,6 +127,9 @@ impl PlantCable {
     pub fn commit(&mut self, d: f64) -> Result<(f64, f64), DriveFault> {
         match self {
             PlantCable::Hysteretic(drive) => {
+                if let Some(tensions) = drive.commit_cached(d) {
+                    return tensions;
+                }
                 let (u, l) = hysteretic_solutions(drive, d)?;
                 drive.commit_solutions(&u, &l, d)?;
                 Ok((u.tension_n, l.tension_n))

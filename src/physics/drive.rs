@@ -766,6 +766,41 @@ impl CableDrive {
         Ok(())
     }
 
+    /// The boundary commit of the displacement-driven plant at displacement `d` (m) in its
+    /// usual case, both halves' roots on the laws cached for their directions: the same
+    /// gross-slip check, commit and state as [`Self::commit_solutions`] of the halves'
+    /// solves, without a law copied out of the cache and back. Returns the span tensions
+    /// `(Tu, Tl)` (N), or `None`, with nothing changed, when either half's root is not on
+    /// its cached law (the caller then solves in full).
+    #[inline(always)]
+    pub(crate) fn commit_cached(&mut self, d: f64) -> Option<Result<(f64, f64), DriveFault>> {
+        let ru = self.upper.boundary_root(d)?;
+        let rl = self.lower.boundary_root(-d)?;
+        let su = self.upper.cached_slip(&ru);
+        let sl = self.lower.cached_slip(&rl);
+        let (tu, tl) = (ru.tension_n, rl.tension_n);
+        if let Err(e) = self
+            .check_pulley(Half::Upper, tu, &su)
+            .and_then(|()| self.check_pulley(Half::Lower, tl, &sl))
+        {
+            return Some(Err(e));
+        }
+        self.upper.commit_cached(&ru, d);
+        self.lower.commit_cached(&rl, -d);
+        self.state = DriveState {
+            tension_upper_n: tu,
+            tension_lower_n: tl,
+            surface_displacement_m: d,
+            transmission_error_rad: -d * self.inv_drum_radius,
+            elongation_upper_m: d,
+            elongation_lower_m: -d,
+            slip_growth: [su.growth, sl.growth],
+            anchor_reached: [su.drum_anchor_reached, sl.drum_anchor_reached],
+        };
+        self.committed_torque_nm = None;
+        Some(Ok((tu, tl)))
+    }
+
     /// Commit both halves' profiles and the state of a solve on the current memory.
     fn commit_solved(&mut self, solved: &Solved) {
         // Solved on the current memory, with nothing committed since.

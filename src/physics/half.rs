@@ -1,6 +1,6 @@
 //! One half of the cable: free span, drum wrap and pulley wrap sharing the span tension.
 
-use super::wrap::{WrapLaw, WrapRegion, WrapTrial};
+use super::wrap::{CachedRoot, WrapLaw, WrapRegion, WrapTrial};
 
 /// Elongation of a half if its span tension became a given value.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -177,6 +177,31 @@ impl CableHalf {
     #[inline(always)]
     pub(crate) fn tension_series(&self, elongation_m: f64) -> Option<f64> {
         self.wrap.tension_series(elongation_m)
+    }
+
+    /// [`Self::solve_for_elongation`] in its usual case for a half that remembers: the
+    /// root on the law cached for its direction ([`WrapRegion::boundary_root`]); `None`
+    /// otherwise.
+    #[inline(always)]
+    pub(crate) fn boundary_root(&mut self, elongation_m: f64) -> Option<CachedRoot> {
+        if self.remembers {
+            self.wrap.boundary_root(elongation_m)
+        } else {
+            None
+        }
+    }
+
+    /// [`Self::solution_slip`] of a root from [`Self::boundary_root`].
+    #[inline(always)]
+    pub(crate) fn cached_slip(&self, root: &CachedRoot) -> HalfSlip {
+        self.slip_for_growth(self.wrap.cached_growth(root))
+    }
+
+    /// [`Self::commit_solution`] of a root from [`Self::boundary_root`] for elongation
+    /// `elongation_m` (m), nothing committed since.
+    #[inline(always)]
+    pub(crate) fn commit_cached(&mut self, root: &CachedRoot, elongation_m: f64) {
+        self.wrap.commit_cached(root, elongation_m);
     }
 
     /// Slip growth of a solution (see [`HalfSlip::growth`]), and whether its slip zones

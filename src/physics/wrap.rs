@@ -22,7 +22,7 @@
 //! and the last for unloading; a load that keeps rising (or falling) across commits keeps
 //! the same law, so most trials skip the walk altogether.
 //!
-//! This file is long (about 1100 lines of code and 300 of tests) because it is one
+//! This file is long (about 1200 lines of code and 400 of tests) because it is one
 //! algorithm: the breakpoint list, its closed-form laws and the commit share invariants
 //! that only hold together, and splitting them would spread one proof over several files.
 
@@ -194,7 +194,7 @@ impl WrapLaw {
 
     /// The root `t` of this law if it lies in its range, or within rounding of it (the
     /// law is continuous across its ends, so clamping costs nothing measurable).
-    #[inline]
+    #[inline(always)]
     fn accept(&self, t: f64) -> Option<f64> {
         if self.covers(t) {
             return Some(t);
@@ -337,6 +337,19 @@ impl WrapTrial {
     pub fn reaches_end(&self) -> bool {
         self.law.kind == LawKind::End
     }
+}
+
+/// The series span's root at a period boundary in its usual case: on the sloped law cached
+/// for its direction, which a commit then reads where it sits instead of receiving a copy
+/// (see [`WrapRegion::boundary_root`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct CachedRoot {
+    /// Boundary tension, N.
+    pub tension_n: f64,
+    /// Tension where the slip zone meets the stored profile, `sqrt(q*Tb)`, N.
+    meeting_n: f64,
+    /// Direction of the slip zone (the cache slot of the law).
+    rising: bool,
 }
 
 /// Cable wrapped on one or two surfaces that see the same boundary tension history.
@@ -909,6 +922,109 @@ impl WrapRegion {
             return self.series_miss(target_m, rising, &cached, guess_n);
         }
         self.solve_for_elongation_any(target_m, span_per_n, guess_n)
+    }
+
+    /// [`Self::solve_for_elongation`] for the series span where its root lies on the
+    /// sloped law cached for its direction: the same tension, with the meeting tension the
+    /// gross-slip check and the commit share. `None` in every other case (the committed
+    /// state, a law to search for), which the caller leaves to the general solve.
+    #[inline(always)]
+    pub(crate) fn boundary_root(&mut self, target_m: f64) -> Option<CachedRoot> {
+        let off = target_m - self.stuck_m;
+        if off.abs() <= self.stuck_band_m {
+            return None;
+        }
+        let rising = off > 0.0;
+        let (generation, modulus_n) = (self.generation, self.modulus_n);
+        // Read in place (a copy of the 128-byte law is what this path saves).
+        let law = self.laws[usize::from(rising)].get_mut();
+        if law.rising != rising || law.generation != generation || law.kind != LawKind::Sloped {
+            return None;
+        }
+        let t = law
+            .solve_series(target_m, modulus_n)
+            .and_then(|t| law.accept(t))?;
+        Some(CachedRoot {
+            tension_n: t,
+            // `meeting_tension` of a sloped law.
+            meeting_n: (law.q * t).sqrt(),
+            rising,
+        })
+    }
+
+    /// [`Self::slip_growth_on`] of a root on its cached law.
+    #[inline(always)]
+    pub(crate) fn cached_growth(&self, root: &CachedRoot) -> f64 {
+        let (tb, ts) = (root.tension_n, root.meeting_n);
+        let g = if root.rising { tb / ts } else { ts / tb };
+        g.clamp(1.0, self.growth_at_end)
+    }
+
+    /// [`Self::commit_solved`] of a root found by [`Self::boundary_root`] for elongation
+    /// `target_m` (m), nothing committed since. The usual commit (the slip zone meets a
+    /// sloped segment inside the shorter wrap, away from its breakpoints and the contact
+    /// point) is made here on the cached law in place, by the very expressions of
+    /// [`Self::commit_fresh`], which takes every other case.
+    #[inline(always)]
+    pub(crate) fn commit_cached(&mut self, root: &CachedRoot, target_m: f64) {
+        let (tb, ts, rising) = (root.tension_n, root.meeting_n, root.rising);
+        let slot = usize::from(rising);
+        let (index, q, w_seg) = {
+            let law = self.laws[slot].get_mut();
+            (law.index, law.q, law.w_seg)
+        };
+        let mu = self.mu;
+        let min_length = 1e-14 * self.wrap_rad.max(1.0);
+        let b = self.verts[index];
+        // `commit_fresh`'s test for a crossing away from the stored breakpoint.
+        let away = (b.t - ts).abs() > mu * min_length * ts;
+        if b.outer || ts == tb || !away {
+            self.commit_slot(tb, slot, target_m);
+            return;
+        }
+        let sign = if rising { 1.0 } else { -1.0 };
+        let sign_per_mu = sign / mu;
+        let along = |w: f64, t_out: f64, t_in: f64| w * sign_per_mu * (t_out - t_in);
+        let (p, m) = if rising { (tb, q) } else { (q, tb) };
+        let meeting = Vertex {
+            s: f64::NAN,
+            t: ts,
+            p,
+            m,
+            tail: along(w_seg, b.t, ts) + b.tail,
+            outer: false,
+        };
+        let contact = Vertex {
+            s: 0.0,
+            t: tb,
+            p: tb,
+            m: tb,
+            tail: along(self.weight_inner_m, tb, ts) + meeting.tail,
+            outer: false,
+        };
+        self.verts.truncate(index + 1);
+        self.verts.push(meeting);
+        self.verts.push(contact);
+        self.generation = self.generation.wrapping_add(1);
+        self.refresh_committed();
+        let generation = self.generation;
+        let cached = self.laws[slot].get_mut();
+        cached.generation = generation;
+        if rising {
+            cached.lo = tb;
+        } else {
+            cached.hi = tb;
+        }
+        self.solved_for_m = target_m;
+    }
+
+    /// [`Self::commit_cached`] off its usual case: [`Self::commit_solved`] on a copy of
+    /// the cached law of `slot`.
+    #[cold]
+    #[inline(never)]
+    fn commit_slot(&mut self, tb: f64, slot: usize, target_m: f64) {
+        let law = self.laws[slot].get();
+        self.commit_solved(tb, &law, target_m);
     }
 
     /// [`Self::solve_for_elongation`] for the series span, the tension alone: the
@@ -1764,6 +1880,79 @@ mod tests {
                 }
             }
         });
+    }
+
+    /// Everything a commit leaves in `r`, bit for bit, for comparing two regions.
+    fn committed_bits(r: &WrapRegion) -> Vec<u64> {
+        let mut bits = vec![
+            r.stuck_m.to_bits(),
+            r.stuck_band_m.to_bits(),
+            r.committed_n.to_bits(),
+            r.solved_for_m.to_bits(),
+            r.generation,
+        ];
+        for v in &r.verts {
+            let (s, t, p, m, tail) = (v.s.to_bits(), v.t.to_bits(), v.p.to_bits(), v.m, v.tail);
+            bits.extend([s, t, p, m.to_bits(), tail.to_bits(), u64::from(v.outer)]);
+        }
+        for law in &r.laws {
+            let l = law.get();
+            bits.extend([l.generation, l.index as u64, u64::from(l.rising)]);
+            bits.extend([l.lo, l.hi, l.a, l.bt, l.q, l.c, l.beta].map(f64::to_bits));
+            bits.extend([l.disc0, l.disc1, l.rest0, l.w_seg].map(f64::to_bits));
+        }
+        bits
+    }
+
+    #[test]
+    fn a_boundary_commit_in_place_leaves_the_general_commits_memory() {
+        // The plant's boundary commit takes its usual case (the root on the law cached for
+        // its direction) without the law leaving the cache; wherever it answers, the
+        // region it leaves must be the one the general solve and commit leave, and where
+        // it does not answer it must change nothing. Dithered histories with long moves
+        // pass segments, the shorter wrap's end and the plateau.
+        let (rd, wd, rp, wp, span) = (0.1025, 0.9, 0.02, 2.5, 0.0777);
+        let span_per_n = span / G;
+        for seed in [3u64, 29, 101] {
+            let mut general =
+                WrapRegion::with_regions(&[(rd, wd), (rp, wp)], MU, TPRE, G).with_series_span(span);
+            let mut rng = seed;
+            let (mut target, mut in_place) = (0.0, 0);
+            for k in 0..4000 {
+                let size = if lcg(&mut rng) < 0.05 { 3e-4 } else { 1e-5 };
+                if k % 11 != 0 {
+                    target += size * (lcg(&mut rng) - 0.5);
+                }
+                let mut fast = general.clone();
+                let before = committed_bits(&fast);
+                let root = fast.boundary_root(target);
+                let (t, law) = general
+                    .solve_for_elongation(target, span_per_n, f64::NAN)
+                    .expect("a positive tension fits");
+                general.commit_solved(t, &law, target);
+                match root {
+                    Some(root) => {
+                        assert_eq!(root.tension_n.to_bits(), t.to_bits(), "seed {seed} k {k}");
+                        // The gross-slip check's growth (of the law, not of the profile).
+                        assert_eq!(
+                            fast.cached_growth(&root).to_bits(),
+                            general.slip_growth_on(t, &law).to_bits()
+                        );
+                        fast.commit_cached(&root, target);
+                        assert_eq!(
+                            committed_bits(&fast),
+                            committed_bits(&general),
+                            "seed {seed} k {k}"
+                        );
+                        in_place += 1;
+                    }
+                    None => assert_eq!(committed_bits(&fast), before, "seed {seed} k {k}"),
+                }
+            }
+            // Both ways are exercised (here a third of the commits take the in-place path;
+            // in the plant, whose stages leave the right law cached, nearly all do).
+            assert!(in_place > 1000, "seed {seed}: {in_place} of 4000");
+        }
     }
 
     #[test]
