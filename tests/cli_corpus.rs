@@ -416,6 +416,26 @@ fn missing_scenario_file_is_an_input_error() {
 }
 
 #[test]
+fn a_directory_is_not_read_as_a_scenario() {
+    let tmp = tempfile::tempdir().unwrap();
+    // Results written with `--out paper_bench` must not hide the built-in of that name.
+    fs::create_dir(tmp.path().join("paper_bench")).unwrap();
+    let out = run(&["run", "paper_bench", "--out", "out"], tmp.path());
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(tmp.path().join("out").join("summary.json").is_file());
+    // A directory of any other name is named as one: an input error, nothing written.
+    fs::create_dir(tmp.path().join("my_design")).unwrap();
+    let out = run(&["run", "my_design", "--out", "out2"], tmp.path());
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(3), "{err}");
+    assert!(
+        err.contains("my_design is a directory, not a scenario file"),
+        "{err}"
+    );
+    assert!(!tmp.path().join("out2").exists());
+}
+
+#[test]
 fn sweep_refuses_bad_scenarios_and_existing_results() {
     let tmp = tempfile::tempdir().unwrap();
     let out_dir = tmp.path().join("out");

@@ -365,7 +365,9 @@ fn check_err(e: &ScenarioError, text: &str, context: &str) {
         }
         ScenarioError::Override { .. } => assert!(msg.starts_with("--set "), "{msg}"),
         ScenarioError::Invalid { .. } => assert!(msg.starts_with(NAME), "{msg}\n{context}"),
-        ScenarioError::Io { .. } | ScenarioError::NotFound { .. } => {
+        ScenarioError::Io { .. }
+        | ScenarioError::NotFound { .. }
+        | ScenarioError::Directory { .. } => {
             panic!("file error from text: {msg}")
         }
     }

@@ -11,6 +11,12 @@ pub enum ScenarioError {
         /// Underlying error.
         source: std::io::Error,
     },
+    /// The path names a directory (and no built-in scenario has that name).
+    #[error("{path} is a directory, not a scenario file: give a scenario's .toml file or a built-in name (`cable-servo --help` lists them)")]
+    Directory {
+        /// The path given.
+        path: String,
+    },
     /// Neither a file nor a built-in scenario of that name exists.
     #[error("no scenario file {name} and no built-in scenario of that name{} (built-in: {builtins})", suggestion.as_ref().map_or(String::new(), |s| format!("; did you mean {s}?")))]
     NotFound {

@@ -127,13 +127,20 @@ impl Scenario {
     /// Read a scenario file, or a built-in scenario when `path` names one (`eots_tracking`).
     pub fn load(path: &str, overrides: &[String]) -> Result<Scenario, ScenarioError> {
         let p = std::path::Path::new(path);
-        if !p.exists() {
+        // A directory is never a scenario file: a results directory named after a built-in
+        // scenario (`--out eots_tracking`) must not hide it.
+        if !p.exists() || p.is_dir() {
             if let Some(text) = builtin(path) {
                 return Scenario::from_toml(text, &format!("{path} (built-in)"), path, overrides);
             }
         }
         if !p.exists() {
             return Err(not_found(path));
+        }
+        if p.is_dir() {
+            return Err(ScenarioError::Directory {
+                path: path.to_string(),
+            });
         }
         let bytes = std::fs::read(p).map_err(|source| ScenarioError::Io {
             path: path.to_string(),
