@@ -124,7 +124,8 @@ fn names_at(table: &toml::Table, path: &[String]) -> Option<String> {
 }
 
 impl Scenario {
-    /// Read a scenario file, or a built-in scenario when `path` names one (`eots_tracking`).
+    /// Read a scenario file, or a built-in scenario when `path` names one (`eots_tracking`)
+    /// and is not a file; a directory is refused with [`ScenarioError::Directory`].
     pub fn load(path: &str, overrides: &[String]) -> Result<Scenario, ScenarioError> {
         let p = std::path::Path::new(path);
         // A directory is never a scenario file: a results directory named after a built-in
