@@ -634,6 +634,7 @@ mod plot_choice_tests {
                 (0..n).map(|k| member(curve(), k, n).palette_slot).collect();
             assert!(!slots.contains(&Some(7)), "{slots:?}");
             let mut distinct = slots.clone();
+            distinct.sort_unstable();
             distinct.dedup();
             assert_eq!(distinct.len(), n, "{slots:?}");
         }
