@@ -752,18 +752,31 @@ impl CableDrive {
         self.check_pulley(Half::Lower, lower.tension_n, &sl)?;
         self.upper.commit_solution(upper);
         self.lower.commit_solution(lower);
+        self.set_displaced(
+            (upper.tension_n, lower.tension_n),
+            displacement_m,
+            (&su, &sl),
+        );
+        Ok(())
+    }
+
+    /// The state after a commit of the displacement-driven plant: span tensions `(Tu, Tl)`
+    /// (N) at displacement `d` (m), whose elongations are `D` and `-D` by construction,
+    /// with the halves' slip zones.
+    #[inline(always)]
+    fn set_displaced(&mut self, tensions: (f64, f64), d: f64, slips: (&HalfSlip, &HalfSlip)) {
+        let (su, sl) = slips;
         self.state = DriveState {
-            tension_upper_n: upper.tension_n,
-            tension_lower_n: lower.tension_n,
-            surface_displacement_m: displacement_m,
-            transmission_error_rad: -displacement_m * self.inv_drum_radius,
-            elongation_upper_m: displacement_m,
-            elongation_lower_m: -displacement_m,
+            tension_upper_n: tensions.0,
+            tension_lower_n: tensions.1,
+            surface_displacement_m: d,
+            transmission_error_rad: -d * self.inv_drum_radius,
+            elongation_upper_m: d,
+            elongation_lower_m: -d,
             slip_growth: [su.growth, sl.growth],
             anchor_reached: [su.drum_anchor_reached, sl.drum_anchor_reached],
         };
         self.committed_torque_nm = None;
-        Ok(())
     }
 
     /// The boundary commit of the displacement-driven plant at displacement `d` (m) in its
@@ -787,17 +800,7 @@ impl CableDrive {
         }
         self.upper.commit_cached(&ru, d);
         self.lower.commit_cached(&rl, -d);
-        self.state = DriveState {
-            tension_upper_n: tu,
-            tension_lower_n: tl,
-            surface_displacement_m: d,
-            transmission_error_rad: -d * self.inv_drum_radius,
-            elongation_upper_m: d,
-            elongation_lower_m: -d,
-            slip_growth: [su.growth, sl.growth],
-            anchor_reached: [su.drum_anchor_reached, sl.drum_anchor_reached],
-        };
-        self.committed_torque_nm = None;
+        self.set_displaced((tu, tl), d, (&su, &sl));
         Some(Ok((tu, tl)))
     }
 

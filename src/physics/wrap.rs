@@ -50,6 +50,21 @@ struct Vertex {
     outer: bool,
 }
 
+impl Vertex {
+    /// The contact point after a commit of boundary tension `tb` (N), with `tail` (N m).
+    #[inline(always)]
+    fn contact(tb: f64, tail: f64) -> Vertex {
+        Vertex {
+            s: 0.0,
+            t: tb,
+            p: tb,
+            m: tb,
+            tail,
+            outer: false,
+        }
+    }
+}
+
 /// Shape of the elongation law of a wrap around a boundary tension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum LawKind {
@@ -955,8 +970,14 @@ impl WrapRegion {
     /// [`Self::slip_growth_on`] of a root on its cached law.
     #[inline(always)]
     pub(crate) fn cached_growth(&self, root: &CachedRoot) -> f64 {
-        let (tb, ts) = (root.tension_n, root.meeting_n);
-        let g = if root.rising { tb / ts } else { ts / tb };
+        self.growth(root.rising, root.tension_n, root.meeting_n)
+    }
+
+    /// `exp(mu*s*)` of a slip zone of direction `rising` from boundary tension `tb` (N)
+    /// that meets the stored profile at tension `ts` (N), at most the longest wrap's.
+    #[inline(always)]
+    fn growth(&self, rising: bool, tb: f64, ts: f64) -> f64 {
+        let g = if rising { tb / ts } else { ts / tb };
         g.clamp(1.0, self.growth_at_end)
     }
 
@@ -982,29 +1003,11 @@ impl WrapRegion {
             self.commit_slot(tb, slot, target_m);
             return;
         }
-        let sign = if rising { 1.0 } else { -1.0 };
-        let sign_per_mu = sign / mu;
-        let along = |w: f64, t_out: f64, t_in: f64| w * sign_per_mu * (t_out - t_in);
-        let (p, m) = if rising { (tb, q) } else { (q, tb) };
-        let meeting = Vertex {
-            s: f64::NAN,
-            t: ts,
-            p,
-            m,
-            tail: along(w_seg, b.t, ts) + b.tail,
-            outer: false,
-        };
-        let contact = Vertex {
-            s: 0.0,
-            t: tb,
-            p: tb,
-            m: tb,
-            tail: along(self.weight_inner_m, tb, ts) + meeting.tail,
-            outer: false,
-        };
+        let meeting = self.meeting_vertex(rising, tb, ts, q, w_seg, &b, false);
+        let tail = self.along(rising, self.weight_inner_m, tb, ts) + meeting.tail;
         self.verts.truncate(index + 1);
         self.verts.push(meeting);
-        self.verts.push(contact);
+        self.verts.push(Vertex::contact(tb, tail));
         self.generation = self.generation.wrapping_add(1);
         self.refresh_committed();
         let generation = self.generation;
@@ -1237,9 +1240,7 @@ impl WrapRegion {
             LawKind::End => self.growth_at_end,
             LawKind::Stuck | LawKind::Invalid => 1.0,
             LawKind::Sloped | LawKind::Plateau => {
-                let ts = law.meeting_tension(tb_n, self.preload_n);
-                let g = if law.rising { tb_n / ts } else { ts / tb_n };
-                g.clamp(1.0, self.growth_at_end)
+                self.growth(law.rising, tb_n, law.meeting_tension(tb_n, self.preload_n))
             }
         }
     }
@@ -1286,6 +1287,42 @@ impl WrapRegion {
         self.solved_for_m = target_m;
     }
 
+    /// `integral w*T ds` (N m) along a segment of log-slope `-+mu` (a slip zone of
+    /// direction `rising`, or a stored segment of the opposite slope walked the other way)
+    /// of weight `w` (m), from its end tensions `t_out` and `t_in` (N).
+    #[inline(always)]
+    fn along(&self, rising: bool, w: f64, t_out: f64, t_in: f64) -> f64 {
+        let sign = if rising { 1.0 } else { -1.0 };
+        w * (sign / self.mu) * (t_out - t_in)
+    }
+
+    /// The breakpoint where a slip zone of direction `rising` from boundary tension `tb`
+    /// (N) meets, at tension `ts` (N), the stored sloped segment of weight `w_seg` (m)
+    /// ending inward at `b`: the stored side keeps its invariant `q` (N), the slip zone's
+    /// is `tb`; its angle is left out (see [`Vertex::s`]).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn meeting_vertex(
+        &self,
+        rising: bool,
+        tb: f64,
+        ts: f64,
+        q: f64,
+        w_seg: f64,
+        b: &Vertex,
+        outer: bool,
+    ) -> Vertex {
+        let (p, m) = if rising { (tb, q) } else { (q, tb) };
+        Vertex {
+            s: f64::NAN,
+            t: ts,
+            p,
+            m,
+            tail: self.along(rising, w_seg, b.t, ts) + b.tail,
+            outer,
+        }
+    }
+
     /// Commit boundary tension `tb` (N) on `law`, which must hold there and be built on
     /// the current profile (as the laws [`Self::solve_for_elongation`] returns are).
     pub(crate) fn commit_fresh(&mut self, tb: f64, law: &WrapLaw) {
@@ -1310,10 +1347,6 @@ impl WrapRegion {
                 outer,
             }
         };
-        // `integral w*T ds` along a segment of log-slope `-+mu` (the slip zone's, or a
-        // stored one of the opposite slope walked the other way) from its end tensions.
-        let sign_per_mu = sign / mu;
-        let along = |w: f64, t_out: f64, t_in: f64| w * sign_per_mu * (t_out - t_in);
         let ts = law.meeting_tension(tb, pre);
         // Whether the slip zone ends on a stored segment that survives (so a further load
         // the same way still ends on it), and whether it meets the profile at the contact
@@ -1345,17 +1378,10 @@ impl WrapRegion {
                     continues = false;
                 }
             } else if (b.t - ts).abs() > mu * min_length * ts {
-                // Sloped: the stored side keeps its invariant `q`, the slip zone's is Tb.
-                let (p, m) = if rising { (tb, law.q) } else { (law.q, tb) };
                 at_contact = ts == tb;
-                self.verts.push(Vertex {
-                    s: f64::NAN,
-                    t: ts,
-                    p,
-                    m,
-                    tail: along(law.w_seg, b.t, ts) + b.tail,
-                    outer: b.outer && !at_contact,
-                });
+                let outer = b.outer && !at_contact;
+                let meeting = self.meeting_vertex(rising, tb, ts, law.q, law.w_seg, &b, outer);
+                self.verts.push(meeting);
             } else {
                 continues = false;
             }
@@ -1370,7 +1396,7 @@ impl WrapRegion {
                 } else {
                     self.growth_at_cut
                 };
-            let tail = along(self.weight_outer_m, t_cut, last.t) + last.tail;
+            let tail = self.along(rising, self.weight_outer_m, t_cut, last.t) + last.tail;
             self.verts.push(on_line(self.cut_rad, t_cut, tail, false));
         }
         let last = self.verts[self.verts.len() - 1];
@@ -1386,15 +1412,8 @@ impl WrapRegion {
             };
             continues = false;
         } else {
-            let tail = along(self.weight(&last), tb, last.t) + last.tail;
-            self.verts.push(Vertex {
-                s: 0.0,
-                t: tb,
-                p: tb,
-                m: tb,
-                tail,
-                outer: false,
-            });
+            let tail = self.along(rising, self.weight(&last), tb, last.t) + last.tail;
+            self.verts.push(Vertex::contact(tb, tail));
         }
         self.generation = self.generation.wrapping_add(1);
         self.refresh_committed();
