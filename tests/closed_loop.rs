@@ -661,6 +661,7 @@ fn plant_carries_the_ratio_shape_and_the_jaw_link() {
             decimation: 1,
             modes: None,
             injection: None,
+            line_of_sight: true,
         };
         let r = run_closed_loop(&p, &options).unwrap();
         assert_eq!(r.modes[0].completion, Completion::Complete);
@@ -811,5 +812,62 @@ fn a_shared_reference_table_changes_no_result() {
             let shared = strip(run_closed_loop_metrics_shared(&s, &cache).unwrap());
             assert_eq!(shared, own, "{name}");
         }
+    }
+}
+
+/// A run that keeps no line of sight (a sweep case, a frequency-response run) gives the
+/// same metrics and the same verdict as a full run, and neither jitter nor spectrum; a
+/// scenario whose requirements judge jitter keeps the jitter, the very one a full run
+/// gives, so its verdict cannot change either.
+#[test]
+fn leaving_out_the_line_of_sight_changes_nothing_else() {
+    use cable_servo::analysis::verdict::judge;
+    let mut s = shortened("eots_tracking", 2.5);
+    params(&mut s).modes = vec![CompensationMode::None, CompensationMode::Memory];
+    let run = |s: &Scenario, record: bool, line_of_sight: bool| {
+        let options = RunOptions {
+            record,
+            decimation: 20,
+            line_of_sight,
+            ..RunOptions::default()
+        };
+        run_closed_loop(s, &options).unwrap()
+    };
+    for record in [false, true] {
+        let full = run(&s, record, true);
+        let lean = run(&s, record, false);
+        let setup = s.closed_loop_setup().unwrap();
+        for (a, b) in full.modes.iter().zip(&lean.modes) {
+            assert_eq!(a.completion, Completion::Complete, "{:?}", a.mode);
+            assert_eq!(a.metrics, b.metrics, "{:?}", a.mode);
+            assert_eq!(a.limit_cycle, b.limit_cycle, "{:?}", a.mode);
+            assert_eq!(a.series, b.series, "{:?}", a.mode);
+            assert!(a.los.is_some(), "{:?}", a.mode);
+            assert_eq!(a.spectrum.is_some(), record, "{:?}", a.mode);
+            assert!(b.los.is_none() && b.spectrum.is_none(), "{:?}", b.mode);
+            let (va, vb) = (judge(&setup, a), judge(&setup, b));
+            assert_eq!(format!("{va:?}"), format!("{vb:?}"), "{:?}", a.mode);
+        }
+    }
+    // With a jitter limit the verdict reads the jitter: it is kept, and judged the same.
+    let mut judged = s.clone();
+    params(&mut judged).requirements.max_jitter_mrad = Some(0.05);
+    let full = run(&judged, false, true);
+    let lean = run(&judged, false, false);
+    let setup = judged.closed_loop_setup().unwrap();
+    for (a, b) in full.modes.iter().zip(&lean.modes) {
+        let jitter = a.los.as_ref().and_then(|l| l.jitter_rms_max_mrad);
+        assert!(jitter.is_some(), "{:?}", a.mode);
+        assert_eq!(a.los, b.los, "{:?}", a.mode);
+        let verdict = judge(&setup, b);
+        assert!(
+            verdict
+                .checks
+                .iter()
+                .any(|c| c.requirement == "jitter" && c.measured.is_some()),
+            "{:?}",
+            verdict.checks
+        );
+        assert_eq!(format!("{:?}", judge(&setup, a)), format!("{verdict:?}"));
     }
 }

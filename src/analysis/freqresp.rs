@@ -1174,6 +1174,8 @@ impl Bench<'_> {
             decimation: 1,
             modes: Some(vec![CompensationMode::None]),
             injection,
+            // The response is read from the series; the jitter and spectrum are not.
+            line_of_sight: false,
         };
         let result = run_closed_loop(&setup, &options)?;
         let exact = exact_transfer(&self.lin, point, w.frequency_hz);

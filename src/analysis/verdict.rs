@@ -654,6 +654,8 @@ pub fn evaluate(setup: &ClosedLoopSetup<'_>) -> Result<Verdict, ClosedLoopError>
     let mode = setup.params.judged_mode();
     let options = RunOptions {
         modes: Some(vec![mode]),
+        // The jitter is kept when a requirement judges it, and read nowhere else here.
+        line_of_sight: false,
         ..RunOptions::metrics_only()
     };
     let mut r = run_closed_loop(setup, &options)?;

@@ -36,6 +36,13 @@ pub struct RunOptions {
     /// A sinusoid added inside the loop (frequency-response measurement); `None` in
     /// every ordinary run.
     pub injection: Option<Injection>,
+    /// Keep the line of sight's errors for [`ModeResult::los`] (jitter over exposure
+    /// windows) and, when recording, [`ModeResult::spectrum`]. True by default. Callers
+    /// that read neither turn it off (a sweep case, whose table holds no jitter; a
+    /// frequency-response run): the errors then cost no buffer and no windows, and
+    /// `los` and `spectrum` are `None`. A scenario whose requirements judge jitter keeps
+    /// `los` whatever this says, so its verdict is the same either way.
+    pub line_of_sight: bool,
 }
 
 /// Where an injected sinusoid enters the sampled loop.
@@ -77,17 +84,23 @@ impl Default for RunOptions {
             decimation: 1,
             modes: None,
             injection: None,
+            line_of_sight: true,
         }
     }
 }
 
 impl RunOptions {
-    /// Metrics only, every mode: what a sweep case needs.
+    /// Metrics only (no time series), every mode, the line of sight kept.
     pub fn metrics_only() -> Self {
         RunOptions {
             record: false,
             ..RunOptions::default()
         }
+    }
+
+    /// Whether a run of `p` keeps the line of sight's errors (see [`Self::line_of_sight`]).
+    fn keeps_line_of_sight(&self, p: &ClosedLoopParams) -> bool {
+        self.line_of_sight || p.requirements.max_jitter_mrad.is_some()
     }
 }
 
@@ -197,9 +210,13 @@ pub fn estimate_work(p: &ClosedLoopParams, modes: usize, options: &RunOptions) -
     } else {
         0
     };
-    let window = ((p.duration_s - p.metrics_start_s).max(0.0) * p.controller.sample_rate_hz)
-        .ceil()
-        .min(MAX_LOS_SAMPLES as f64);
+    let window = if options.keeps_line_of_sight(p) {
+        ((p.duration_s - p.metrics_start_s).max(0.0) * p.controller.sample_rate_hz)
+            .ceil()
+            .min(MAX_LOS_SAMPLES as f64)
+    } else {
+        0.0
+    };
     let bytes = modes as f64 * (rows as f64 * SERIES_COLUMNS as f64 + window) * 8.0;
     WorkEstimate {
         periods,
@@ -706,11 +723,22 @@ pub fn run_closed_loop_shared<T: Send>(
     ))
 }
 
-/// Metrics of every mode without time series: the cheap call for one sweep case.
+/// Metrics of every mode without time series: the cheap call for one sweep case. The
+/// line of sight's jitter is left out unless the scenario's requirements judge it (see
+/// [`RunOptions::line_of_sight`]).
 pub fn run_closed_loop_metrics(
     source: &(impl ClosedLoopSource + ?Sized),
 ) -> Result<ClosedLoopResult, ClosedLoopError> {
-    run_closed_loop(source, &RunOptions::metrics_only())
+    run_closed_loop(source, &sweep_case())
+}
+
+/// What a sweep case keeps: metrics and the verdict's inputs, no series, no jitter the
+/// verdict does not judge.
+fn sweep_case() -> RunOptions {
+    RunOptions {
+        line_of_sight: false,
+        ..RunOptions::metrics_only()
+    }
 }
 
 /// [`run_closed_loop_metrics`] reading the reference from a cache shared by the cases of
@@ -719,8 +747,7 @@ pub fn run_closed_loop_metrics_shared(
     source: &(impl ClosedLoopSource + ?Sized),
     reference: &ReferenceCache,
 ) -> Result<ClosedLoopResult, ClosedLoopError> {
-    run_closed_loop_shared(source, &RunOptions::metrics_only(), Some(reference), |_| ())
-        .map(|(result, _)| result)
+    run_closed_loop_shared(source, &sweep_case(), Some(reference), |_| ()).map(|(result, _)| result)
 }
 
 /// Fault message with time and mode. A slack span found while solving by displacement
@@ -1033,7 +1060,13 @@ fn run_mode(
         .max(0.0)
         .ceil() as usize
         + 1;
-    let mut los_errors: Vec<f64> = Vec::with_capacity(window_samples.min(MAX_LOS_SAMPLES));
+    // A run that keeps no line of sight pushes nothing, so its buffer needs no room.
+    let los_samples = if options.keeps_line_of_sight(p) {
+        MAX_LOS_SAMPLES
+    } else {
+        0
+    };
+    let mut los_errors: Vec<f64> = Vec::with_capacity(window_samples.min(los_samples));
     let decimation = options.decimation.max(1) as u64;
     let mut series = options
         .record
@@ -1229,7 +1262,7 @@ fn run_mode(
         metrics.push(&sample);
         if t >= p.metrics_start_s {
             hunting.push(t, r.value, los);
-            if los_errors.len() < MAX_LOS_SAMPLES {
+            if los_errors.len() < los_samples {
                 los_errors.push((los - r.value) * 1e3);
             }
         }
@@ -1338,8 +1371,7 @@ fn run_mode(
     let (los, spectrum) = rayon::join(
         || (!los_errors.is_empty()).then(|| los_metrics(&los_errors, fs, &p.los)),
         || {
-            options
-                .record
+            (options.record && options.line_of_sight)
                 .then(|| error_spectrum(&los_errors, fs, p.los.psd_segment_s))
                 .flatten()
         },

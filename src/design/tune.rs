@@ -612,6 +612,8 @@ fn judge(s: &Scenario, origin: &'static str, compliance: Option<f64>) -> Candida
     let mode = setup.params.judged_mode();
     let options = closed_loop::RunOptions {
         modes: Some(vec![mode]),
+        // The jitter is kept when a requirement judges it, and read nowhere else here.
+        line_of_sight: false,
         ..closed_loop::RunOptions::metrics_only()
     };
     let run = match closed_loop::run_closed_loop(&setup, &options) {
