@@ -866,6 +866,8 @@ struct Figure {
     /// Path relative to the results directory, `/`-separated.
     name: String,
     svg: String,
+    /// The figure's own title, when it has one (see [`figure_title`]).
+    title: Option<String>,
 }
 
 /// Every `*.svg` under `dir` (sorted, the top directory first), prepared to inline.
@@ -899,7 +901,11 @@ fn collect_figures(dir: &Path, warnings: &mut Vec<String>) -> Vec<Figure> {
                 .join("/");
             match std::fs::read_to_string(path) {
                 Ok(raw) => match inline_svg(&raw, &format!("fig{i}-")) {
-                    Some(svg) => Ok(Figure { name, svg }),
+                    Some(svg) => Ok(Figure {
+                        name,
+                        title: figure_title(&svg),
+                        svg,
+                    }),
                     None => Err(format!(
                         "figure {name} is left out of this page: it is not a plain SVG drawing (no <svg> element, or it refers to something outside itself)"
                     )),
@@ -1027,16 +1033,63 @@ fn esc(s: &str) -> String {
     out
 }
 
-/// A caption from a figure's file name: `designs/a/pointing_error.svg` to
-/// `Pointing error (designs/a)`.
-fn caption(name: &str) -> String {
+/// A figure's caption: its own title, else words from its file name
+/// (`designs/a/pointing_error.svg` to `Pointing error (designs/a)`); the folder of a
+/// figure below the results directory is named after it.
+fn caption(name: &str, title: Option<&str>) -> String {
     let (folder, file) = name.rsplit_once('/').unwrap_or(("", name));
-    let stem = words(file.trim_end_matches(".svg"));
+    let stem = match title {
+        Some(t) => words_of_title(t),
+        None => words(file.trim_end_matches(".svg")),
+    };
     if folder.is_empty() {
         stem
     } else {
         format!("{stem} ({folder})")
     }
+}
+
+/// A title as a caption: a plain first word gets its capital; a name (`eots_tracking:`,
+/// `L`) is left as written.
+fn words_of_title(t: &str) -> String {
+    let first = t.split_whitespace().next().unwrap_or("");
+    let mut c = t.chars();
+    match c.next() {
+        Some(f) if first.chars().all(|c| c.is_ascii_lowercase() || c == '-') => {
+            f.to_uppercase().collect::<String>() + c.as_str()
+        }
+        _ => t.to_string(),
+    }
+}
+
+/// The title a figure of this tool carries: the text of its first bold `<text>` element
+/// (the chart's caption; above panels, the figure's own title), unescaped. File names
+/// read as captions say less ("P95 mrad vs brake nm" where the figure says "95th
+/// percentile pointing error against brake"). `None` for an SVG without one, which keeps
+/// the file name's words.
+fn figure_title(svg: &str) -> Option<String> {
+    let mut rest = svg;
+    while let Some(start) = rest.find("<text") {
+        let after = &rest[start..];
+        let open_end = after.find('>')?;
+        let attributes = &after[..open_end];
+        let body = &after[open_end + 1..];
+        let close = body.find("</text>")?;
+        if attributes.contains("font-weight=\"bold\"") {
+            let text = body[..close]
+                .trim()
+                .replace("&lt;", "<")
+                .replace("&gt;", ">")
+                .replace("&quot;", "\"")
+                .replace("&#39;", "'")
+                .replace("&apos;", "'")
+                .replace("&amp;", "&");
+            let text = text.split_whitespace().collect::<Vec<_>>().join(" ");
+            return (!text.is_empty()).then_some(text);
+        }
+        rest = &body[close..];
+    }
+    None
 }
 
 const STYLE: &str = "
@@ -1122,7 +1175,7 @@ fn render(page: &Page, record: &Value, record_name: &str, figures: &[Figure]) ->
             esc(&f.name),
             f.svg,
             i + 1,
-            esc(&caption(&f.name)),
+            esc(&caption(&f.name, f.title.as_deref())),
             esc(&f.name)
         );
     }
@@ -1384,6 +1437,44 @@ mod tests {
         assert!(svg.contains("href=\"#f1-c\""), "{svg}");
         assert!(inline_svg("<svg><image href=\"http://x/y.png\"/></svg>", "a").is_none());
         assert!(inline_svg("no drawing", "a").is_none());
+    }
+
+    #[test]
+    fn a_figure_is_captioned_by_its_own_title() {
+        let svg = "<svg><rect/><text x=\"1\" font-size=\"12\">0.1</text><text x=\"600\" font-weight=\"bold\">\npeak pointing error against preload &amp; load (1000 finished cases)\n</text><text font-weight=\"bold\">upper span</text></svg>";
+        let title = figure_title(svg);
+        assert_eq!(
+            title.as_deref(),
+            Some("peak pointing error against preload & load (1000 finished cases)")
+        );
+        assert_eq!(
+            caption("peak_mrad_vs_preload_n.svg", title.as_deref()),
+            "Peak pointing error against preload & load (1000 finished cases)"
+        );
+        assert_eq!(
+            caption("designs/a/pointing_error.svg", Some("pointing error")),
+            "Pointing error (designs/a)"
+        );
+        assert_eq!(
+            caption("psd.svg", Some("line-of-sight error_psd")),
+            "Line-of-sight error_psd"
+        );
+        // A name keeps its spelling.
+        assert_eq!(
+            caption("bode.svg", Some("eots_tracking: loop gain L")),
+            "eots_tracking: loop gain L"
+        );
+        // Without a bold title the file name speaks.
+        assert_eq!(figure_title("<svg><text>axis</text></svg>"), None);
+        assert_eq!(
+            figure_title("<svg><text font-weight=\"bold\"> </text></svg>"),
+            None
+        );
+        assert_eq!(figure_title("<svg><text font-weight=\"bold\">cut"), None);
+        assert_eq!(
+            caption("designs/a/pointing_error.svg", None),
+            "Pointing error (designs/a)"
+        );
     }
 
     #[test]
