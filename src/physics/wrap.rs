@@ -994,12 +994,8 @@ impl WrapRegion {
             let law = self.laws[slot].get_mut();
             (law.index, law.q, law.w_seg)
         };
-        let mu = self.mu;
-        let min_length = 1e-14 * self.wrap_rad.max(1.0);
         let b = self.verts[index];
-        // `commit_fresh`'s test for a crossing away from the stored breakpoint.
-        let away = (b.t - ts).abs() > mu * min_length * ts;
-        if b.outer || ts == tb || !away {
+        if b.outer || ts == tb || !self.meets_away(&b, ts) {
             self.commit_slot(tb, slot, target_m);
             return;
         }
@@ -1287,6 +1283,20 @@ impl WrapRegion {
         self.solved_for_m = target_m;
     }
 
+    /// The shortest segment a commit leaves, rad: a crossing closer than this to an
+    /// existing breakpoint would leave a zero-length segment.
+    #[inline(always)]
+    fn min_length(&self) -> f64 {
+        1e-14 * self.wrap_rad.max(1.0)
+    }
+
+    /// Whether a slip zone meeting the stored sloped segment that ends inward at `b`, at
+    /// tension `ts` (N), meets it away from `b` (not within [`Self::min_length`] of it).
+    #[inline(always)]
+    fn meets_away(&self, b: &Vertex, ts: f64) -> bool {
+        (b.t - ts).abs() > self.mu * self.min_length() * ts
+    }
+
     /// `integral w*T ds` (N m) along a segment of log-slope `-+mu` (a slip zone of
     /// direction `rising`, or a stored segment of the opposite slope walked the other way)
     /// of weight `w` (m), from its end tensions `t_out` and `t_in` (N).
@@ -1353,8 +1363,7 @@ impl WrapRegion {
         // point itself (zero length).
         let mut continues = true;
         let mut at_contact = false;
-        // A crossing at an existing breakpoint would leave a zero-length segment.
-        let min_length = 1e-14 * self.wrap_rad.max(1.0);
+        let min_length = self.min_length();
         if law.kind == LawKind::End {
             self.verts.clear();
             self.verts.push(on_line(
@@ -1377,7 +1386,7 @@ impl WrapRegion {
                 } else {
                     continues = false;
                 }
-            } else if (b.t - ts).abs() > mu * min_length * ts {
+            } else if self.meets_away(&b, ts) {
                 at_contact = ts == tb;
                 let outer = b.outer && !at_contact;
                 let meeting = self.meeting_vertex(rising, tb, ts, law.q, law.w_seg, &b, outer);
@@ -1911,8 +1920,8 @@ mod tests {
             r.generation,
         ];
         for v in &r.verts {
-            let (s, t, p, m, tail) = (v.s.to_bits(), v.t.to_bits(), v.p.to_bits(), v.m, v.tail);
-            bits.extend([s, t, p, m.to_bits(), tail.to_bits(), u64::from(v.outer)]);
+            bits.extend([v.s, v.t, v.p, v.m, v.tail].map(f64::to_bits));
+            bits.push(u64::from(v.outer));
         }
         for law in &r.laws {
             let l = law.get();

@@ -460,7 +460,11 @@ fn window_words(modes: &[Value]) -> String {
 
 /// `closed_loop` to `Closed loop`.
 fn words(id: &str) -> String {
-    let s = id.replace(['_', '-'], " ");
+    capitalised(&id.replace(['_', '-'], " "))
+}
+
+/// `s` with its first letter in capitals.
+fn capitalised(s: &str) -> String {
     let mut c = s.chars();
     c.next()
         .map(|f| f.to_uppercase().collect::<String>() + c.as_str())
@@ -1053,12 +1057,10 @@ fn caption(name: &str, title: Option<&str>) -> String {
 /// `L`) is left as written.
 fn words_of_title(t: &str) -> String {
     let first = t.split_whitespace().next().unwrap_or("");
-    let mut c = t.chars();
-    match c.next() {
-        Some(f) if first.chars().all(|c| c.is_ascii_lowercase() || c == '-') => {
-            f.to_uppercase().collect::<String>() + c.as_str()
-        }
-        _ => t.to_string(),
+    if first.chars().all(|c| c.is_ascii_lowercase() || c == '-') {
+        capitalised(t)
+    } else {
+        t.to_string()
     }
 }
 

@@ -130,18 +130,21 @@ impl Scenario {
         let p = std::path::Path::new(path);
         // A directory is never a scenario file: a results directory named after a built-in
         // scenario (`--out eots_tracking`) must not hide it.
-        if !p.exists() || p.is_dir() {
+        // `None`: nothing readable at that path.
+        let is_dir = std::fs::metadata(p).ok().map(|meta| meta.is_dir());
+        if is_dir != Some(false) {
             if let Some(text) = builtin(path) {
                 return Scenario::from_toml(text, &format!("{path} (built-in)"), path, overrides);
             }
         }
-        if !p.exists() {
-            return Err(not_found(path));
-        }
-        if p.is_dir() {
-            return Err(ScenarioError::Directory {
-                path: path.to_string(),
-            });
+        match is_dir {
+            None => return Err(not_found(path)),
+            Some(true) => {
+                return Err(ScenarioError::Directory {
+                    path: path.to_string(),
+                })
+            }
+            Some(false) => {}
         }
         let bytes = std::fs::read(p).map_err(|source| ScenarioError::Io {
             path: path.to_string(),
