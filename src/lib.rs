@@ -102,6 +102,17 @@ pub fn fixed(v: f64, decimals: usize) -> String {
     }
 }
 
+/// [`fixed`], except that a nonzero value too small for `decimals` keeps three
+/// significant digits (`2.05e-8`, `0.000123`), where fixed decimals would print zero:
+/// for messages, whose every number must be one a user can act on.
+pub fn fixed_or_significant(v: f64, decimals: usize) -> String {
+    if v != 0.0 && v.abs() < 0.5 * 10f64.powi(-(decimals.min(300) as i32)) {
+        significant(v, 3)
+    } else {
+        fixed(v, decimals)
+    }
+}
+
 /// `text` with every number written out in more than 17 digits (as Rust and serde print
 /// `1e308`: three hundred of them) replaced by its [`readable`] form: the last guard of
 /// the command line's messages, whatever built them. Digits that are part of a word
@@ -193,6 +204,19 @@ mod words_tests {
         assert_eq!(super::readable(100.00001), "100");
         assert_eq!(super::readable(100.0001), "100.0001");
         assert_eq!(super::readable(-1.23456789e-300), "-1.234568e-300");
+    }
+
+    #[test]
+    fn a_number_too_small_for_its_decimals_keeps_its_digits() {
+        assert_eq!(super::fixed_or_significant(0.75, 3), "0.750");
+        assert_eq!(super::fixed_or_significant(0.0, 4), "0.0000");
+        assert_eq!(super::fixed_or_significant(2.05e-8, 3), "2.05e-8");
+        assert_eq!(super::fixed_or_significant(-0.000123, 2), "-0.000123");
+        // Rounding up to the last decimal shown is not too small.
+        assert_eq!(super::fixed_or_significant(0.06, 1), "0.1");
+        assert_eq!(super::fixed_or_significant(0.04, 1), "0.0400");
+        assert_eq!(super::fixed_or_significant(3e300, 1), "3e300");
+        assert_eq!(super::fixed_or_significant(1e-300, 3), "1.00e-300");
     }
 
     #[test]

@@ -270,8 +270,8 @@ enum Command {
     },
     /// Compare controller designs side by side: several closed-loop scenarios, or one
     /// scenario with named sets of overrides. Writes compare.csv, summary.json, each
-    /// design's files under designs/ and overlay plots; exit code 4 when a design misses
-    /// its pointing target.
+    /// design's files under designs/ and overlay plots; exit code 4 when a design fails
+    /// its requirements (its verdict: pointing, margins, stability, as `run` judges them).
     Compare {
         /// Scenario files or built-in names: each one a design (with --design: the one
         /// base scenario the designs change).
@@ -984,6 +984,9 @@ fn main() -> ExitCode {
             let Some(p) = scenario.closed_loop.as_ref() else {
                 return not_closed_loop(name);
             };
+            if let Err(e) = run::check_load_nm(load_nm) {
+                return report(Err(e));
+            }
             say!(
                 "{}: computation delay {} sample(s) at {} Hz",
                 scenario.name(),
@@ -1584,7 +1587,7 @@ fn sane_threads(asked: usize) -> usize {
     }
 }
 
-/// `compare`: build the designs, run them, report; exit 4 when one misses its target.
+/// `compare`: build the designs, run them, report; exit 4 when one fails its requirements.
 fn compare(
     scenarios: Vec<String>,
     designs: Vec<String>,

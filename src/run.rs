@@ -97,6 +97,18 @@ pub fn default_results_dir(base: &Path, force: bool) -> PathBuf {
         .unwrap_or_else(|| base.to_path_buf())
 }
 
+/// Whether `--load-nm` (N m), when given, is a torque [`run_margins`] can explore: finite
+/// and > 0. Checked before anything runs or is printed.
+pub fn check_load_nm(load_nm: Option<f64>) -> Result<(), RunError> {
+    match load_nm {
+        Some(load) if !(load.is_finite() && load > 0.0) => Err(RunError::Unsupported(format!(
+            "--load-nm {}: give a transmitted torque > 0 N m",
+            crate::readable(load)
+        ))),
+        _ => Ok(()),
+    }
+}
+
 /// Run a single scenario (quasi-static, backlash or closed-loop study).
 pub fn run_scenario(scenario: &Scenario, out: &OutputOptions) -> Result<RunReport, RunError> {
     run_scenario_with_progress(scenario, out, &crate::progress::Silent)
@@ -271,8 +283,9 @@ fn run_closed_loop(
     let failure = result.modes.iter().find_map(|m| match &m.completion {
         closed_loop::Completion::Complete => None,
         closed_loop::Completion::Incomplete { fault, time_s, .. } => Some(format!(
-            "mode {} stopped at t = {time_s:.4} s: {fault}",
-            m.mode.name()
+            "mode {} stopped at t = {} s: {fault}",
+            m.mode.name(),
+            crate::readable(*time_s)
         )),
     });
     let mut table = report::closed_loop::format_table(&result);
@@ -1199,25 +1212,17 @@ pub fn run_margins(
             scenario.name()
         ))
     })?;
+    check_load_nm(explore_load_nm)?;
     let setup = closed_loop::ClosedLoopSource::closed_loop_setup(scenario)?;
     // The verdict (which simulates the judged mode) before a results directory exists.
     let verdict = crate::analysis::verdict::evaluate(&setup)?;
-    let explored_scenario = match explore_load_nm {
-        Some(load) if !(load.is_finite() && load > 0.0) => {
-            return Err(RunError::Unsupported(format!(
-                "--load-nm {}: give a transmitted torque > 0 N m",
-                crate::readable(load)
-            )))
+    let explored_scenario = explore_load_nm.map(|load| {
+        let mut explored = scenario.clone();
+        if let Some(c) = explored.closed_loop.as_mut() {
+            c.requirements.operating_load_nm = Some(load);
         }
-        Some(load) => {
-            let mut explored = scenario.clone();
-            if let Some(c) = explored.closed_loop.as_mut() {
-                c.requirements.operating_load_nm = Some(load);
-            }
-            Some(explored)
-        }
-        None => None,
-    };
+        explored
+    });
     let shown = explored_scenario.as_ref().unwrap_or(scenario);
     let shown_setup = closed_loop::ClosedLoopSource::closed_loop_setup(shown)?;
     let shown_p = shown.closed_loop.as_ref().unwrap_or(p);
@@ -1370,8 +1375,9 @@ pub fn run_compare(
     for d in &outcomes {
         if let closed_loop::Completion::Incomplete { fault, time_s, .. } = &d.result.completion {
             warnings.push(format!(
-                "design {} stopped at t = {time_s:.4} s: {fault}",
-                d.name
+                "design {} stopped at t = {} s: {fault}",
+                d.name,
+                crate::readable(*time_s)
             ));
         }
     }

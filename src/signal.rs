@@ -357,7 +357,7 @@ impl Signal {
                 Ok(())
             } else {
                 Err(format!(
-                    "{name} = {} must be a finite number",
+                    "{name} = {} is out of range: it must be a finite number",
                     crate::number(v)
                 ))
             }

@@ -270,6 +270,42 @@ fn slack_ends_the_run_with_a_clear_message() {
 }
 
 #[test]
+fn a_slack_span_early_in_a_run_asks_for_the_preload_the_load_needs() {
+    // Preloaded to 1e-7 N, the drive goes slack in the first periods, when it has
+    // transmitted almost nothing: the preload asked for must carry the declared load
+    // (0.75 N m on a 0.1025 m drum: 3.66 N), and the torque at the fault must show.
+    let mut s = builtin("eots_tracking");
+    s.drive.preload_n = 1e-7;
+    {
+        let p = params(&mut s);
+        p.duration_s = 0.01;
+        p.metrics_start_s = 0.0;
+        p.modes = vec![CompensationMode::None];
+    }
+    let needed = s.load.peak_torque_nm() / (2.0 * s.drive.drum_radius_m);
+    assert!((needed - 3.659).abs() < 1e-3, "{needed}");
+    let r = run_closed_loop(&s, &RunOptions::default()).unwrap();
+    match &r.modes[0].completion {
+        Completion::Incomplete { fault, time_s, .. } => {
+            assert!(
+                fault.contains("raise preload_n above about 3.7 N"),
+                "{fault}"
+            );
+            assert!(!fault.contains("0.0000 N m"), "{fault}");
+            assert!(fault.contains(&format!("t = {} s", cable_servo::readable(*time_s))));
+            let reason = r.modes[0].no_figures_reason().unwrap_or_default();
+            // One time, written the same way, wherever the stop is told.
+            assert_eq!(
+                reason.matches(&cable_servo::readable(*time_s)).count(),
+                2,
+                "{reason}"
+            );
+        }
+        c => panic!("expected a fault, got {c:?}"),
+    }
+}
+
+#[test]
 fn validation_names_the_key() {
     let text = cable_servo::scenario::builtin("eots_tracking").unwrap();
     let err = Scenario::from_toml(

@@ -18,6 +18,7 @@ const LAYERS: &[(&str, &[&str])] = &[
             "significant",
             "readable",
             "fixed",
+            "fixed_or_significant",
             "duration_words",
             "physics",
             "signal",
@@ -43,6 +44,7 @@ const LAYERS: &[(&str, &[&str])] = &[
 const SAME_LAYER: &[(&str, &str)] = &[
     ("physics", "number"),
     ("physics", "fixed"),
+    ("physics", "fixed_or_significant"),
     ("signal", "number"),
     ("metrics", "number"),
     ("analysis", "closed_loop"),

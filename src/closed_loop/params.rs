@@ -842,7 +842,10 @@ impl ClosedLoopParams {
             } else {
                 Err((
                     key(k),
-                    format!("{} must be a finite number > 0", crate::number(v)),
+                    format!(
+                        "{} is out of range: it must be a finite number > 0",
+                        crate::number(v)
+                    ),
                 ))
             }
         };
@@ -852,7 +855,10 @@ impl ClosedLoopParams {
             } else {
                 Err((
                     key(k),
-                    format!("{} must be a finite number >= 0", crate::number(v)),
+                    format!(
+                        "{} is out of range: it must be a finite number >= 0",
+                        crate::number(v)
+                    ),
                 ))
             }
         };
@@ -1356,7 +1362,10 @@ impl ClosedLoopParams {
                 if !(v.is_finite() && v >= 0.0) {
                     return Err((
                         key(k),
-                        format!("{} must be a finite number >= 0", crate::number(v)),
+                        format!(
+                            "{} is out of range: it must be a finite number >= 0",
+                            crate::number(v)
+                        ),
                     ));
                 }
             }

@@ -448,7 +448,7 @@ impl ModeResult {
             Completion::Incomplete { fault, time_s, .. } => Some(format!(
                 "mode {} stopped at t = {} s: {fault}",
                 self.mode.name(),
-                crate::significant(*time_s, 5)
+                crate::readable(*time_s)
             )),
             Completion::Complete if self.metrics.samples == 0 => {
                 Some("the metrics window holds no sample".to_string())
@@ -751,13 +751,17 @@ pub fn run_closed_loop_metrics_shared(
 }
 
 /// Fault message with time and mode. A slack span found while solving by displacement
-/// carries no torque; the transmitted torque at the last sample fills it in, so the
-/// message can say how much preload would carry the load.
+/// carries no torque; the transmitted torque at the last sample fills it in. The preload
+/// it asks for carries that torque and the load's declared peak (`peak_load_nm`, N m),
+/// whichever is larger: a drive that goes slack early in a run has transmitted little
+/// yet, and asking for the preload that carries only that would send the user round
+/// again.
 fn describe(
     fault: &DriveFault,
     t: f64,
     mode: CompensationMode,
     cable_torque_nm: f64,
+    peak_load_nm: f64,
     drum_radius_m: f64,
 ) -> String {
     let mut hint = "";
@@ -773,13 +777,14 @@ fn describe(
             DriveFault::Slack {
                 half,
                 torque_nm: cable_torque_nm,
-                needed_preload_n: cable_torque_nm.abs() / (2.0 * drum_radius_m),
+                needed_preload_n: cable_torque_nm.abs().max(peak_load_nm) / (2.0 * drum_radius_m),
             }
         }
         other => other,
     };
     format!(
-        "plant cable fault at t = {t:.4} s (mode {}): {fault}{hint}",
+        "plant cable fault at t = {} s (mode {}): {fault}{hint}",
+        crate::readable(t),
         mode.name()
     )
 }
@@ -1111,7 +1116,7 @@ fn run_mode(
             Ok(f) => f,
             Err(f) => {
                 completion = stop(
-                    describe(&f, t, mode, last_torque, coeff.ro),
+                    describe(&f, t, mode, last_torque, load.peak_torque_nm(), coeff.ro),
                     t,
                     StopKind::of(&f),
                     instability,
@@ -1215,11 +1220,12 @@ fn run_mode(
             // working point: what follows is a saturated oscillation, not a result.
             completion = Completion::Incomplete {
                 fault: format!(
-                    "the loop is unstable (on its exact linear reference the largest closed-loop pole has |z| = {:.5}: a mode growing at {:.1} 1/s at {:.1} Hz) and its command reached the amplifier limit {} at t = {t:.4} s (mode {}); {}",
+                    "the loop is unstable (on its exact linear reference the largest closed-loop pole has |z| = {:.5}: a mode growing at {:.1} 1/s at {:.1} Hz) and its command reached the amplifier limit {} at t = {} s (mode {}); {}",
                     i.pole_magnitude,
                     i.growth_per_s,
                     i.frequency_hz,
                     crate::number(command_limit),
+                    crate::readable(t),
                     mode.name(),
                     gains_to_check(c)
                 ),
@@ -1231,8 +1237,9 @@ fn run_mode(
         if saturation.push(u.abs() >= command_limit, ts) >= SATURATION_STOP_S {
             completion = Completion::Incomplete {
                 fault: format!(
-                    "the command sat at the amplifier limit {} for {SATURATION_STOP_S} s without a break up to t = {t:.4} s (mode {}): the motor cannot deliver what the loop asks (the load it must hold, a torque constant or limit too small)",
+                    "the command sat at the amplifier limit {} for {SATURATION_STOP_S} s without a break up to t = {} s (mode {}): the motor cannot deliver what the loop asks (the load it must hold, a torque constant or limit too small)",
                     crate::number(command_limit),
+                    crate::readable(t),
                     mode.name()
                 ),
                 time_s: t,
@@ -1337,7 +1344,14 @@ fn run_mode(
         base_now = base_next;
         if let Some(f) = fault {
             completion = stop(
-                describe(&f, t + ts, mode, last_torque, coeff.ro),
+                describe(
+                    &f,
+                    t + ts,
+                    mode,
+                    last_torque,
+                    load.peak_torque_nm(),
+                    coeff.ro,
+                ),
                 t + ts,
                 StopKind::of(&f),
                 instability,
@@ -1349,8 +1363,8 @@ fn run_mode(
         if !x.iter().all(|v| v.is_finite()) {
             completion = Completion::Incomplete {
                 fault: format!(
-                    "the loop diverged (plant state not finite) at t = {:.4} s (mode {}); lower closed_loop.controller gains or raise sample_rate_hz",
-                    t + ts,
+                    "the loop diverged (plant state not finite) at t = {} s (mode {}); lower closed_loop.controller gains or raise sample_rate_hz",
+                    crate::readable(t + ts),
                     mode.name()
                 ),
                 time_s: t + ts,

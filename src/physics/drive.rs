@@ -291,13 +291,15 @@ impl std::fmt::Display for Half {
 
 /// A fault's number with `decimals` decimals, in exponent form when huge: a friction
 /// coefficient of 1e-300 demands a slip zone of 1e300 rad, which must not print 300 digits.
+/// A value too small for its decimals keeps three significant digits: a drive preloaded
+/// to 1e-7 N carries 2e-8 N m, which `0.0000` would hide.
 fn shown(v: &f64, decimals: usize) -> String {
     // An infinite tension or slip zone (a load beyond any drive) is said in words: `inf`
     // is no number a user can act on.
     if v.is_infinite() {
         format!("{}more than 1e308", if *v < 0.0 { "-" } else { "" })
     } else {
-        crate::fixed(*v, decimals)
+        crate::fixed_or_significant(*v, decimals)
     }
 }
 

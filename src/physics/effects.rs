@@ -147,7 +147,7 @@ impl EffectsParams {
             Some(x) if !(x.is_finite() && x >= lo && x <= hi) => Err((
                 key.to_string(),
                 format!(
-                    "{} must be a finite number in [{}, {}]",
+                    "{} is out of range: it must be a finite number in [{}, {}]",
                     crate::number(x),
                     crate::number(lo),
                     crate::number(hi)

@@ -169,7 +169,10 @@ impl LoadParams {
             } else {
                 Err((
                     key,
-                    format!("{} must be a finite number >= 0", crate::number(v)),
+                    format!(
+                        "{} is out of range: it must be a finite number >= 0",
+                        crate::number(v)
+                    ),
                 ))
             }
         };
@@ -177,7 +180,13 @@ impl LoadParams {
             if v.is_finite() {
                 Ok(())
             } else {
-                Err((key, format!("{} must be a finite number", crate::number(v))))
+                Err((
+                    key,
+                    format!(
+                        "{} is out of range: it must be a finite number",
+                        crate::number(v)
+                    ),
+                ))
             }
         };
         // Torques beyond any cable drive: they only make unreadable numbers.

@@ -201,7 +201,11 @@ pub fn format_compare(designs: &[DesignOutcome]) -> String {
         let mut status = match &d.result.completion {
             Completion::Complete => "complete".to_string(),
             Completion::Incomplete { kind, time_s, .. } => {
-                format!("STOPPED: {} at t = {time_s:.3} s", kind.name())
+                format!(
+                    "STOPPED: {} at t = {} s",
+                    kind.name(),
+                    crate::readable(*time_s)
+                )
             }
         };
         if d.result.completion == Completion::Complete {

@@ -338,13 +338,17 @@ impl Scenario {
             .max(self.backlash.as_ref().map_or(0.0, |b| b.load_nm));
         if peak >= capacity {
             out.push(format!(
-                "peak load {peak:.3} N m reaches the slack limit 2*preload_n*drum_radius_m = {capacity:.3} N m: expect a slack span; raise drive.preload_n above {:.1} N",
-                peak / (2.0 * self.drive.drum_radius_m)
+                "peak load {} N m reaches the slack limit 2*preload_n*drum_radius_m = {} N m: expect a slack span; raise drive.preload_n above {} N",
+                crate::fixed_or_significant(peak, 3),
+                crate::fixed_or_significant(capacity, 3),
+                crate::fixed_or_significant(peak / (2.0 * self.drive.drum_radius_m), 1)
             ));
         } else if peak >= 0.8 * capacity {
             out.push(format!(
-                "peak load {peak:.3} N m is {:.0} % of the slack limit {capacity:.3} N m",
-                100.0 * peak / capacity
+                "peak load {} N m is {:.0} % of the slack limit {} N m",
+                crate::fixed_or_significant(peak, 3),
+                100.0 * peak / capacity,
+                crate::fixed_or_significant(capacity, 3)
             ));
         }
         out
