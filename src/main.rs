@@ -330,7 +330,9 @@ enum Command {
         /// 'identify.candidates=["load_compliance"]'.
         #[arg(long = "extension", value_name = "EFFECT")]
         extension: Vec<String>,
-        /// Results directory (default: results/<scenario name>-diagnosis).
+        /// Results directory (default: results/<scenario name>-diagnosis, or with
+        /// --leave-one-out results/<scenario name>-leave-one-out; the next free -2, -3, ...
+        /// when it exists, or replaced with --force).
         #[arg(long)]
         out: Option<PathBuf>,
         /// Also write the JSON report here.
@@ -831,7 +833,10 @@ fn main() -> ExitCode {
                 Err(code) => return code,
             };
             let dir = out.clone().unwrap_or_else(|| {
-                PathBuf::from("results").join(format!("{}-diagnosis", scenario.name()))
+                run::default_results_dir(
+                    &PathBuf::from("results").join(format!("{}-diagnosis", scenario.name())),
+                    force,
+                )
             });
             let start = match cut_start {
                 None => cable_servo::identify::startup::StartMode::Detect,
@@ -861,7 +866,11 @@ fn main() -> ExitCode {
                     }
                 }
                 let dir = out.unwrap_or_else(|| {
-                    PathBuf::from("results").join(format!("{}-leave-one-out", scenario.name()))
+                    run::default_results_dir(
+                        &PathBuf::from("results")
+                            .join(format!("{}-leave-one-out", scenario.name())),
+                        force,
+                    )
                 });
                 let folds = cable_servo::run::progress::Bar::new("leave-one-out", "logs");
                 let result = cable_servo::run::run_leave_one_out_with_progress(

@@ -657,6 +657,34 @@ pub fn sweep_wall_estimate(
 }
 
 /// Run the sweep declared in `scenario` (with `base` its resolved table), streaming
+/// A case the scenario refuses before the sweep starts, named by its values and where
+/// they come from (a mistyped `--vary` key is the usual cause).
+fn case_input_error(case: &Case, e: ScenarioError) -> RunError {
+    match e {
+        ScenarioError::Invalid { key, message, .. } => {
+            let values = case
+                .assignments
+                .iter()
+                .map(|(key, _, value)| format!("{key}={}", engine::render_value(value)))
+                .collect::<Vec<_>>()
+                .join(", ");
+            RunError::Scenario(ScenarioError::Invalid {
+                source_name: format!(
+                    "sweep case {} ({values}; set by --vary or [[sweep.parameters]])",
+                    case.index
+                ),
+                key,
+                message,
+            })
+        }
+        other => SweepError::Case {
+            index: case.index,
+            source: Box::new(other),
+        }
+        .into(),
+    }
+}
+
 /// `sweep.csv`; `progress` is called after every case.
 pub fn run_sweep(
     scenario: &Scenario,
@@ -680,10 +708,7 @@ pub fn run_sweep(
     let runner = runner_for(scenario)?;
     // Validate every case before anything is written: bad input leaves no results.
     for case in cases.iter().filter(|c| options.shard.owns(c.index)) {
-        case_scenario(&base, case, scenario.name()).map_err(|e| SweepError::Case {
-            index: case.index,
-            source: Box::new(e),
-        })?;
+        case_scenario(&base, case, scenario.name()).map_err(|e| case_input_error(case, e))?;
     }
     let owned_cases = cases.iter().filter(|c| options.shard.owns(c.index)).count();
     if let Some((wall_s, per_case_s)) = sweep_wall_estimate(scenario, owned_cases, options.threads)
@@ -967,7 +992,8 @@ pub fn run_diagnosis_with_progress(
     if let Some(path) = save_model {
         report::diagnosis::save_model(path, scenario, &diagnosis)?;
     }
-    let table = report::diagnosis::summary_text(&diagnosis);
+    let mut table = report::diagnosis::summary_text(&diagnosis);
+    table.push_str(&saved_model_line(save_model));
     finish(staged, table, None, Vec::new())
 }
 
@@ -1086,7 +1112,20 @@ pub fn run_leave_one_out_with_progress(
         );
         crate::io::output::write_atomic(path, (header + &model).as_bytes())?;
     }
+    let mut text = text;
+    text.push_str(&saved_model_line(save_model));
     finish(staged, text, None, Vec::new())
+}
+
+/// The console's line for a model saved with `--save-model` (empty without one).
+fn saved_model_line(save_model: Option<&Path>) -> String {
+    save_model.map_or_else(String::new, |path| {
+        format!(
+            "model: {} (a complete scenario: `cable-servo run {}` runs it)\n",
+            path.display(),
+            path.display()
+        )
+    })
 }
 
 /// What `freqresp` measured and where it went.

@@ -127,6 +127,41 @@ fn bad_vary_names_the_argument_and_the_forms() {
     assert_eq!(o.status.code(), Some(2));
 }
 
+#[test]
+fn a_mistyped_vary_key_is_named_with_where_it_comes_from_and_leaves_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("sx");
+    let o = cable_servo(&[
+        "sweep",
+        "paper_bench",
+        "--vary",
+        "drive.prelaod_n=10,20",
+        "--out",
+        path(&out),
+    ]);
+    assert_eq!(o.status.code(), Some(3));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("drive.prelaod_n=10"), "{err}");
+    assert!(err.contains("--vary"), "{err}");
+    assert!(err.contains("did you mean `preload_n`"), "{err}");
+    assert!(!out.exists());
+    // A key varied twice would drop its first values: refused.
+    let o = cable_servo(&[
+        "sweep",
+        "paper_bench",
+        "--vary",
+        "drive.preload_n=10:100:10",
+        "--vary",
+        "drive.preload_n=5,6",
+        "--out",
+        path(&out),
+    ]);
+    assert_eq!(o.status.code(), Some(3));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("already varied"), "{err}");
+    assert!(!out.exists());
+}
+
 /// The first number in `line` after `after`.
 fn number_after(line: &str, after: &str) -> f64 {
     let rest = &line[line

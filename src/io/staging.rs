@@ -56,8 +56,11 @@ pub fn foreign_content(path: &Path) -> Option<String> {
     let mut shown: Vec<&str> = entries.iter().map(String::as_str).take(5).collect();
     shown.sort_unstable();
     Some(format!(
-        "a directory of {} entries ({}{}) with no {MARKER_FILE} or summary.json, so not results written by cable-servo",
-        entries.len(),
+        "a directory of {} ({}{}) with no {MARKER_FILE} or summary.json, so not results written by cable-servo",
+        match entries.len() {
+            1 => "1 entry".to_string(),
+            n => format!("{n} entries"),
+        },
         shown.join(", "),
         if entries.len() > shown.len() { ", ..." } else { "" }
     ))

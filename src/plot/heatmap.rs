@@ -57,6 +57,15 @@ pub(super) fn viridis(t: f64) -> RGBColor {
     RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
 }
 
+/// The unit of a colour bar's label written `words [unit]`, for the contour's key; empty
+/// for a label without one.
+fn unit_of(label: &str) -> &str {
+    label
+        .strip_suffix(']')
+        .and_then(|l| l.rfind('[').map(|i| &l[i + 1..]))
+        .unwrap_or("")
+}
+
 /// Joins contour edge segments that share end points into polylines, so
 /// thick lines get proper joins instead of notched corners.
 pub(super) fn chain_segments(segs: &[(Pt, Pt)]) -> Vec<Vec<Pt>> {
@@ -431,7 +440,11 @@ impl Figure for HeatFigure {
             ))
             .map_err(err)?;
             root.draw(&Text::new(
-                format!("target contour {}", fmt_general(level)),
+                match unit_of(&h.z_label) {
+                    "" => format!("target contour {}", fmt_general(level)),
+                    // Shorter than the key's width allows for "contour" beside the unit.
+                    unit => format!("target {} {unit}", fmt_general(level)),
+                },
                 (bx + 30, row_y),
                 key_font,
             ))

@@ -530,7 +530,7 @@ fn save_heatmap_nan_and_contour() {
     let paths = save_heatmap(&map, &dir.join("sweep")).expect("heatmap");
     check_outputs(&paths, HEATMAP_SIZE);
     let svg = fs::read_to_string(&paths[1]).expect("svg");
-    assert!(svg.contains("failed or stopped case") && svg.contains("target contour 0.1"));
+    assert!(svg.contains("failed or stopped case") && svg.contains("target 0.1 mrad"));
 
     // All-NaN and single-cell maps still render.
     let single = Heatmap {

@@ -747,7 +747,14 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
         .map(|(i, c)| {
             (
                 row(i),
-                format!("{} ({:.2} mrad)", c.name, c.rmse_heldout_mrad),
+                // Three significant digits: an effect that brings a log to its noise
+                // floor sits at a few thousandths of a mrad, which two decimals round
+                // to 0.01.
+                format!(
+                    "{} ({} mrad)",
+                    c.name,
+                    crate::significant(c.rmse_heldout_mrad, 3)
+                ),
             )
         })
         .collect();
@@ -770,7 +777,7 @@ fn plots(dir: &Path, d: &Diagnosis) -> Result<Vec<PathBuf>, IdentifyError> {
         Series::points("not accepted", rx, ry).in_slot(0),
         Series::points("accepted", ax, ay).in_slot(2),
         Series::line(
-            format!("{start} ({start_mrad:.2} mrad)"),
+            format!("{start} ({} mrad)", crate::significant(start_mrad, 3)),
             vec![start_mrad, start_mrad],
             vec![0.5, n as f64 + 0.5],
         )

@@ -356,8 +356,15 @@ pub fn statistics(
     rows: &[(Case, Vec<Cell>)],
 ) -> (serde_json::Value, String) {
     let mut json = serde_json::Map::new();
+    // As wide as the longest name (`memory_within_target_fraction`), so no row shifts.
+    let width = figure_columns
+        .iter()
+        .map(|n| n.chars().count())
+        .max()
+        .unwrap_or(0)
+        .max(26);
     let mut text = format!(
-        "{:<26} {:>7} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12}\n",
+        "{:<width$} {:>7} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12}\n",
         "figure", "cases", "mean", "std", "min", "p5", "p50", "p95", "max"
     );
     for (j, name) in figure_columns.iter().enumerate() {
@@ -382,7 +389,7 @@ pub fn statistics(
         let pct = |p: f64| v[((p * n as f64).ceil() as usize).clamp(1, n) - 1];
         let (p5, p50, p95) = (pct(0.05), pct(0.5), pct(0.95));
         text.push_str(&format!(
-            "{name:<26} {n:>7} {mean:>12.6} {std:>12.6} {:>12.6} {p5:>12.6} {p50:>12.6} {p95:>12.6} {:>12.6}\n",
+            "{name:<width$} {n:>7} {mean:>12.6} {std:>12.6} {:>12.6} {p5:>12.6} {p50:>12.6} {p95:>12.6} {:>12.6}\n",
             v[0],
             v[n - 1]
         ));

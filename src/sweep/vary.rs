@@ -217,8 +217,17 @@ impl SweepOverrides {
     /// mean something there.
     pub fn apply(&self, sweep: Option<SweepSpec>) -> Result<SweepSpec, String> {
         let mut spec = sweep.unwrap_or_default();
+        let mut varied: Vec<String> = Vec::new();
         for arg in &self.vary {
             let p = parse_vary(arg)?;
+            // A second `--vary` of one key would silently drop the first.
+            if varied.contains(&p.key) {
+                return Err(format!(
+                    "--vary {arg}: {} is already varied by an earlier --vary; give all its values in one",
+                    p.key
+                ));
+            }
+            varied.push(p.key.clone());
             match spec.parameters.iter_mut().find(|q| q.key == p.key) {
                 Some(q) => {
                     let column = q.column.take();
@@ -277,6 +286,29 @@ mod tests {
             .iter()
             .map(crate::sweep::engine::render_value)
             .collect()
+    }
+
+    #[test]
+    fn a_key_varied_twice_is_refused() {
+        let overrides = SweepOverrides {
+            vary: vec![
+                "drive.preload_n=10:100:10".into(),
+                "load.brake_nm=0.3".into(),
+                "drive.preload_n=5,6".into(),
+            ],
+            ..SweepOverrides::default()
+        };
+        let err = overrides.apply(None).unwrap_err();
+        assert!(
+            err.starts_with("--vary drive.preload_n=5,6: drive.preload_n is already varied"),
+            "{err}"
+        );
+        // Once each, they make a sweep.
+        let once = SweepOverrides {
+            vary: overrides.vary[..2].to_vec(),
+            ..SweepOverrides::default()
+        };
+        assert_eq!(once.apply(None).unwrap().parameters.len(), 2);
     }
 
     #[test]
