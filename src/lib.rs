@@ -102,6 +102,12 @@ pub fn fixed(v: f64, decimals: usize) -> String {
     }
 }
 
+/// The message for a scenario value outside what is allowed: `v` as [`number`] shows it,
+/// then `allowed` (e.g. `a finite number > 0`), worded the same for every key.
+pub fn out_of_range(v: f64, allowed: &str) -> String {
+    format!("{} is out of range: it must be {allowed}", number(v))
+}
+
 /// [`fixed`], except that a nonzero value too small for `decimals` keeps three
 /// significant digits (`2.05e-8`, `0.000123`), where fixed decimals would print zero:
 /// for messages, whose every number must be one a user can act on.

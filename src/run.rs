@@ -661,22 +661,15 @@ pub fn sweep_wall_estimate(
 /// they come from (a mistyped `--vary` key is the usual cause).
 fn case_input_error(case: &Case, e: ScenarioError) -> RunError {
     match e {
-        ScenarioError::Invalid { key, message, .. } => {
-            let values = case
-                .assignments
-                .iter()
-                .map(|(key, _, value)| format!("{key}={}", engine::render_value(value)))
-                .collect::<Vec<_>>()
-                .join(", ");
-            RunError::Scenario(ScenarioError::Invalid {
-                source_name: format!(
-                    "sweep case {} ({values}; set by --vary or [[sweep.parameters]])",
-                    case.index
-                ),
-                key,
-                message,
-            })
-        }
+        ScenarioError::Invalid { key, message, .. } => RunError::Scenario(ScenarioError::Invalid {
+            source_name: format!(
+                "sweep case {} ({}; set by --vary or [[sweep.parameters]])",
+                case.index,
+                case::case_values(case)
+            ),
+            key,
+            message,
+        }),
         other => SweepError::Case {
             index: case.index,
             source: Box::new(other),
@@ -1065,7 +1058,7 @@ pub fn run_leave_one_out_with_progress(
         keep_segments,
         progress,
     )?;
-    let text = crate::identify::loo::loo_text(&table);
+    let mut text = crate::identify::loo::loo_text(&table);
     let staged = StagedDir::create(&out.dir, out.force)?;
     let body = serde_json::to_vec_pretty(&report::with_provenance(
         scenario,
@@ -1112,7 +1105,6 @@ pub fn run_leave_one_out_with_progress(
         );
         crate::io::output::write_atomic(path, (header + &model).as_bytes())?;
     }
-    let mut text = text;
     text.push_str(&saved_model_line(save_model));
     finish(staged, text, None, Vec::new())
 }

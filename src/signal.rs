@@ -357,8 +357,8 @@ impl Signal {
                 Ok(())
             } else {
                 Err(format!(
-                    "{name} = {} is out of range: it must be a finite number",
-                    crate::number(v)
+                    "{name} = {}",
+                    crate::out_of_range(v, "a finite number")
                 ))
             }
         };

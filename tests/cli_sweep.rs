@@ -111,6 +111,13 @@ fn shards_merge_into_the_single_run_file() {
     assert_eq!(text(&merged), text(&single.join("sweep.csv")));
 }
 
+/// The error stream of a run that must be refused with `code`.
+fn refused(o: &Output, code: i32) -> String {
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert_eq!(o.status.code(), Some(code), "{err}");
+    err
+}
+
 #[test]
 fn bad_vary_names_the_argument_and_the_forms() {
     let o = cable_servo(&[
@@ -119,8 +126,7 @@ fn bad_vary_names_the_argument_and_the_forms() {
         "--vary",
         "drive.preload_n=gauss(1,2)",
     ]);
-    assert_eq!(o.status.code(), Some(3));
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = refused(&o, 3);
     assert!(err.contains("--vary drive.preload_n=gauss(1,2)"), "{err}");
     assert!(err.contains("tnormal(mean,std,min,max)"), "{err}");
     let o = cable_servo(&["sweep", "paper_fig11", "--mode", "sobol"]);
@@ -139,8 +145,7 @@ fn a_mistyped_vary_key_is_named_with_where_it_comes_from_and_leaves_nothing() {
         "--out",
         path(&out),
     ]);
-    assert_eq!(o.status.code(), Some(3));
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = refused(&o, 3);
     assert!(err.contains("drive.prelaod_n=10"), "{err}");
     assert!(err.contains("--vary"), "{err}");
     assert!(err.contains("did you mean `preload_n`"), "{err}");
@@ -156,8 +161,7 @@ fn a_mistyped_vary_key_is_named_with_where_it_comes_from_and_leaves_nothing() {
         "--out",
         path(&out),
     ]);
-    assert_eq!(o.status.code(), Some(3));
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = refused(&o, 3);
     assert!(err.contains("already varied"), "{err}");
     assert!(!out.exists());
 }

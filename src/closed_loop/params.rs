@@ -840,26 +840,14 @@ impl ClosedLoopParams {
             if v.is_finite() && v > 0.0 {
                 Ok(())
             } else {
-                Err((
-                    key(k),
-                    format!(
-                        "{} is out of range: it must be a finite number > 0",
-                        crate::number(v)
-                    ),
-                ))
+                Err((key(k), crate::out_of_range(v, "a finite number > 0")))
             }
         };
         let nonneg = |k: &str, v: f64| -> Result<(), (String, String)> {
             if v.is_finite() && v >= 0.0 {
                 Ok(())
             } else {
-                Err((
-                    key(k),
-                    format!(
-                        "{} is out of range: it must be a finite number >= 0",
-                        crate::number(v)
-                    ),
-                ))
+                Err((key(k), crate::out_of_range(v, "a finite number >= 0")))
             }
         };
         pos("duration_s", self.duration_s)?;
@@ -1360,13 +1348,7 @@ impl ClosedLoopParams {
                 ("controller.rate_loop.ki", r.ki),
             ] {
                 if !(v.is_finite() && v >= 0.0) {
-                    return Err((
-                        key(k),
-                        format!(
-                            "{} is out of range: it must be a finite number >= 0",
-                            crate::number(v)
-                        ),
-                    ));
+                    return Err((key(k), crate::out_of_range(v, "a finite number >= 0")));
                 }
             }
             in_band(

@@ -146,11 +146,13 @@ impl EffectsParams {
         let check = |key: &str, v: Option<f64>, lo: f64, hi: f64| match v {
             Some(x) if !(x.is_finite() && x >= lo && x <= hi) => Err((
                 key.to_string(),
-                format!(
-                    "{} is out of range: it must be a finite number in [{}, {}]",
-                    crate::number(x),
-                    crate::number(lo),
-                    crate::number(hi)
+                crate::out_of_range(
+                    x,
+                    &format!(
+                        "a finite number in [{}, {}]",
+                        crate::number(lo),
+                        crate::number(hi)
+                    ),
                 ),
             )),
             _ => Ok(()),

@@ -167,26 +167,14 @@ impl LoadParams {
             if v.is_finite() && v >= 0.0 {
                 Ok(())
             } else {
-                Err((
-                    key,
-                    format!(
-                        "{} is out of range: it must be a finite number >= 0",
-                        crate::number(v)
-                    ),
-                ))
+                Err((key, crate::out_of_range(v, "a finite number >= 0")))
             }
         };
         let finite = |key: &'static str, v: f64| {
             if v.is_finite() {
                 Ok(())
             } else {
-                Err((
-                    key,
-                    format!(
-                        "{} is out of range: it must be a finite number",
-                        crate::number(v)
-                    ),
-                ))
+                Err((key, crate::out_of_range(v, "a finite number")))
             }
         };
         // Torques beyond any cable drive: they only make unreadable numbers.

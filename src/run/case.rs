@@ -39,6 +39,15 @@ pub fn case_dir(results: &Path, index: usize) -> PathBuf {
     results.join("cases").join(format!("case-{index:06}"))
 }
 
+/// A case's values as `key=value, ...`, for messages.
+pub(crate) fn case_values(case: &Case) -> String {
+    case.assignments
+        .iter()
+        .map(|(key, _, value)| format!("{key}={}", render_value(value)))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// Build the scenario of one case from the base scenario table.
 pub fn case_scenario(
     base: &toml::Table,
@@ -54,13 +63,7 @@ pub fn case_scenario(
             message,
         })?;
     }
-    let values = case
-        .assignments
-        .iter()
-        .map(|(key, _, value)| format!("{key}={}", render_value(value)))
-        .collect::<Vec<_>>()
-        .join(", ");
-    let source = format!("the case's values {values}");
+    let source = format!("the case's values {}", case_values(case));
     match Scenario::from_table(table, &source, default_name) {
         Err(ScenarioError::Invalid { key, message, .. }) if key == "scenario" => {
             // A value of the wrong type is reported without its key: the first assignment

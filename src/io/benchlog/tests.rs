@@ -411,6 +411,9 @@ fn a_drive_log_refuses_loads_and_angles_beyond_any_drive() {
     )
     .unwrap();
     let e = super::read_drive_log(&path).unwrap_err().to_string();
+    // The temporary directory's random name may itself hold "inf": read the message
+    // without it.
+    let e = e.replace(&dir.path().display().to_string(), "");
     assert!(
         e.contains("huge.csv")
             && e.contains("line 3")
